@@ -1,0 +1,153 @@
+//! Point evaluation in f64: positions, partial derivatives up to second order, unit normals
+//! with limits at degenerate points.
+
+use super::basis::{BasisDers, MAX_ORDER, basis_ders};
+use crate::geom::{BSplineCurve, BSplineSurface};
+use glam::{DVec3, DVec4};
+
+/// A surface point with its partial derivatives (model units per unit of parameter) and
+/// unit normal.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfaceSample {
+    pub position: DVec3,
+    pub du: DVec3,
+    pub dv: DVec3,
+    pub duu: DVec3,
+    pub duv: DVec3,
+    pub dvv: DVec3,
+    /// unit(S_u × S_v), or its limit where that cross product vanishes (see [`BSplineSurface::evaluate`]).
+    pub normal: DVec3,
+}
+
+/// Cross products below this fraction of (model size / parameter width)² count as zero:
+/// rounding noise at a genuinely degenerate point, not a tangent plane.
+const DEGENERATE_REL: f64 = 1e-12;
+
+impl BSplineSurface {
+    /// Evaluates position, derivatives and normal at (u, v); parameters outside the knot
+    /// domain are clamped to it.
+    ///
+    /// Normal contract: unit(S_u × S_v) where that cross product is not negligible. Where it
+    /// vanishes (a collapsed edge, a sphere pole, a cone apex) the normal is the limit of
+    /// unit(S_u × S_v) approached from inside the evaluation range along the direction
+    /// (±width_u, ±width_v) — toward the centre of the range — computed from the second
+    /// derivatives: S_u×S_v ≈ du(S_u×S_uv + S_uu×S_v) + dv(S_u×S_vv + S_uv×S_v). Along a
+    /// collapsed edge this limit does not depend on the direction; at a corner where it does
+    /// (e.g. where a collapsed edge meets a crease), it is the limit along that diagonal. If
+    /// the first-order term vanishes too, the normal is taken at nearby points along the same
+    /// diagonal; a surface with no tangent plane anywhere near (collapsed to a point or a line)
+    /// gets +Z.
+    pub fn evaluate(&self, u: f64, v: f64) -> SurfaceSample {
+        let (h, [hu, hv, huu, huv, hvv]) = self.homogeneous_derivatives(u, v);
+        let w = h.w;
+        let position = h.truncate() / w;
+        let du = (hu.truncate() - hu.w * position) / w;
+        let dv = (hv.truncate() - hv.w * position) / w;
+        let duu = (huu.truncate() - 2.0 * hu.w * du - huu.w * position) / w;
+        let duv = (huv.truncate() - hu.w * dv - hv.w * du - huv.w * position) / w;
+        let dvv = (hvv.truncate() - 2.0 * hv.w * dv - hvv.w * position) / w;
+        let mut sample = SurfaceSample { position, du, dv, duu, duv, dvv, normal: DVec3::ZERO };
+        sample.normal = self.normal_of(&sample, u, v);
+        sample
+    }
+
+    /// The point at (u, v).
+    pub fn point(&self, u: f64, v: f64) -> DVec3 {
+        self.evaluate(u, v).position
+    }
+
+    /// Squared length below which |S_u × S_v|² counts as zero for this surface.
+    pub(crate) fn degenerate_cross_sq(&self) -> f64 {
+        let (u0, u1) = self.knots_u().domain();
+        let (v0, v1) = self.knots_v().domain();
+        let size = self.control_box_diagonal();
+        let t = DEGENERATE_REL * size * size / ((u1 - u0) * (v1 - v0));
+        t * t
+    }
+
+    fn normal_of(&self, s: &SurfaceSample, u: f64, v: f64) -> DVec3 {
+        let threshold = self.degenerate_cross_sq();
+        let n = s.du.cross(s.dv);
+        if n.length_squared() > threshold {
+            return n.normalize();
+        }
+        let (ru, rv) = (self.range_u(), self.range_v());
+        let step_u = if u > 0.5 * (ru.start + ru.end) { -ru.width() } else { ru.width() };
+        let step_v = if v > 0.5 * (rv.start + rv.end) { -rv.width() } else { rv.width() };
+        let first_order = step_u * (s.du.cross(s.duv) + s.duu.cross(s.dv)) + step_v * (s.du.cross(s.dvv) + s.duv.cross(s.dv));
+        if first_order.length_squared() > threshold {
+            return first_order.normalize();
+        }
+        for fraction in [1e-6, 1e-4, 1e-2] {
+            let (hu, hv) = (u + step_u * fraction, v + step_v * fraction);
+            let (_, [du, dv]) = self.rational_first_derivatives(hu, hv);
+            let n = du.cross(dv);
+            if n.length_squared() > threshold {
+                return n.normalize();
+            }
+        }
+        DVec3::Z
+    }
+
+    /// Position and first derivatives [S_u, S_v] at (u, v).
+    fn rational_first_derivatives(&self, u: f64, v: f64) -> (DVec3, [DVec3; 2]) {
+        let (h, [hu, hv, ..]) = self.homogeneous_derivatives(u, v);
+        let position = h.truncate() / h.w;
+        (position, [(hu.truncate() - hu.w * position) / h.w, (hv.truncate() - hv.w * position) / h.w])
+    }
+
+    /// Homogeneous point and its derivatives [∂u, ∂v, ∂uu, ∂uv, ∂vv] at (u, v).
+    fn homogeneous_derivatives(&self, u: f64, v: f64) -> (DVec4, [DVec4; 5]) {
+        let (ku, kv) = (self.knots_u(), self.knots_v());
+        let (p, q) = (ku.degree(), kv.degree());
+        let (su, sv) = (ku.find_span(u), kv.find_span(v));
+        let mut bu: BasisDers = [[0.0; MAX_ORDER]; 3];
+        let mut bv: BasisDers = [[0.0; MAX_ORDER]; 3];
+        basis_ders(ku, su, u.clamp(ku.domain().0, ku.domain().1), 2, &mut bu);
+        basis_ders(kv, sv, v.clamp(kv.domain().0, kv.domain().1), 2, &mut bv);
+        let count_u = self.count_u();
+        let points = self.homogeneous_points();
+        let mut out = [DVec4::ZERO; 6];
+        for b in 0..=q {
+            let row = &points[(sv - q + b) * count_u + su - p..][..=p];
+            // Contract along u first: value, ∂u, ∂uu of this control row.
+            let (mut c0, mut c1, mut c2) = (DVec4::ZERO, DVec4::ZERO, DVec4::ZERO);
+            for (a, &pt) in row.iter().enumerate() {
+                c0 += bu[0][a] * pt;
+                c1 += bu[1][a] * pt;
+                c2 += bu[2][a] * pt;
+            }
+            out[0] += bv[0][b] * c0;
+            out[1] += bv[0][b] * c1;
+            out[2] += bv[1][b] * c0;
+            out[3] += bv[0][b] * c2;
+            out[4] += bv[1][b] * c1;
+            out[5] += bv[2][b] * c0;
+        }
+        (out[0], [out[1], out[2], out[3], out[4], out[5]])
+    }
+}
+
+impl BSplineCurve {
+    /// Position and first derivative (tangent, model units per unit of parameter) at `u`,
+    /// clamped to the knot domain.
+    pub fn evaluate(&self, u: f64) -> (DVec3, DVec3) {
+        let knots = self.knots();
+        let p = knots.degree();
+        let span = knots.find_span(u);
+        let mut basis: BasisDers = [[0.0; MAX_ORDER]; 3];
+        basis_ders(knots, span, u.clamp(knots.domain().0, knots.domain().1), 1, &mut basis);
+        let (mut h, mut hu) = (DVec4::ZERO, DVec4::ZERO);
+        for (a, &pt) in self.homogeneous_points()[span - p..=span].iter().enumerate() {
+            h += basis[0][a] * pt;
+            hu += basis[1][a] * pt;
+        }
+        let position = h.truncate() / h.w;
+        (position, (hu.truncate() - hu.w * position) / h.w)
+    }
+
+    /// The point at `u`.
+    pub fn point(&self, u: f64) -> DVec3 {
+        self.evaluate(u).0
+    }
+}

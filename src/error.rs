@@ -1,0 +1,88 @@
+//! The one error type of the library. Every variant names what is wrong and where.
+
+use std::path::PathBuf;
+
+/// Result alias used throughout knotwork.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Everything that can go wrong in knotwork, from bad geometry to a missing GPU.
+///
+/// Geometry errors carry the index (knot, control point, weight) that is at fault; file errors
+/// wrap them with the line ([`Error::AtLine`]) and the path ([`Error::InFile`]).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    #[error("degree {degree} is outside the supported range 1..={max}")]
+    DegreeOutOfRange { degree: usize, max: usize },
+    #[error("knot {index} is not finite ({value})")]
+    KnotNotFinite { index: usize, value: f64 },
+    #[error("knots decrease at index {index} ({previous} > {value})")]
+    KnotsDecreasing { index: usize, previous: f64, value: f64 },
+    #[error("knot {value} at index {index} has multiplicity {multiplicity}, more than the {max} allowed there")]
+    KnotMultiplicity { index: usize, value: f64, multiplicity: usize, max: usize },
+    #[error("{found} knots for degree {degree}: at least {min} are needed (2 × (degree + 1))")]
+    TooFewKnots { found: usize, degree: usize, min: usize },
+    #[error("the knot domain [{start}, {end}] is empty")]
+    EmptyDomain { start: f64, end: f64 },
+    #[error("{found} control points given, {expected} expected ({what})")]
+    ControlPointCount { expected: usize, found: usize, what: &'static str },
+    #[error("control point {index} is not finite")]
+    ControlPointNotFinite { index: usize },
+    #[error("weight {index} is {value}: weights must be finite and > 0")]
+    InvalidWeight { index: usize, value: f64 },
+    #[error("parameter range [{start}, {end}] is not inside the domain [{domain_start}, {domain_end}] or is empty")]
+    RangeOutsideDomain { start: f64, end: f64, domain_start: f64, domain_end: f64 },
+    #[error("breakpoints must increase strictly: breakpoint {index} is {value}")]
+    BreakpointsNotIncreasing { index: usize, value: f64 },
+    #[error("grid {nu}x{nv} is invalid: each side needs at least 2 samples")]
+    GridTooSmall { nu: u32, nv: u32 },
+    #[error("the mesh would have {vertices} vertices, more than u32 indices can address")]
+    MeshTooLarge { vertices: u64 },
+    #[error("{message}")]
+    Syntax { message: String },
+    #[error("vertex reference {reference} is out of range: {available} vertices are defined above it")]
+    VertexReference { reference: i64, available: usize },
+    #[error("the file ended early: {expected}")]
+    UnexpectedEnd { expected: String },
+    #[error("unknown file format for {path:?}: expected one of {expected}")]
+    UnknownFormat { path: PathBuf, expected: &'static str },
+    #[error("line {line}: {source}")]
+    AtLine { line: usize, source: Box<Error> },
+    #[error("{}: {source}", path.display())]
+    InFile { path: PathBuf, source: Box<Error> },
+    #[error("{}: {source}", path.display())]
+    Io { path: PathBuf, source: std::io::Error },
+}
+
+impl Error {
+    /// Wraps this error with the 1-based line of the file it was found on.
+    pub fn at_line(self, line: usize) -> Error {
+        Error::AtLine { line, source: Box::new(self) }
+    }
+
+    /// Wraps this error with the file it was found in.
+    pub fn in_file(self, path: impl Into<PathBuf>) -> Error {
+        Error::InFile { path: path.into(), source: Box::new(self) }
+    }
+
+    pub(crate) fn syntax(message: impl Into<String>) -> Error {
+        Error::Syntax { message: message.into() }
+    }
+
+    /// The innermost error, past any line and file wrappers.
+    pub fn root(&self) -> &Error {
+        match self {
+            Error::AtLine { source, .. } | Error::InFile { source, .. } => source.root(),
+            other => other,
+        }
+    }
+
+    /// The 1-based line this error was reported on, if it came from a file.
+    pub fn line(&self) -> Option<usize> {
+        match self {
+            Error::AtLine { line, .. } => Some(*line),
+            Error::InFile { source, .. } => source.line(),
+            _ => None,
+        }
+    }
+}

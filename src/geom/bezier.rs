@@ -1,0 +1,159 @@
+//! Bezier curves and patches as B-splines, and Bezier extraction of B-spline surfaces.
+
+use super::{BSplineCurve, BSplineSurface, Interval, KnotVector};
+use crate::error::Result;
+use glam::{DVec3, DVec4};
+
+/// A Bezier curve of `degree` (degree + 1 points) on [0, 1], as a clamped B-spline.
+pub fn bezier_curve(degree: usize, points: &[DVec3], weights: Option<&[f64]>) -> Result<BSplineCurve> {
+    BSplineCurve::try_new(KnotVector::from_breakpoints(degree, &[0.0, 1.0])?, points, weights)
+}
+
+/// A single Bezier patch of degree (degree_u, degree_v) on [0, 1]², control points u fastest.
+pub fn bezier_surface(degree_u: usize, degree_v: usize, points: &[DVec3], weights: Option<&[f64]>) -> Result<BSplineSurface> {
+    piecewise_bezier_surface(degree_u, degree_v, &[0.0, 1.0], &[0.0, 1.0], points, weights)
+}
+
+/// A multi-patch Bezier surface: one global control grid (u fastest) in which neighbouring
+/// patches share their boundary row or column, so a direction with k segments has
+/// degree·k + 1 points. The breakpoints (strictly increasing) bound the segments in the global
+/// parameter; segment i maps [b_i, b_(i+1)] to the local [0, 1]. Converted exactly to a
+/// B-spline with the breakpoints as knots (interior ones repeated `degree` times).
+pub fn piecewise_bezier_surface(
+    degree_u: usize,
+    degree_v: usize,
+    breakpoints_u: &[f64],
+    breakpoints_v: &[f64],
+    points: &[DVec3],
+    weights: Option<&[f64]>,
+) -> Result<BSplineSurface> {
+    let knots_u = KnotVector::from_breakpoints(degree_u, breakpoints_u)?;
+    let knots_v = KnotVector::from_breakpoints(degree_v, breakpoints_v)?;
+    BSplineSurface::try_new(knots_u, knots_v, points, weights)
+}
+
+/// One rational Bezier patch cut out of a B-spline surface by [`BSplineSurface::bezier_patches`].
+///
+/// `points` are homogeneous (x·w, y·w, z·w, w), (degree_u+1)·(degree_v+1) of them, u fastest;
+/// the patch covers `range_u × range_v` of the original surface's parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BezierPatch {
+    pub degree_u: usize,
+    pub degree_v: usize,
+    pub points: Vec<DVec4>,
+    pub range_u: Interval,
+    pub range_v: Interval,
+}
+
+impl BezierPatch {
+    /// Evaluates the patch at global parameters (u, v) by de Casteljau's algorithm in
+    /// homogeneous space — independent of the B-spline basis code, so tests can compare them.
+    pub fn point(&self, u: f64, v: f64) -> DVec3 {
+        let s = (u - self.range_u.start) / self.range_u.width();
+        let t = (v - self.range_v.start) / self.range_v.width();
+        let row_len = self.degree_u + 1;
+        let column: Vec<DVec4> = self.points.chunks_exact(row_len).map(|row| de_casteljau(row, s)).collect();
+        let h = de_casteljau(&column, t);
+        h.truncate() / h.w
+    }
+}
+
+/// The point at `t` of the Bezier polygon `points` (homogeneous), by repeated interpolation.
+pub(crate) fn de_casteljau(points: &[DVec4], t: f64) -> DVec4 {
+    let mut work = points.to_vec();
+    for level in 1..work.len() {
+        for k in 0..work.len() - level {
+            work[k] = work[k].lerp(work[k + 1], t);
+        }
+    }
+    work[0]
+}
+
+impl BSplineSurface {
+    /// Bezier extraction: inserts knots until every knot inside the domain has multiplicity
+    /// equal to the degree and both domain ends degree+1, then cuts out the rational Bezier
+    /// patches — u fastest, covering the whole knot domain (not just the evaluation range).
+    /// Exact up to rounding: the patches reproduce the surface.
+    pub fn bezier_patches(&self) -> Vec<BezierPatch> {
+        let (p, q) = (self.degree_u(), self.degree_v());
+        let (nu, nv) = (self.count_u(), self.count_v());
+        let pts = self.homogeneous_points();
+        // Along u, one row (fixed j) at a time.
+        let rows: Vec<(Vec<f64>, Vec<DVec4>)> =
+            (0..nv).map(|j| refine_to_bezier(p, self.knots_u().knots(), &pts[j * nu..(j + 1) * nu])).collect();
+        let breaks_u = rows[0].0.clone();
+        let nu2 = rows[0].1.len();
+        // Along v, one column (fixed i) of the refined rows at a time.
+        let columns: Vec<(Vec<f64>, Vec<DVec4>)> = (0..nu2)
+            .map(|i| {
+                let column: Vec<DVec4> = rows.iter().map(|(_, r)| r[i]).collect();
+                refine_to_bezier(q, self.knots_v().knots(), &column)
+            })
+            .collect();
+        let breaks_v = columns[0].0.clone();
+        let mut patches = Vec::with_capacity((breaks_u.len() - 1) * (breaks_v.len() - 1));
+        for sv in 0..breaks_v.len() - 1 {
+            for su in 0..breaks_u.len() - 1 {
+                let mut points = Vec::with_capacity((p + 1) * (q + 1));
+                for b in 0..=q {
+                    for a in 0..=p {
+                        points.push(columns[su * p + a].1[sv * q + b]);
+                    }
+                }
+                patches.push(BezierPatch {
+                    degree_u: p,
+                    degree_v: q,
+                    points,
+                    range_u: Interval::new(breaks_u[su], breaks_u[su + 1]),
+                    range_v: Interval::new(breaks_v[sv], breaks_v[sv + 1]),
+                });
+            }
+        }
+        patches
+    }
+}
+
+/// Refines one B-spline polygon of degree `p` into its Bezier segments. Returns the distinct
+/// breakpoints of the domain and the k·p + 1 points of the k segments (shared ends).
+fn refine_to_bezier(p: usize, knots: &[f64], points: &[DVec4]) -> (Vec<f64>, Vec<DVec4>) {
+    let mut knots = knots.to_vec();
+    let mut points = points.to_vec();
+    let n = points.len();
+    let (a, b) = (knots[p], knots[n]);
+    let mut breaks: Vec<f64> = knots[p..=n].to_vec();
+    breaks.dedup();
+    for (index, &t) in breaks.iter().enumerate() {
+        let target = if index == 0 || index == breaks.len() - 1 { p + 1 } else { p };
+        let have = knots.iter().filter(|&&k| k == t).count();
+        for _ in have..target {
+            insert_knot(p, &mut knots, &mut points, t);
+        }
+    }
+    // The domain now starts with degree+1 copies of `a`: its first one is the first point of
+    // the first segment.
+    let first = knots.iter().position(|&k| k == a).expect("domain start is a knot");
+    let count = p * (breaks.len() - 1) + 1;
+    debug_assert_eq!(knots[first + p], a);
+    debug_assert_eq!(knots[first + count], b);
+    (breaks, points[first..first + count].to_vec())
+}
+
+/// Boehm's single knot insertion of `t` into a degree-`p` polygon with knots `knots`.
+fn insert_knot(p: usize, knots: &mut Vec<f64>, points: &mut Vec<DVec4>, t: f64) {
+    let n = points.len();
+    // Span k with knots[k] <= t < knots[k+1], taken among k in [p, n-1]; the domain end maps
+    // to the last non-empty span so inserting at the end still works.
+    let mut k = p + knots[p + 1..n].partition_point(|&x| x <= t);
+    while k > p && knots[k] == knots[k + 1] {
+        k -= 1;
+    }
+    let mut inserted = Vec::with_capacity(n + 1);
+    inserted.extend_from_slice(&points[..=k - p]);
+    for i in k - p + 1..=k {
+        let alpha = (t - knots[i]) / (knots[i + p] - knots[i]);
+        inserted.push(points[i - 1].lerp(points[i], alpha));
+    }
+    inserted.extend_from_slice(&points[k..]);
+    *points = inserted;
+    knots.insert(k + 1, t);
+}

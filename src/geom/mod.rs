@@ -1,0 +1,41 @@
+//! The geometry model: knot vectors, B-spline and Bezier surfaces and curves, all validated at
+//! construction. Every surface is held in one canonical form — a tensor-product B-spline in
+//! homogeneous coordinates (x·w, y·w, z·w, w) — so one evaluator serves every kind.
+
+mod bezier;
+mod curve;
+mod knots;
+mod surface;
+
+pub use bezier::{BezierPatch, bezier_curve, bezier_surface, piecewise_bezier_surface};
+pub use curve::BSplineCurve;
+pub use knots::{KnotVector, MAX_DEGREE};
+pub(crate) use knots::check_degree;
+pub use surface::{BSplineSurface, Interval};
+
+use crate::error::{Error, Result};
+use glam::{DVec3, DVec4};
+
+/// Turns Cartesian points and optional weights into validated homogeneous points.
+/// `None` weights mean a non-rational (all weights 1) control net.
+pub(crate) fn homogeneous(points: &[DVec3], weights: Option<&[f64]>) -> Result<Vec<DVec4>> {
+    if let Some(w) = weights
+        && w.len() != points.len()
+    {
+        return Err(Error::ControlPointCount { expected: points.len(), found: w.len(), what: "one weight per control point" });
+    }
+    points
+        .iter()
+        .enumerate()
+        .map(|(index, p)| {
+            if !p.is_finite() {
+                return Err(Error::ControlPointNotFinite { index });
+            }
+            let w = weights.map_or(1.0, |w| w[index]);
+            if !(w.is_finite() && w > 0.0) {
+                return Err(Error::InvalidWeight { index, value: w });
+            }
+            Ok((*p * w).extend(w))
+        })
+        .collect()
+}

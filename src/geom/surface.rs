@@ -1,0 +1,147 @@
+use super::{KnotVector, homogeneous};
+use crate::error::{Error, Result};
+use glam::{DVec3, DVec4};
+
+/// A closed parameter interval [start, end] with start < end.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Interval {
+    pub start: f64,
+    pub end: f64,
+}
+
+impl Interval {
+    pub const fn new(start: f64, end: f64) -> Self {
+        Self { start, end }
+    }
+
+    pub fn width(&self) -> f64 {
+        self.end - self.start
+    }
+
+    /// The parameter at fraction `t` in [0, 1]; t = 1 gives `end` exactly.
+    pub fn lerp(&self, t: f64) -> f64 {
+        if t >= 1.0 { self.end } else { self.start + (self.end - self.start) * t }
+    }
+
+    /// Checks that this interval is non-empty and lies inside `domain`.
+    pub(crate) fn check_inside(&self, domain: (f64, f64)) -> Result<()> {
+        let ok = self.start.is_finite()
+            && self.end.is_finite()
+            && self.start < self.end
+            && self.start >= domain.0
+            && self.end <= domain.1;
+        if ok {
+            Ok(())
+        } else {
+            Err(Error::RangeOutsideDomain { start: self.start, end: self.end, domain_start: domain.0, domain_end: domain.1 })
+        }
+    }
+}
+
+/// A tensor-product B-spline surface, rational or not, of degree 1..=20 in u and v.
+///
+/// Control points are stored u-fastest: point (i, j) — i along u, j along v — is at index
+/// j·count_u + i, in homogeneous form (x·w, y·w, z·w, w). The surface is evaluated over
+/// `range_u × range_v`, a sub-rectangle of the knot domain (the whole domain by default).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BSplineSurface {
+    knots_u: KnotVector,
+    knots_v: KnotVector,
+    points: Vec<DVec4>,
+    rational: bool,
+    range_u: Interval,
+    range_v: Interval,
+    size: f64,
+}
+
+impl BSplineSurface {
+    /// Builds a surface from Cartesian control points (u fastest) and optional weights
+    /// (`None`: non-rational). Checks the point count against both knot vectors, that every
+    /// point is finite and that every weight is finite and > 0.
+    pub fn try_new(knots_u: KnotVector, knots_v: KnotVector, points: &[DVec3], weights: Option<&[f64]>) -> Result<Self> {
+        let expected = knots_u.control_count() * knots_v.control_count();
+        if points.len() != expected {
+            return Err(Error::ControlPointCount { expected, found: points.len(), what: "count_u × count_v from the knot vectors" });
+        }
+        let points_h = homogeneous(points, weights)?;
+        Ok(Self::from_homogeneous(knots_u, knots_v, points_h, weights.is_some()))
+    }
+
+    /// Builds from already validated homogeneous points; the range is the whole domain.
+    pub(crate) fn from_homogeneous(knots_u: KnotVector, knots_v: KnotVector, points: Vec<DVec4>, rational: bool) -> Self {
+        let (u0, u1) = knots_u.domain();
+        let (v0, v1) = knots_v.domain();
+        let size = box_diagonal(&points);
+        Self { knots_u, knots_v, points, rational, range_u: Interval::new(u0, u1), range_v: Interval::new(v0, v1), size }
+    }
+
+    /// Restricts evaluation to `range_u × range_v`, which must lie inside the knot domain.
+    pub fn with_range(mut self, range_u: Interval, range_v: Interval) -> Result<Self> {
+        range_u.check_inside(self.knots_u.domain())?;
+        range_v.check_inside(self.knots_v.domain())?;
+        self.range_u = range_u;
+        self.range_v = range_v;
+        Ok(self)
+    }
+
+    pub fn knots_u(&self) -> &KnotVector {
+        &self.knots_u
+    }
+    pub fn knots_v(&self) -> &KnotVector {
+        &self.knots_v
+    }
+    pub fn degree_u(&self) -> usize {
+        self.knots_u.degree()
+    }
+    pub fn degree_v(&self) -> usize {
+        self.knots_v.degree()
+    }
+    /// Number of control points along u.
+    pub fn count_u(&self) -> usize {
+        self.knots_u.control_count()
+    }
+    /// Number of control points along v.
+    pub fn count_v(&self) -> usize {
+        self.knots_v.control_count()
+    }
+    /// Homogeneous control points (x·w, y·w, z·w, w), u fastest.
+    pub fn homogeneous_points(&self) -> &[DVec4] {
+        &self.points
+    }
+    /// True when the surface was given weights (even if all of them are 1).
+    pub fn is_rational(&self) -> bool {
+        self.rational
+    }
+    pub fn range_u(&self) -> Interval {
+        self.range_u
+    }
+    pub fn range_v(&self) -> Interval {
+        self.range_v
+    }
+
+    /// Cartesian control point (i, j).
+    pub fn control_point(&self, i: usize, j: usize) -> DVec3 {
+        let p = self.points[j * self.count_u() + i];
+        p.truncate() / p.w
+    }
+
+    /// Weight of control point (i, j).
+    pub fn weight(&self, i: usize, j: usize) -> f64 {
+        self.points[j * self.count_u() + i].w
+    }
+
+    /// Diagonal of the bounding box of the Cartesian control points: the model size every
+    /// relative tolerance refers to. The surface lies inside that box (convex hull property).
+    pub fn control_box_diagonal(&self) -> f64 {
+        self.size
+    }
+}
+
+/// Diagonal of the bounding box of homogeneous points, taken in Cartesian space.
+pub(crate) fn box_diagonal(points: &[DVec4]) -> f64 {
+    let (lo, hi) = points.iter().fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), p| {
+        let c = p.truncate() / p.w;
+        (lo.min(c), hi.max(c))
+    });
+    (hi - lo).length()
+}

@@ -1,0 +1,273 @@
+//! Reader for Wavefront OBJ free-form geometry (`cstype`, `deg`, `surf`, `curv`, `parm`, `end`),
+//! as Maya and Rhino write it.
+//!
+//! Rules: `v x y z [w]` is a Cartesian point with a separate weight (default 1); `cstype`
+//! and `deg` are state that carries over to later elements; control-vertex lists run u
+//! fastest and may use negative (relative) references; `parm` values are knots for `bspline`
+//! and global breakpoints for `bezier`; a `\` at the end of a line continues it. Trimming
+//! statements (`trim`, `hole`, `scrv`, `sp`) are read and ignored: surfaces are tessellated over
+//! their whole `surf` range. Polygonal and display statements are ignored.
+
+use super::Scene;
+use crate::error::{Error, Result};
+use crate::geom::{BSplineCurve, BSplineSurface, Interval, KnotVector};
+use glam::DVec3;
+
+/// Parses OBJ text. Errors carry the 1-based line ([`Error::AtLine`]).
+pub fn read_obj_freeform(text: &str) -> Result<Scene> {
+    let mut reader = Reader::default();
+    for (line, statement) in logical_lines(text) {
+        reader.line = line;
+        // Errors found at `end` already name the line of the statement at fault.
+        reader.statement(&statement).map_err(|e| if e.line().is_some() { e } else { e.at_line(line) })?;
+    }
+    if let Some(element) = reader.element {
+        return Err(Error::syntax(format!("`{}` element has no `end`", element.keyword())).at_line(element.line));
+    }
+    Ok(reader.scene)
+}
+
+/// Joins `\`-continued lines and strips comments; yields (first line number, statement).
+fn logical_lines(text: &str) -> impl Iterator<Item = (usize, String)> + '_ {
+    let mut lines = text.lines().enumerate();
+    std::iter::from_fn(move || {
+        let (index, first) = lines.next()?;
+        let mut statement = String::new();
+        let mut current = first;
+        loop {
+            let content = current.split('#').next().unwrap_or("").trim_end();
+            match content.strip_suffix('\\') {
+                Some(head) => {
+                    statement.push_str(head);
+                    statement.push(' ');
+                    match lines.next() {
+                        Some((_, next)) => current = next,
+                        None => break,
+                    }
+                }
+                None => {
+                    statement.push_str(content);
+                    break;
+                }
+            }
+        }
+        Some((index + 1, statement))
+    })
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Basis {
+    Bezier,
+    BSpline,
+}
+
+#[derive(Clone, Copy)]
+struct CsType {
+    rational: bool,
+    basis: Basis,
+}
+
+enum Kind {
+    Surface { range_u: Interval, range_v: Interval },
+    Curve { range: Interval },
+    /// A parameter-space curve (`curv2`): read and skipped.
+    SpaceCurve,
+}
+
+struct Element {
+    kind: Kind,
+    line: usize,
+    cstype: Option<CsType>,
+    degrees: Option<(usize, Option<usize>)>,
+    vertices: Vec<usize>,
+    parm_u: Option<(usize, Vec<f64>)>,
+    parm_v: Option<(usize, Vec<f64>)>,
+}
+
+impl Element {
+    fn keyword(&self) -> &'static str {
+        match self.kind {
+            Kind::Surface { .. } => "surf",
+            Kind::Curve { .. } => "curv",
+            Kind::SpaceCurve => "curv2",
+        }
+    }
+}
+
+#[derive(Default)]
+struct Reader {
+    scene: Scene,
+    /// Cartesian position and weight of every `v`.
+    vertices: Vec<(DVec3, f64)>,
+    cstype: Option<CsType>,
+    degrees: Option<(usize, Option<usize>)>,
+    element: Option<Element>,
+    line: usize,
+}
+
+fn number(token: &str) -> Result<f64> {
+    token.parse::<f64>().map_err(|_| Error::syntax(format!("`{token}` is not a number")))
+}
+
+fn numbers(tokens: &[&str]) -> Result<Vec<f64>> {
+    tokens.iter().map(|t| number(t)).collect()
+}
+
+fn degree(token: &str) -> Result<usize> {
+    let value: usize = token.parse().map_err(|_| Error::syntax(format!("degree `{token}` is not a non-negative integer")))?;
+    crate::geom::check_degree(value)?;
+    Ok(value)
+}
+
+impl Reader {
+    fn statement(&mut self, statement: &str) -> Result<()> {
+        let tokens: Vec<&str> = statement.split_whitespace().collect();
+        let Some((&keyword, args)) = tokens.split_first() else { return Ok(()) };
+        if self.element.is_some() {
+            return self.body_statement(keyword, args);
+        }
+        match keyword {
+            "v" => {
+                if !(3..=4).contains(&args.len()) {
+                    return Err(Error::syntax(format!("`v` needs x y z [w], found {} values", args.len())));
+                }
+                let values = numbers(args)?;
+                self.vertices.push((DVec3::new(values[0], values[1], values[2]), values.get(3).copied().unwrap_or(1.0)));
+            }
+            "cstype" => {
+                let (rational, name) = match args {
+                    ["rat", name] => (true, *name),
+                    [name] => (false, *name),
+                    _ => return Err(Error::syntax("`cstype` needs [rat] bezier|bspline")),
+                };
+                let basis = match name {
+                    "bezier" => Basis::Bezier,
+                    "bspline" => Basis::BSpline,
+                    other => return Err(Error::syntax(format!("cstype `{other}` is not supported (bezier, bspline)"))),
+                };
+                self.cstype = Some(CsType { rational, basis });
+            }
+            "deg" => {
+                self.degrees = match args {
+                    [du] => Some((degree(du)?, None)),
+                    [du, dv] => Some((degree(du)?, Some(degree(dv)?))),
+                    _ => return Err(Error::syntax("`deg` needs one degree (curves) or two (surfaces)")),
+                };
+            }
+            "surf" => {
+                if args.len() < 5 {
+                    return Err(Error::syntax("`surf` needs s0 s1 t0 t1 and control vertices"));
+                }
+                let r = numbers(&args[..4])?;
+                let kind = Kind::Surface { range_u: Interval::new(r[0], r[1]), range_v: Interval::new(r[2], r[3]) };
+                self.begin(kind, &args[4..])?;
+            }
+            "curv" => {
+                if args.len() < 3 {
+                    return Err(Error::syntax("`curv` needs u0 u1 and control vertices"));
+                }
+                let r = numbers(&args[..2])?;
+                self.begin(Kind::Curve { range: Interval::new(r[0], r[1]) }, &args[2..])?;
+            }
+            "curv2" => self.begin(Kind::SpaceCurve, &[])?,
+            "parm" | "trim" | "hole" | "scrv" | "sp" | "end" => {
+                return Err(Error::syntax(format!("`{keyword}` outside a `surf`/`curv` element")));
+            }
+            // Texture and normal vertices, polygons, groups, display and rendering attributes:
+            // nothing knotwork tessellates.
+            _ => {}
+        }
+        Ok(())
+    }
+
+    fn begin(&mut self, kind: Kind, references: &[&str]) -> Result<()> {
+        let vertices = references.iter().map(|r| self.resolve(r)).collect::<Result<Vec<_>>>()?;
+        self.element = Some(Element {
+            kind,
+            line: self.line,
+            cstype: self.cstype,
+            degrees: self.degrees,
+            vertices,
+            parm_u: None,
+            parm_v: None,
+        });
+        Ok(())
+    }
+
+    /// Resolves `v[/vt[/vn]]` to a 0-based vertex index.
+    fn resolve(&self, reference: &str) -> Result<usize> {
+        let head = reference.split('/').next().unwrap_or("");
+        let value: i64 = head.parse().map_err(|_| Error::syntax(format!("`{reference}` is not a vertex reference")))?;
+        let available = self.vertices.len();
+        let index = if value > 0 { value - 1 } else { available as i64 + value };
+        if value == 0 || index < 0 || index >= available as i64 {
+            return Err(Error::VertexReference { reference: value, available });
+        }
+        Ok(index as usize)
+    }
+
+    fn body_statement(&mut self, keyword: &str, args: &[&str]) -> Result<()> {
+        let line = self.line;
+        let element = self.element.as_mut().expect("called inside an element");
+        match keyword {
+            "parm" => {
+                let (direction, values) = args.split_first().ok_or_else(|| Error::syntax("`parm` needs u|v and values"))?;
+                let values = numbers(values)?;
+                match *direction {
+                    "u" => element.parm_u = Some((line, values)),
+                    "v" => element.parm_v = Some((line, values)),
+                    other => return Err(Error::syntax(format!("`parm {other}`: the direction must be u or v"))),
+                }
+            }
+            "trim" | "hole" | "scrv" | "sp" => {}
+            "end" => {
+                let element = self.element.take().expect("checked above");
+                self.finish(element)?;
+            }
+            other => {
+                return Err(Error::syntax(format!("`{other}` inside a `{}` element (missing `end`?)", element.keyword())));
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self, element: Element) -> Result<()> {
+        if let Kind::SpaceCurve = element.kind {
+            return Ok(());
+        }
+        let line = element.line;
+        let keyword = element.keyword();
+        let cstype = element.cstype.ok_or_else(|| Error::syntax(format!("`{keyword}` before any `cstype`")).at_line(line))?;
+        let (du, dv) = element.degrees.ok_or_else(|| Error::syntax(format!("`{keyword}` before any `deg`")).at_line(line))?;
+        let knots = |parm: Option<(usize, Vec<f64>)>, degree: usize, direction: &str| -> Result<KnotVector> {
+            let (parm_line, values) = parm.ok_or_else(|| Error::syntax(format!("`{keyword}` has no `parm {direction}`")).at_line(line))?;
+            let built = match cstype.basis {
+                Basis::BSpline => KnotVector::try_new(degree, values),
+                Basis::Bezier => KnotVector::from_breakpoints(degree, &values),
+            };
+            built.map_err(|e| e.at_line(parm_line))
+        };
+        let points: Vec<DVec3> = element.vertices.iter().map(|&i| self.vertices[i].0).collect();
+        let weights: Option<Vec<f64>> = cstype.rational.then(|| element.vertices.iter().map(|&i| self.vertices[i].1).collect());
+        match element.kind {
+            Kind::Surface { range_u, range_v } => {
+                let dv = dv.ok_or_else(|| Error::syntax("a surface needs `deg du dv`").at_line(line))?;
+                let ku = knots(element.parm_u, du, "u")?;
+                let kv = knots(element.parm_v, dv, "v")?;
+                let surface = BSplineSurface::try_new(ku, kv, &points, weights.as_deref())
+                    .and_then(|s| s.with_range(range_u, range_v))
+                    .map_err(|e| e.at_line(line))?;
+                self.scene.surfaces.push(surface);
+            }
+            Kind::Curve { range } => {
+                let ku = knots(element.parm_u, du, "u")?;
+                let curve = BSplineCurve::try_new(ku, &points, weights.as_deref())
+                    .and_then(|c| c.with_range(range))
+                    .map_err(|e| e.at_line(line))?;
+                self.scene.curves.push(curve);
+            }
+            Kind::SpaceCurve => unreachable!("returned above"),
+        }
+        Ok(())
+    }
+}
