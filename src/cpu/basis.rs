@@ -79,3 +79,17 @@ pub(crate) fn basis_ders(knots: &KnotVector, span: usize, u: f64, order: usize, 
         factor *= p as f64 - kd as f64;
     }
 }
+
+impl KnotVector {
+    /// The span holding `u` (see [`KnotVector::find_span`]) and the values of the degree+1
+    /// basis functions N_(span−p), …, N_span that are non-zero there; `u` is clamped to the
+    /// domain.
+    pub fn basis_values(&self, u: f64) -> (usize, Vec<f64>) {
+        let (start, end) = self.domain();
+        let u = u.clamp(start, end);
+        let span = self.find_span(u);
+        let mut ders: BasisDers = [[0.0; MAX_ORDER]; 3];
+        basis_ders(self, span, u, 0, &mut ders);
+        (span, ders[0][..=self.degree()].to_vec())
+    }
+}

@@ -1,8 +1,9 @@
 //! Reader for the `.bpt` Bezier patch format of the Utah tea set.
 //!
 //! Layout: the patch count, then per patch its degrees `n m` and (n+1)·(m+1) points `x y z`,
-//! listed with index i·(m+1) + j. knotwork reads i as the u direction (degree n) and j as v
-//! (degree m), which makes S_u × S_v point out of the teapot.
+//! listed with index i·(m+1) + j. knotwork reads j — the index that varies fastest — as the u
+//! direction (degree m) and i as v (degree n), as OBJ does; this makes S_u × S_v point out of
+//! the teapot.
 
 use super::Scene;
 use crate::error::{Error, Result};
@@ -21,17 +22,15 @@ pub fn read_bpt(text: &str) -> Result<Scene> {
         let m: usize = tokens.parse(&what("degree m"))?;
         let line = tokens.line;
         crate::geom::check_degree(n).and(crate::geom::check_degree(m)).map_err(|e| e.at_line(line))?;
-        let mut points = vec![DVec3::ZERO; (n + 1) * (m + 1)];
-        for i in 0..=n {
-            for j in 0..=m {
-                let mut xyz = [0.0; 3];
-                for c in &mut xyz {
-                    *c = tokens.parse(&what("a coordinate"))?;
-                }
-                points[j * (n + 1) + i] = DVec3::from_array(xyz);
+        let mut points = Vec::with_capacity((n + 1) * (m + 1));
+        for _ in 0..(n + 1) * (m + 1) {
+            let mut xyz = [0.0; 3];
+            for c in &mut xyz {
+                *c = tokens.parse(&what("a coordinate"))?;
             }
+            points.push(DVec3::from_array(xyz));
         }
-        let surface = bezier_surface(n, m, &points, None).map_err(|e| e.at_line(line))?;
+        let surface = bezier_surface(m, n, &points, None).map_err(|e| e.at_line(line))?;
         scene.surfaces.push(surface);
     }
     if let Some((line, token)) = tokens.inner.next() {

@@ -1,0 +1,117 @@
+//! Shared test helpers: named tolerances, exact conic surfaces, an independent evaluator.
+#![allow(dead_code)]
+
+use glam::DVec3;
+use knotwork::{BSplineSurface, KnotVector};
+
+/// f64 exactness bar for exact forms, relative to the model size.
+pub const EXACT_REL: f64 = 1e-12;
+
+pub const S: f64 = std::f64::consts::FRAC_1_SQRT_2;
+
+/// The 9-point rational quadratic unit circle, counter-clockwise from (1, 0): (x, y, weight).
+pub fn unit_circle() -> (KnotVector, Vec<(f64, f64, f64)>) {
+    let knots = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1.0, 1.0, 1.0]).unwrap();
+    let points = vec![
+        (1.0, 0.0, 1.0),
+        (1.0, 1.0, S),
+        (0.0, 1.0, 1.0),
+        (-1.0, 1.0, S),
+        (-1.0, 0.0, 1.0),
+        (-1.0, -1.0, S),
+        (0.0, -1.0, 1.0),
+        (1.0, -1.0, S),
+        (1.0, 0.0, 1.0),
+    ];
+    (knots, points)
+}
+
+/// Revolves a rational profile in the xz-plane, given as (x, z, weight), about the z axis:
+/// u runs around the axis (counter-clockwise seen from +z), v along the profile.
+pub fn revolve(profile_knots: KnotVector, profile: &[(f64, f64, f64)]) -> BSplineSurface {
+    let (circle_knots, circle) = unit_circle();
+    let mut points = Vec::new();
+    let mut weights = Vec::new();
+    for &(x, z, wp) in profile {
+        for &(cx, cy, wc) in &circle {
+            points.push(DVec3::new(cx * x, cy * x, z));
+            weights.push(wc * wp);
+        }
+    }
+    BSplineSurface::try_new(circle_knots, profile_knots, &points, Some(&weights)).unwrap()
+}
+
+/// A sphere of radius `r` centred at the origin; v runs from the south pole to the north.
+pub fn sphere(r: f64) -> BSplineSurface {
+    let knots = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 0.5, 0.5, 1.0, 1.0, 1.0]).unwrap();
+    let profile = [(0.0, -r, 1.0), (r, -r, S), (r, 0.0, 1.0), (r, r, S), (0.0, r, 1.0)];
+    revolve(knots, &profile)
+}
+
+/// A torus about the z axis with major radius `big` and minor radius `small`; normals point
+/// out of the tube.
+pub fn torus(big: f64, small: f64) -> BSplineSurface {
+    let (knots, circle) = unit_circle();
+    let profile: Vec<(f64, f64, f64)> = circle.iter().map(|&(a, b, w)| (big + small * a, small * b, w)).collect();
+    revolve(knots, &profile)
+}
+
+/// A quarter of the unit cylinder about z, x, y ≥ 0, height 1: degree 2 around, 1 along z.
+pub fn quarter_cylinder() -> BSplineSurface {
+    let arc_knots = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0]).unwrap();
+    let line_knots = KnotVector::try_new(1, vec![0.0, 0.0, 1.0, 1.0]).unwrap();
+    let mut points = Vec::new();
+    let mut weights = Vec::new();
+    for z in [0.0, 1.0] {
+        for (p, w) in [(DVec3::new(1.0, 0.0, z), 1.0), (DVec3::new(1.0, 1.0, z), S), (DVec3::new(0.0, 1.0, z), 1.0)] {
+            points.push(p);
+            weights.push(w);
+        }
+    }
+    BSplineSurface::try_new(arc_knots, line_knots, &points, Some(&weights)).unwrap()
+}
+
+/// Basis function N_(i,p)(u) by the textbook Cox–de Boor recursion (0/0 := 0), right-continuous
+/// except at the domain end, which belongs to the last non-empty span. Independent of the
+/// library's triangular-table code.
+pub fn naive_basis(knots: &[f64], i: usize, p: usize, u: f64, domain_end: f64) -> f64 {
+    if p == 0 {
+        let (a, b) = (knots[i], knots[i + 1]);
+        let inside = a <= u && u < b;
+        let at_end = u == domain_end && b == domain_end && a < b;
+        return if inside || at_end { 1.0 } else { 0.0 };
+    }
+    let mut value = 0.0;
+    let d1 = knots[i + p] - knots[i];
+    if d1 > 0.0 {
+        value += (u - knots[i]) / d1 * naive_basis(knots, i, p - 1, u, domain_end);
+    }
+    let d2 = knots[i + p + 1] - knots[i + 1];
+    if d2 > 0.0 {
+        value += (knots[i + p + 1] - u) / d2 * naive_basis(knots, i + 1, p - 1, u, domain_end);
+    }
+    value
+}
+
+/// Surface point by the naive double sum over all control points — an independent evaluator.
+pub fn naive_point(s: &BSplineSurface, u: f64, v: f64) -> DVec3 {
+    let (ku, kv) = (s.knots_u(), s.knots_v());
+    let (end_u, end_v) = (ku.domain().1, kv.domain().1);
+    let mut sum = glam::DVec4::ZERO;
+    for j in 0..s.count_v() {
+        let nv = naive_basis(kv.knots(), j, kv.degree(), v, end_v);
+        if nv == 0.0 {
+            continue;
+        }
+        for i in 0..s.count_u() {
+            let nu = naive_basis(ku.knots(), i, ku.degree(), u, end_u);
+            sum += nu * nv * s.homogeneous_points()[j * s.count_u() + i];
+        }
+    }
+    sum.truncate() / sum.w
+}
+
+/// Angle between two directions, in radians (robust near 0).
+pub fn angle(a: DVec3, b: DVec3) -> f64 {
+    a.cross(b).length().atan2(a.dot(b))
+}
