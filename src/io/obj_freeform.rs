@@ -24,6 +24,9 @@ pub fn read_obj_freeform(text: &str) -> Result<Scene> {
     if let Some(element) = reader.element {
         return Err(Error::syntax(format!("`{}` element has no `end`", element.keyword())).at_line(element.line));
     }
+    if reader.scene.surfaces.is_empty() && reader.scene.curves.is_empty() {
+        return Err(Error::syntax("no free-form surface or curve (`surf`/`curv` … `end`) in the file"));
+    }
     Ok(reader.scene)
 }
 

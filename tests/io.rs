@@ -1,0 +1,343 @@
+//! Readers, writers and the command line: real files, the OBJ spec's rules, malformed input.
+
+mod common;
+
+use glam::DVec3;
+use knotwork::io::{Scene, format_f64, read_bpt, read_obj_freeform, read_scene, write_atomic, write_mesh};
+use knotwork::{CpuTessellator, Error, Interval, TessOptions, Tessellator};
+use proptest::prelude::*;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn scratch_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("knotwork-io-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn obj(text: &str) -> Scene {
+    read_obj_freeform(text).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn obj_error(text: &str) -> Error {
+    read_obj_freeform(text).expect_err("malformed input must be rejected")
+}
+
+// ---------------------------------------------------------------- OBJ free-form
+
+/// A bicubic Bezier patch laid out like the spec's example: its control list runs 13..16,
+/// 9..12, 5..8, 1..4, so read u fastest, u runs along +y and v along -x.
+const SPEC_BEZIER: &str = "\
+v -2.3 -1.8 0.0
+v -2.3 -0.6 0.0
+v -2.3 0.6 0.0
+v -2.3 1.8 0.0
+v -0.8 -1.8 0.0
+v -0.8 -0.6 0.0
+v -0.8 0.6 0.0
+v -0.8 1.8 0.0
+v 0.8 -1.8 0.0
+v 0.8 -0.6 0.0
+v 0.8 0.6 0.0
+v 0.8 1.8 0.0
+v 2.3 -1.8 0.0
+v 2.3 -0.6 0.0
+v 2.3 0.6 0.0
+v 2.3 1.8 0.0
+cstype bezier
+deg 3 3
+surf 0.0 1.0 0.0 1.0 13 14 15 16 9 10 11 12 5 6 7 8 1 2 3 4
+parm u 0.00 1.00
+parm v 0.00 1.00
+trim 0.0 2.0 1
+end
+";
+
+#[test]
+fn spec_bezier_patch_reads_u_fastest_and_faces_plus_z() {
+    let scene = obj(SPEC_BEZIER);
+    let s = &scene.surfaces[0];
+    assert_eq!((s.count_u(), s.count_v()), (4, 4));
+    // u runs along +y, v along -x (the first CV is vertex 13 at (2.3, -1.8)).
+    assert_eq!(s.control_point(0, 0), DVec3::new(2.3, -1.8, 0.0));
+    assert_eq!(s.control_point(1, 0), DVec3::new(2.3, -0.6, 0.0));
+    assert_eq!(s.control_point(0, 1), DVec3::new(0.8, -1.8, 0.0));
+    let e = s.evaluate(0.5, 0.5);
+    assert!(common::angle(e.normal, DVec3::Z) < 1e-15, "{}", e.normal);
+}
+
+#[test]
+fn negative_references_continuations_and_carried_state() {
+    let text = "\
+# two bilinear patches sharing cstype and deg; the second uses relative references
+v 0 0 0
+v 1 0 0
+v 0 1 0
+v 1 1 0
+cstype bspline
+deg 1 1
+surf 0 1 0 1 1 2 \\
+     3 4
+parm u 0 0 \\
+  1 1
+parm v 0 0 1 1
+end
+v 0 0 5
+v 2 0 5
+v 0 2 5
+v 2 2 5
+surf 0.25 0.75 0 1 -4 -3 -2 -1
+parm u 0 0 1 1
+parm v 0 0 1 1
+end
+";
+    let scene = obj(text);
+    assert_eq!(scene.surfaces.len(), 2);
+    let second = &scene.surfaces[1];
+    assert_eq!(second.range_u(), Interval::new(0.25, 0.75));
+    assert_eq!(second.point(0.5, 0.5), DVec3::new(1.0, 1.0, 5.0));
+    // A sub-range is what the grid covers: the first column of vertices sits at u = 0.25.
+    let mesh = CpuTessellator.tessellate(&scene.surfaces[1..], &TessOptions::DEFAULT.with_grid(3, 2)).unwrap();
+    assert_eq!(mesh.positions[0], DVec3::new(0.5, 0.0, 5.0));
+    assert_eq!(mesh.positions[2], DVec3::new(1.5, 0.0, 5.0));
+}
+
+#[test]
+fn weights_are_separate_from_cartesian_coordinates() {
+    // Equal weights (7.3 everywhere) leave a rational surface identical to the plain one;
+    // reading x y z as pre-multiplied would shrink it by 7.3.
+    let net = "v 0 0 0 7.3\nv 1 0 1 7.3\nv 0 1 2 7.3\nv 1 1 0 7.3\ndeg 1 1\n";
+    let body = "surf 0 1 0 1 1 2 3 4\nparm u 0 0 1 1\nparm v 0 0 1 1\nend\n";
+    let rational = obj(&format!("{net}cstype rat bspline\n{body}"));
+    let plain = obj(&format!("{net}cstype bspline\n{body}"));
+    assert!(rational.surfaces[0].is_rational());
+    for (u, v) in [(0.3, 0.6), (1.0, 0.0), (0.5, 0.5)] {
+        let d = (rational.surfaces[0].point(u, v) - plain.surfaces[0].point(u, v)).length();
+        assert!(d < 1e-15, "{d:e}");
+    }
+    // An unequal weight pulls the surface towards its point (which stays where x y z says).
+    let heavy = obj(&format!("{}cstype rat bspline\n{body}", net.replacen("v 1 1 0 7.3", "v 1 1 0 70", 1)));
+    assert_eq!(heavy.surfaces[0].control_point(1, 1), DVec3::new(1.0, 1.0, 0.0));
+    assert!(heavy.surfaces[0].point(0.5, 0.5).distance(DVec3::new(1.0, 1.0, 0.0)) < plain.surfaces[0].point(0.5, 0.5).distance(DVec3::new(1.0, 1.0, 0.0)));
+}
+
+#[test]
+fn curves_and_unclamped_periodic_knots() {
+    let text = "\
+v 0 0 0\nv 1 1 0\nv 2 0 0\nv 3 1 0\nv 4 0 0
+cstype bspline
+deg 3
+curv 0 2 1 2 3 4 5
+parm u -3 -2 -1 0 1 2 3 4 5
+end
+";
+    let scene = obj(text);
+    assert_eq!(scene.curves.len(), 1);
+    let c = &scene.curves[0];
+    assert_eq!(c.range(), Interval::new(0.0, 2.0));
+    // Uniform cubic at a knot: (P0 + 4 P1 + P2) / 6.
+    let expected = (DVec3::new(0.0, 0.0, 0.0) + 4.0 * DVec3::new(1.0, 1.0, 0.0) + DVec3::new(2.0, 0.0, 0.0)) / 6.0;
+    assert!((c.point(0.0) - expected).length() < 1e-15);
+}
+
+#[test]
+fn real_files_load() {
+    let ducky = read_scene(Path::new("data/ducky.obj")).unwrap();
+    assert_eq!(ducky.surfaces.len(), 3);
+    let body = &ducky.surfaces[0];
+    assert!(body.is_rational() && !ducky.surfaces[1].is_rational());
+    assert_eq!((body.count_u(), body.count_v()), (13, 14));
+    let peer = read_scene(Path::new("data/peer_bicubic_32x32.obj")).unwrap();
+    let s = &peer.surfaces[0];
+    assert_eq!((s.count_u(), s.count_v(), s.degree_u(), s.degree_v()), (32, 32, 3, 3));
+    let teapot = read_scene(Path::new("data/teapot.bpt")).unwrap();
+    assert_eq!(teapot.surfaces.len(), 32);
+    // The rim's first control point and its corner on the surface (Bezier end interpolation).
+    assert_eq!(teapot.surfaces[0].point(0.0, 0.0), DVec3::new(1.4, 0.0, 2.4));
+    let mesh = CpuTessellator.tessellate(&ducky.surfaces, &TessOptions::DEFAULT).unwrap();
+    assert!(mesh.normals.iter().all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-12));
+}
+
+#[test]
+fn bpt_reads_patches_and_rejects_bad_ones() {
+    let patch = |n: usize, m: usize| {
+        let mut text = format!("{n} {m}\n");
+        for k in 0..(n + 1) * (m + 1) {
+            text += &format!("{} {} 0\n", k % (m + 1), k / (m + 1));
+        }
+        text
+    };
+    let scene = read_bpt(&format!("2\n{}{}", patch(3, 3), patch(1, 2))).unwrap();
+    assert_eq!(scene.surfaces.len(), 2);
+    assert_eq!((scene.surfaces[1].degree_u(), scene.surfaces[1].degree_v()), (2, 1));
+    let err = read_bpt(&format!("3\n{}", patch(1, 1))).unwrap_err();
+    assert!(matches!(err.root(), Error::UnexpectedEnd { .. }), "{err}");
+    let err = read_bpt(&format!("1\n{}7\n", patch(1, 1))).unwrap_err();
+    assert!(matches!(err.root(), Error::Syntax { .. }) && err.line() == Some(7), "{err}");
+    let err = read_bpt("1\n0 3\n").unwrap_err();
+    assert!(matches!(err.root(), Error::DegreeOutOfRange { degree: 0, .. }) && err.line() == Some(2), "{err}");
+    // An absurd declared count is not allocated: the file simply ends.
+    let err = read_bpt("18446744073709551615\n1 1\n").unwrap_err();
+    assert!(matches!(err.root(), Error::UnexpectedEnd { .. }), "{err}");
+    let err = read_bpt("1\n4000000000 4000000000\n").unwrap_err();
+    assert!(matches!(err.root(), Error::DegreeOutOfRange { .. }), "{err}");
+    let err = read_bpt("").unwrap_err();
+    assert!(matches!(err.root(), Error::UnexpectedEnd { .. }), "{err}");
+    let err = read_bpt("1\n1 1\n0 0 0\n1 0 0\n0 1 0\n1 x 0\n").unwrap_err();
+    assert!(err.to_string().contains("line 6") && err.to_string().contains("`x`"), "{err}");
+}
+
+const NET: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n";
+
+#[test]
+fn malformed_obj_gives_errors_with_lines() {
+    let surf = |header: &str, refs: &str, parm_u: &str| format!("{NET}{header}surf 0 1 0 1 {refs}\nparm u {parm_u}\nparm v 0 0 1 1\nend\n");
+    let bspline = "cstype bspline\ndeg 1 1\n";
+    let cases: Vec<(String, usize, fn(&Error) -> bool)> = vec![
+        ("v 0 zero 0\n".into(), 1, |e| matches!(e, Error::Syntax { .. })),
+        ("v 0 0\n".into(), 1, |e| matches!(e, Error::Syntax { .. })),
+        (surf(bspline, "1 2 3", "0 0 1 1"), 7, |e| matches!(e, Error::ControlPointCount { expected: 4, found: 3, .. })),
+        (surf(bspline, "1 2 3 4", "0 1 0 1"), 8, |e| matches!(e, Error::KnotsDecreasing { index: 2, .. })),
+        (surf(bspline, "1 2 3 5", "0 0 1 1"), 7, |e| matches!(e, Error::VertexReference { reference: 5, available: 4 })),
+        (surf(bspline, "1 2 3 -5", "0 0 1 1"), 7, |e| matches!(e, Error::VertexReference { reference: -5, .. })),
+        (surf(bspline, "1 2 3 0", "0 0 1 1"), 7, |e| matches!(e, Error::VertexReference { reference: 0, .. })),
+        (surf("cstype bspline\ndeg 0 1\n", "1 2 3 4", "0 1"), 6, |e| matches!(e, Error::DegreeOutOfRange { degree: 0, .. })),
+        (surf("cstype bspline\ndeg 99999999999 1\n", "1 2 3 4", "0 1"), 6, |e| matches!(e, Error::DegreeOutOfRange { .. })),
+        (surf("cstype taylor\ndeg 1 1\n", "1 2 3 4", "0 1"), 5, |e| matches!(e, Error::Syntax { .. })),
+        (surf("deg 1 1\n", "1 2 3 4", "0 0 1 1"), 6, |e| matches!(e, Error::Syntax { .. })),
+        (surf(bspline, "1 2 3 4", "0 0 nan 1"), 8, |e| matches!(e, Error::KnotNotFinite { .. })),
+        (format!("{NET}{bspline}surf 0 1 0 1 1 2 3 4\nparm u 0 0 1 1\n"), 7, |e| matches!(e, Error::Syntax { .. })),
+        (format!("{NET}{bspline}surf 0 1 0 2 1 2 3 4\nparm u 0 0 1 1\nparm v 0 0 1 1\nend\n"), 7, |e| matches!(e, Error::RangeOutsideDomain { .. })),
+        (format!("{NET}{bspline}surf 0 1 0 1 1 2 3 4\nparm v 0 0 1 1\nend\n"), 7, |e| matches!(e, Error::Syntax { .. })),
+        (format!("{NET}end\n"), 5, |e| matches!(e, Error::Syntax { .. })),
+        (format!("{NET}{bspline}surf 0 1 0 1 1 2 3 4\nparm u 0 0 1 1\nparm v 0 0 1 1\nv 0 0 0\nend\n"), 10, |e| matches!(e, Error::Syntax { .. })),
+        ("".into(), 0, |e| matches!(e, Error::Syntax { .. })),
+        ("# only a comment\nv 1 2 3\n".into(), 0, |e| matches!(e, Error::Syntax { .. })),
+    ];
+    for (text, line, expected) in cases {
+        let err = obj_error(&text);
+        assert!(expected(err.root()), "wrong error {err:?} for\n{text}");
+        assert_eq!(err.line(), (line > 0).then_some(line), "line of {err} for\n{text}");
+    }
+    for weight in ["0", "-1", "nan", "inf"] {
+        let text = format!("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0 {weight}\ncstype rat bspline\ndeg 1 1\nsurf 0 1 0 1 1 2 3 4\nparm u 0 0 1 1\nparm v 0 0 1 1\nend\n");
+        let err = obj_error(&text);
+        assert!(matches!(err.root(), Error::InvalidWeight { index: 3, .. }) && err.line() == Some(7), "weight {weight}: {err}");
+    }
+}
+
+#[test]
+fn file_errors_name_the_file_and_line() {
+    let dir = scratch_dir("file-errors");
+    let path = dir.join("broken.obj");
+    std::fs::write(&path, format!("{NET}cstype bspline\ndeg 1 1\nsurf 0 1 0 1 1 2 3 9\nparm u 0 0 1 1\nparm v 0 0 1 1\nend\n")).unwrap();
+    let err = read_scene(&path).unwrap_err();
+    assert!(matches!(err, Error::InFile { .. }));
+    let message = err.to_string();
+    assert!(message.contains("broken.obj") && message.contains("line 7") && message.contains('9'), "{message}");
+    assert!(matches!(read_scene(&dir.join("missing.obj")).unwrap_err(), Error::Io { .. }));
+    assert!(matches!(read_scene(&dir.join("model.stp")).unwrap_err(), Error::UnknownFormat { .. }));
+}
+
+// ---------------------------------------------------------------- writers
+
+proptest! {
+    #[test]
+    fn formatted_doubles_read_back_exactly(bits in any::<u64>()) {
+        let x = f64::from_bits(bits);
+        prop_assume!(x.is_finite());
+        prop_assert_eq!(format_f64(x).parse::<f64>().unwrap().to_bits(), x.to_bits());
+    }
+}
+
+#[test]
+fn obj_mesh_round_trips_every_double() {
+    let scene = read_scene(Path::new("data/ducky.obj")).unwrap();
+    let mesh = CpuTessellator.tessellate(&scene.surfaces, &TessOptions::DEFAULT.with_grid(9, 7)).unwrap();
+    let dir = scratch_dir("round-trip");
+    let path = dir.join("duck.obj");
+    write_mesh(&path, &mesh).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    // An independent reading of the file: statement by statement.
+    let (mut v, mut vt, mut vn, mut faces) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for line in text.lines() {
+        let mut tokens = line.split_whitespace();
+        let keyword = tokens.next();
+        let rest: Vec<&str> = tokens.collect();
+        let floats = || rest.iter().map(|t| t.parse::<f64>().unwrap()).collect::<Vec<_>>();
+        match keyword {
+            Some("v") => v.push(floats()),
+            Some("vt") => vt.push(floats()),
+            Some("vn") => vn.push(floats()),
+            Some("f") => faces.push(rest.iter().map(|t| t.split('/').map(|i| i.parse::<u32>().unwrap()).collect::<Vec<_>>()).collect::<Vec<_>>()),
+            _ => {}
+        }
+    }
+    assert_eq!(v.len(), mesh.vertex_count());
+    for (k, p) in mesh.positions.iter().enumerate() {
+        assert_eq!(v[k], p.to_array().to_vec(), "position {k}");
+        assert_eq!(vn[k], mesh.normals[k].to_array().to_vec(), "normal {k}");
+        assert_eq!(vt[k], mesh.uvs[k].to_array().to_vec(), "uv {k}");
+    }
+    assert_eq!(faces.len(), mesh.triangle_count());
+    for (t, face) in faces.iter().enumerate() {
+        for (c, corner) in face.iter().enumerate() {
+            assert_eq!(corner, &vec![mesh.indices[3 * t + c] + 1; 3]);
+        }
+    }
+}
+
+#[test]
+fn failed_writes_leave_nothing_behind() {
+    let dir = scratch_dir("atomic");
+    let path = dir.join("out.obj");
+    std::fs::write(&path, "previous contents").unwrap();
+    let err = write_atomic(&path, |w| {
+        w.write_all(b"v 1 2 3\n")?;
+        Err(std::io::Error::other("disk full"))
+    })
+    .unwrap_err();
+    assert!(matches!(err, Error::Io { .. }));
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), "previous contents");
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "no temporary file left");
+    let mesh = knotwork::Mesh::default();
+    assert!(matches!(write_mesh(&dir.join("no-such-dir/out.obj"), &mesh), Err(Error::Io { .. })));
+    assert!(matches!(write_mesh(&dir.join("out.fbx"), &mesh), Err(Error::UnknownFormat { .. })));
+}
+
+// ---------------------------------------------------------------- command line
+
+fn knotwork(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_knotwork")).args(args).output().unwrap()
+}
+
+#[test]
+fn cli_tessellates_the_teapot() {
+    let dir = scratch_dir("cli-ok");
+    let out = dir.join("teapot.obj");
+    let run = knotwork(&["tessellate", "data/teapot.bpt", "-o", out.to_str().unwrap(), "--grid", "9x5", "--backend", "cpu"]);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let summary = String::from_utf8_lossy(&run.stdout);
+    assert_eq!(summary.lines().count(), 1);
+    assert!(summary.contains("32 surfaces") && summary.contains(&format!("{} vertices", 32 * 45)) && summary.contains(&format!("{} triangles", 32 * 64)), "{summary}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert_eq!(text.lines().filter(|l| l.starts_with("v ")).count(), 32 * 45);
+}
+
+#[test]
+fn cli_reports_bad_input_in_one_line_and_writes_nothing() {
+    let dir = scratch_dir("cli-bad");
+    let input = dir.join("bad.obj");
+    std::fs::write(&input, format!("{NET}cstype rat bspline\ndeg 1 1\nsurf 0 1 0 1 1 2 3 4\nparm u 0 0 1 0.5\nparm v 0 0 1 1\nend\n")).unwrap();
+    let out = dir.join("out.obj");
+    let run = knotwork(&["tessellate", input.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("bad.obj") && stderr.contains("line 8") && stderr.contains("decrease"), "{stderr}");
+    assert!(!out.exists());
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "only the input is there");
+    let run = knotwork(&["tessellate", "data/teapot.bpt", "-o", out.to_str().unwrap(), "--grid", "1x9"]);
+    assert!(!run.status.success() && !out.exists());
+}
