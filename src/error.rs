@@ -36,6 +36,8 @@ pub enum Error {
     BreakpointsNotIncreasing { index: usize, value: f64 },
     #[error("grid {nu}x{nv} is invalid: each side needs at least 2 samples")]
     GridTooSmall { nu: u32, nv: u32 },
+    #[error("a buffer holds {found} elements where {expected} are needed")]
+    BufferLength { expected: usize, found: usize },
     #[error("the mesh would have {vertices} vertices, more than u32 indices can address")]
     MeshTooLarge { vertices: u64 },
     #[error("{message}")]

@@ -36,8 +36,15 @@ pub use mesh::{Mesh, MeshPart, TessOptions};
 /// One interface for every tessellation backend: the same surfaces and options give a
 /// [`Mesh`] with the same layout, whichever backend runs.
 pub trait Tessellator {
-    /// Tessellates `surfaces` on the grid of `options`.
-    fn tessellate(&self, surfaces: &[BSplineSurface], options: &TessOptions) -> Result<Mesh>;
+    /// Tessellates `surfaces` on the grid of `options` into a new mesh.
+    fn tessellate(&self, surfaces: &[BSplineSurface], options: &TessOptions) -> Result<Mesh> {
+        let mut mesh = Mesh::default();
+        self.tessellate_into(surfaces, options, &mut mesh)?;
+        Ok(mesh)
+    }
+    /// Tessellates into `mesh`, replacing its contents and reusing its allocations — for
+    /// re-tessellating every frame without fresh memory. On error `mesh` is left unchanged.
+    fn tessellate_into(&self, surfaces: &[BSplineSurface], options: &TessOptions, mesh: &mut Mesh) -> Result<()>;
     /// A human-readable name of the backend (and adapter), for summaries.
     fn name(&self) -> String;
 }

@@ -95,16 +95,26 @@ pub(crate) fn plan_parts(count: usize, options: &TessOptions) -> Result<Vec<Mesh
         .collect())
 }
 
-/// Appends the triangles of one part's grid: per cell (i, j) with corners a = (i, j),
-/// b = (i+1, j), c = (i+1, j+1), d = (i, j+1), the triangles (a, b, c) and (a, c, d) —
-/// counter-clockwise seen from the S_u × S_v side.
-pub(crate) fn push_grid_indices(part: &MeshPart, indices: &mut Vec<u32>) {
-    let nu = part.grid_u;
-    for j in 0..part.grid_v - 1 {
-        for i in 0..nu - 1 {
-            let a = part.first_vertex + j * nu + i;
-            let (b, c, d) = (a + 1, a + nu + 1, a + nu);
-            indices.extend_from_slice(&[a, b, c, a, c, d]);
+/// Writes the triangles of every part into `indices` (sized for all parts), in parallel: per
+/// cell (i, j) with corners a = (i, j), b = (i+1, j), c = (i+1, j+1), d = (i, j+1), the
+/// triangles (a, b, c) and (a, c, d) — counter-clockwise seen from the S_u × S_v side.
+pub(crate) fn fill_grid_indices(parts: &[MeshPart], indices: &mut [u32]) {
+    use rayon::prelude::*;
+    let mut rows: Vec<(u32, u32, &mut [u32])> = Vec::new();
+    let mut rest = indices;
+    for part in parts {
+        let row_len = 6 * (part.grid_u - 1) as usize;
+        for j in 0..part.grid_v - 1 {
+            let (row, tail) = rest.split_at_mut(row_len);
+            rows.push((part.first_vertex + j * part.grid_u, part.grid_u, row));
+            rest = tail;
         }
     }
+    rows.into_par_iter().for_each(|(row_start, nu, row)| {
+        for (i, cell) in row.chunks_exact_mut(6).enumerate() {
+            let a = row_start + i as u32;
+            let (b, c, d) = (a + 1, a + nu + 1, a + nu);
+            cell.copy_from_slice(&[a, b, c, a, c, d]);
+        }
+    });
 }

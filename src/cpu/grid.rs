@@ -3,27 +3,30 @@
 //! Basis values depend on the grid column (u) or row (v) only, so they are tabulated once per
 //! column and once per row. Each row first contracts the control net along v (one homogeneous
 //! point and its v-derivative per control column), then every vertex of the row contracts the
-//! p+1 columns of its span with the column table — structure-of-arrays loops the compiler
-//! vectorises. Rows of all surfaces run in parallel on rayon's pool.
+//! p+1 columns of its span with the column table, four vertices at a time in SIMD lanes. Rows of all surfaces run in parallel on rayon's pool.
 
 use super::basis::{BasisDers, MAX_ORDER, basis_ders};
-use crate::error::Result;
+#[cfg(target_arch = "x86_64")]
+use super::lanes::Avx2;
+use super::lanes::{F64x4, Portable};
+use crate::error::{Error, Result};
 use crate::geom::BSplineSurface;
-use crate::mesh::{Mesh, MeshPart, TessOptions, plan_parts, push_grid_indices};
+use crate::mesh::{Mesh, MeshPart, TessOptions, fill_grid_indices, plan_parts};
 use glam::{DVec2, DVec3, DVec4};
 use rayon::prelude::*;
 
-/// Tessellates every surface on its grid into one mesh (see [`Mesh`] for the layout).
-pub fn tessellate_grid(surfaces: &[BSplineSurface], options: &TessOptions) -> Result<Mesh> {
+/// Tessellates every surface on its grid into `mesh`, replacing its contents but reusing its
+/// buffers (see [`Mesh`] for the layout).
+pub fn tessellate_grid_into(surfaces: &[BSplineSurface], options: &TessOptions, mesh: &mut Mesh) -> Result<()> {
     let parts = plan_parts(surfaces.len(), options)?;
     let total_vertices = parts.last().map_or(0, |p| (p.first_vertex + p.vertex_count()) as usize);
-    let mut mesh = Mesh {
-        positions: vec![DVec3::ZERO; total_vertices],
-        normals: vec![DVec3::ZERO; total_vertices],
-        uvs: vec![DVec2::ZERO; total_vertices],
-        indices: Vec::with_capacity(parts.last().map_or(0, |p| (p.first_index + p.index_count()) as usize)),
-        parts,
-    };
+    let total_indices = parts.last().map_or(0, |p| (p.first_index + p.index_count()) as usize);
+    // Every element is overwritten below; resizing only touches memory when a buffer grows.
+    mesh.positions.resize(total_vertices, DVec3::ZERO);
+    mesh.normals.resize(total_vertices, DVec3::ZERO);
+    mesh.uvs.resize(total_vertices, DVec2::ZERO);
+    mesh.indices.resize(total_indices, 0);
+    mesh.parts = parts;
     // Split the outputs into one (positions, normals, uvs) slice triple per surface.
     let mut jobs = Vec::with_capacity(surfaces.len());
     let (mut pos, mut nrm, mut uv) = (&mut mesh.positions[..], &mut mesh.normals[..], &mut mesh.uvs[..]);
@@ -38,10 +41,8 @@ pub fn tessellate_grid(surfaces: &[BSplineSurface], options: &TessOptions) -> Re
     jobs.into_par_iter().for_each(|(surface, part, positions, normals, uvs)| {
         tessellate_surface(surface, &part, positions, normals, uvs);
     });
-    for part in &mesh.parts {
-        push_grid_indices(part, &mut mesh.indices);
-    }
-    Ok(mesh)
+    fill_grid_indices(&mesh.parts, &mut mesh.indices);
+    Ok(())
 }
 
 /// Basis values and first derivatives of one direction at every grid sample, with the
@@ -49,7 +50,10 @@ pub fn tessellate_grid(surfaces: &[BSplineSurface], options: &TessOptions) -> Re
 struct AxisTable {
     /// Parameter of each sample.
     params: Vec<f64>,
-    /// `values[k * samples + i]`: basis function k (of the span) at sample i.
+    /// Each sample's fraction of the range, i / (samples − 1): the uv coordinate.
+    fractions: Vec<f64>,
+    /// `values[k * stride + i]`: basis function k (of the span) at sample i; each row is
+    /// padded with `LANES − 1` zeros so 4-lane loads past the last sample stay in bounds.
     values: Vec<f64>,
     /// Same layout, first derivatives.
     derivatives: Vec<f64>,
@@ -58,24 +62,32 @@ struct AxisTable {
 }
 
 impl AxisTable {
+    /// Distance between the rows of `values` and `derivatives`.
+    fn stride(&self) -> usize {
+        self.params.len() + LANES - 1
+    }
+
     fn new(knots: &crate::geom::KnotVector, range: crate::geom::Interval, samples: usize) -> Self {
         let p = knots.degree();
         let mut table = AxisTable {
             params: Vec::with_capacity(samples),
-            values: vec![0.0; (p + 1) * samples],
-            derivatives: vec![0.0; (p + 1) * samples],
+            fractions: Vec::with_capacity(samples),
+            values: vec![0.0; (p + 1) * (samples + LANES - 1)],
+            derivatives: vec![0.0; (p + 1) * (samples + LANES - 1)],
             runs: Vec::new(),
         };
         let mut ders: BasisDers = [[0.0; MAX_ORDER]; 3];
         for i in 0..samples {
-            let t = range.lerp(i as f64 / (samples - 1) as f64);
+            let fraction = i as f64 / (samples - 1) as f64;
+            let t = range.lerp(fraction);
             let span = knots.find_span(t);
             basis_ders(knots, span, t, 1, &mut ders);
             for k in 0..=p {
-                table.values[k * samples + i] = ders[0][k];
-                table.derivatives[k * samples + i] = ders[1][k];
+                table.values[k * (samples + LANES - 1) + i] = ders[0][k];
+                table.derivatives[k * (samples + LANES - 1) + i] = ders[1][k];
             }
             table.params.push(t);
+            table.fractions.push(fraction);
             match table.runs.last_mut() {
                 Some(run) if run.0 == span => run.2 = i + 1,
                 _ => table.runs.push((span, i, i + 1)),
@@ -85,115 +97,172 @@ impl AxisTable {
     }
 }
 
-/// Per-row working storage, reused across the rows one rayon job handles.
+/// Per-row working storage: the control net contracted along v at the current row, one
+/// homogeneous value and v-derivative per control column. Reused across the rows of one job.
 struct RowScratch {
-    /// Control net contracted along v at this row: value and v-derivative per control column.
     column_value: Vec<DVec4>,
     column_dv: Vec<DVec4>,
-    /// Homogeneous value, ∂u and ∂v per vertex of the row, as 12 component arrays.
-    acc: [Vec<f64>; 12],
 }
+
+/// Vertices evaluated together, one per lane of [`F64x4`].
+const LANES: usize = 4;
 
 fn tessellate_surface(surface: &BSplineSurface, part: &MeshPart, positions: &mut [DVec3], normals: &mut [DVec3], uvs: &mut [DVec2]) {
     let (nu, nv) = (part.grid_u as usize, part.grid_v as usize);
     let columns = AxisTable::new(surface.knots_u(), surface.range_u(), nu);
     let rows = AxisTable::new(surface.knots_v(), surface.range_v(), nv);
-    let threshold = surface.degenerate_cross_sq();
+    evaluate_tables(surface, &columns, &rows, positions, normals);
+    uvs.par_chunks_mut(nu).zip(&rows.fractions).for_each(|(row_uvs, &v)| {
+        for (uv, &u) in row_uvs.iter_mut().zip(&columns.fractions) {
+            *uv = DVec2::new(u, v);
+        }
+    });
+}
+
+/// Evaluates `surface` on a grid of `grid_u` × `grid_v` vertices — uniform in parameter over
+/// its range, vertex (i, j) at j·grid_u + i — into positions and unit normals, in parallel
+/// over rows. For callers that keep their own topology and only need the attributes (a
+/// renderer re-evaluating moved control points); [`tessellate_grid_into`] builds on it.
+/// Both slices must hold exactly grid_u·grid_v elements.
+pub fn evaluate_grid_into(surface: &BSplineSurface, grid_u: u32, grid_v: u32, positions: &mut [DVec3], normals: &mut [DVec3]) -> Result<()> {
+    if grid_u < 2 || grid_v < 2 {
+        return Err(Error::GridTooSmall { nu: grid_u, nv: grid_v });
+    }
+    let expected = grid_u as usize * grid_v as usize;
+    for found in [positions.len(), normals.len()] {
+        if found != expected {
+            return Err(Error::BufferLength { expected, found });
+        }
+    }
+    let columns = AxisTable::new(surface.knots_u(), surface.range_u(), grid_u as usize);
+    let rows = AxisTable::new(surface.knots_v(), surface.range_v(), grid_v as usize);
+    evaluate_tables(surface, &columns, &rows, positions, normals);
+    Ok(())
+}
+
+fn evaluate_tables(surface: &BSplineSurface, columns: &AxisTable, rows: &AxisTable, positions: &mut [DVec3], normals: &mut [DVec3]) {
+    let nu = columns.params.len();
     let count_u = surface.count_u();
-    let chunks = positions.par_chunks_mut(nu).zip(normals.par_chunks_mut(nu)).zip(uvs.par_chunks_mut(nu)).enumerate();
-    chunks.for_each_init(
-        || RowScratch { column_value: vec![DVec4::ZERO; count_u], column_dv: vec![DVec4::ZERO; count_u], acc: std::array::from_fn(|_| vec![0.0; nu]) },
-        |scratch, (j, ((row_positions, row_normals), row_uvs))| {
-            evaluate_row(surface, &columns, &rows, j, scratch);
-            finish_row(surface, &columns, rows.params[j], threshold, scratch, row_positions, row_normals);
-            let v = j as f64 / (nv - 1) as f64;
-            for (i, uv) in row_uvs.iter_mut().enumerate() {
-                *uv = DVec2::new(i as f64 / (nu - 1) as f64, v);
+    let fma = has_fma();
+    positions.par_chunks_mut(nu).zip(normals.par_chunks_mut(nu)).enumerate().for_each_init(
+        || RowScratch { column_value: vec![DVec4::ZERO; count_u], column_dv: vec![DVec4::ZERO; count_u] },
+        |scratch, (j, (row_positions, row_normals))| {
+            contract_columns(surface, columns, rows, j, scratch);
+            let row = Row { surface, columns, v: rows.params[j], scratch };
+            if fma {
+                // SAFETY: `has_fma` checked at run time that this CPU has AVX2 and FMA.
+                #[cfg(target_arch = "x86_64")]
+                unsafe {
+                    row.evaluate_avx2_fma(row_positions, row_normals)
+                };
+            } else {
+                row.evaluate::<Portable>(row_positions, row_normals);
             }
         },
     );
 }
 
-/// Fills `scratch.acc` with the homogeneous point and its u- and v-derivatives at every vertex
-/// of grid row `j`.
-fn evaluate_row(surface: &BSplineSurface, columns: &AxisTable, rows: &AxisTable, j: usize, scratch: &mut RowScratch) {
+/// True when the row kernel can use fused multiply-add on 4-wide f64 vectors.
+fn has_fma() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// Contracts the control net along v at grid row `j`: for every control column the spans of
+/// this grid touch, the homogeneous value and v-derivative of that column at v_j.
+fn contract_columns(surface: &BSplineSurface, columns: &AxisTable, rows: &AxisTable, j: usize, scratch: &mut RowScratch) {
     let (p, q) = (surface.degree_u(), surface.degree_v());
     let count_u = surface.count_u();
     let points = surface.homogeneous_points();
-    let nv = rows.params.len();
+    let stride = rows.stride();
     let span_v = rows.runs.iter().find(|r| r.1 <= j && j < r.2).expect("every row lies in a run").0;
-    // Contract along v for the control columns this row's spans touch.
     let first_column = columns.runs.first().map_or(0, |r| r.0 - p);
     let last_column = columns.runs.last().map_or(0, |r| r.0);
     for c in first_column..=last_column {
         let (mut value, mut dv) = (DVec4::ZERO, DVec4::ZERO);
         for b in 0..=q {
             let pt = points[(span_v - q + b) * count_u + c];
-            value += rows.values[b * nv + j] * pt;
-            dv += rows.derivatives[b * nv + j] * pt;
+            value += rows.values[b * stride + j] * pt;
+            dv += rows.derivatives[b * stride + j] * pt;
         }
         scratch.column_value[c] = value;
         scratch.column_dv[c] = dv;
     }
-    let nu = columns.params.len();
-    let [ax, ay, az, aw, ux, uy, uz, uw, vx, vy, vz, vw] = &mut scratch.acc;
-    for &(span_u, start, end) in &columns.runs {
-        let len = end - start;
-        let (ax, ay, az, aw) = (&mut ax[start..end], &mut ay[start..end], &mut az[start..end], &mut aw[start..end]);
-        let (ux, uy, uz, uw) = (&mut ux[start..end], &mut uy[start..end], &mut uz[start..end], &mut uw[start..end]);
-        let (vx, vy, vz, vw) = (&mut vx[start..end], &mut vy[start..end], &mut vz[start..end], &mut vw[start..end]);
-        for k in 0..=p {
-            let t = scratch.column_value[span_u - p + k];
-            let d = scratch.column_dv[span_u - p + k];
-            let n = &columns.values[k * nu + start..k * nu + end];
-            let dn = &columns.derivatives[k * nu + start..k * nu + end];
-            let first = k == 0;
-            for i in 0..len {
-                let (b, db) = (n[i], dn[i]);
-                if first {
-                    ax[i] = b * t.x;
-                    ay[i] = b * t.y;
-                    az[i] = b * t.z;
-                    aw[i] = b * t.w;
-                    ux[i] = db * t.x;
-                    uy[i] = db * t.y;
-                    uz[i] = db * t.z;
-                    uw[i] = db * t.w;
-                    vx[i] = b * d.x;
-                    vy[i] = b * d.y;
-                    vz[i] = b * d.z;
-                    vw[i] = b * d.w;
-                } else {
-                    ax[i] += b * t.x;
-                    ay[i] += b * t.y;
-                    az[i] += b * t.z;
-                    aw[i] += b * t.w;
-                    ux[i] += db * t.x;
-                    uy[i] += db * t.y;
-                    uz[i] += db * t.z;
-                    uw[i] += db * t.w;
-                    vx[i] += b * d.x;
-                    vy[i] += b * d.y;
-                    vz[i] += b * d.z;
-                    vw[i] += b * d.w;
+}
+
+/// One grid row ready for the u contraction.
+struct Row<'a> {
+    surface: &'a BSplineSurface,
+    columns: &'a AxisTable,
+    v: f64,
+    scratch: &'a RowScratch,
+}
+
+impl Row<'_> {
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn evaluate_avx2_fma(&self, positions: &mut [DVec3], normals: &mut [DVec3]) {
+        self.evaluate::<Avx2>(positions, normals);
+    }
+
+    /// Writes the positions and unit normals of the row, four vertices of one knot span at a
+    /// time with the accumulators in registers; vertices where S_u × S_v vanishes take the
+    /// limit normal of [`BSplineSurface::evaluate`].
+    #[inline(always)]
+    fn evaluate<V: F64x4>(&self, positions: &mut [DVec3], normals: &mut [DVec3]) {
+        let threshold = self.surface.degenerate_cross_sq();
+        let p = self.surface.degree_u();
+        let stride = self.columns.stride();
+        for &(span, start, end) in &self.columns.runs {
+            for i0 in (start..end).step_by(LANES) {
+                // Homogeneous value A, ∂u A and ∂v A, component by component, four vertices wide.
+                let mut acc = [V::splat(0.0); 12];
+                for k in 0..=p {
+                    let t = self.scratch.column_value[span - p + k].to_array();
+                    let d = self.scratch.column_dv[span - p + k].to_array();
+                    let n = V::load(&self.columns.values[k * stride + i0..]);
+                    let dn = V::load(&self.columns.derivatives[k * stride + i0..]);
+                    for c in 0..4 {
+                        acc[c] = n.mul_add(V::splat(t[c]), acc[c]);
+                        acc[4 + c] = dn.mul_add(V::splat(t[c]), acc[4 + c]);
+                        acc[8 + c] = n.mul_add(V::splat(d[c]), acc[8 + c]);
+                    }
+                }
+                // Quotient rule: S = A/w, S_u = (A_u − w_u S)/w, S_v = (A_v − w_v S)/w. The
+                // normal only needs the direction of S_u × S_v, so the cross product is taken
+                // of w·S_u and w·S_v: it is w² times the true one (w > 0), and the degeneracy
+                // threshold scales by w⁴. (Plain code, no closures: closures would not inherit
+                // the target features.)
+                let inv_w = V::splat(1.0).div(acc[3]);
+                let (x, y, z) = (acc[0].mul(inv_w), acc[1].mul(inv_w), acc[2].mul(inv_w));
+                let su = [acc[4].sub(acc[7].mul(x)), acc[5].sub(acc[7].mul(y)), acc[6].sub(acc[7].mul(z))];
+                let sv = [acc[8].sub(acc[11].mul(x)), acc[9].sub(acc[11].mul(y)), acc[10].sub(acc[11].mul(z))];
+                let cx = su[1].mul(sv[2]).sub(su[2].mul(sv[1]));
+                let cy = su[2].mul(sv[0]).sub(su[0].mul(sv[2]));
+                let cz = su[0].mul(sv[1]).sub(su[1].mul(sv[0]));
+                let len_sq = cx.mul_add(cx, cy.mul_add(cy, cz.mul(cz)));
+                let inv_len = V::splat(1.0).div(len_sq.sqrt());
+                let w_sq = acc[3].mul(acc[3]);
+                let limit = w_sq.mul(w_sq).mul(V::splat(threshold)).to_array();
+                let (x, y, z) = (x.to_array(), y.to_array(), z.to_array());
+                let (nx, ny, nz) = (cx.mul(inv_len).to_array(), cy.mul(inv_len).to_array(), cz.mul(inv_len).to_array());
+                let len_sq = len_sq.to_array();
+                for l in 0..LANES.min(end - i0) {
+                    let i = i0 + l;
+                    positions[i] = DVec3::new(x[l], y[l], z[l]);
+                    normals[i] = if len_sq[l] > limit[l] {
+                        DVec3::new(nx[l], ny[l], nz[l])
+                    } else {
+                        self.surface.evaluate(self.columns.params[i], self.v).normal
+                    };
                 }
             }
         }
-    }
-}
-
-/// Projects the homogeneous row to positions and unit normals (quotient rule); vertices where
-/// S_u × S_v vanishes take the limit normal from [`BSplineSurface::evaluate`].
-fn finish_row(surface: &BSplineSurface, columns: &AxisTable, v: f64, threshold: f64, scratch: &RowScratch, positions: &mut [DVec3], normals: &mut [DVec3]) {
-    let [ax, ay, az, aw, ux, uy, uz, uw, vx, vy, vz, vw] = &scratch.acc;
-    for i in 0..positions.len() {
-        let inv_w = 1.0 / aw[i];
-        let s = DVec3::new(ax[i], ay[i], az[i]) * inv_w;
-        let su = (DVec3::new(ux[i], uy[i], uz[i]) - uw[i] * s) * inv_w;
-        let sv = (DVec3::new(vx[i], vy[i], vz[i]) - vw[i] * s) * inv_w;
-        let n = su.cross(sv);
-        let len_sq = n.length_squared();
-        positions[i] = s;
-        normals[i] = if len_sq > threshold { n / len_sq.sqrt() } else { surface.evaluate(columns.params[i], v).normal };
     }
 }

@@ -3,9 +3,10 @@
 mod basis;
 mod eval;
 mod grid;
+mod lanes;
 
 pub use eval::SurfaceSample;
-pub use grid::tessellate_grid;
+pub use grid::{evaluate_grid_into, tessellate_grid_into};
 
 use crate::error::Result;
 use crate::geom::BSplineSurface;
@@ -18,8 +19,8 @@ use crate::Tessellator;
 pub struct CpuTessellator;
 
 impl Tessellator for CpuTessellator {
-    fn tessellate(&self, surfaces: &[BSplineSurface], options: &TessOptions) -> Result<Mesh> {
-        tessellate_grid(surfaces, options)
+    fn tessellate_into(&self, surfaces: &[BSplineSurface], options: &TessOptions, mesh: &mut Mesh) -> Result<()> {
+        tessellate_grid_into(surfaces, options, mesh)
     }
 
     fn name(&self) -> String {
