@@ -377,6 +377,32 @@ fn bezier_surface_matches_tensor_bernstein() {
     assert!((surface.point(u, v) - expected).length() < 1e-14);
 }
 
+#[test]
+fn evaluate_grid_and_reused_meshes_match_fresh_tessellation() {
+    let teapot = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt")).unwrap().surfaces;
+    let options = TessOptions::DEFAULT.with_grid(7, 5);
+    let fresh = CpuTessellator.tessellate(&teapot, &options).unwrap();
+    // A mesh that held something else (bigger, other layout) is overwritten completely.
+    let mut reused = CpuTessellator.tessellate(&[sphere(3.0), torus(2.0, 0.5)], &TessOptions::DEFAULT.with_grid(40, 40)).unwrap();
+    CpuTessellator.tessellate_into(&teapot, &options, &mut reused).unwrap();
+    assert_eq!(reused, fresh);
+    // On error the mesh is left as it was.
+    let err = CpuTessellator.tessellate_into(&teapot, &TessOptions::DEFAULT.with_grid(1, 1), &mut reused).unwrap_err();
+    assert!(matches!(err, Error::GridTooSmall { .. }));
+    assert_eq!(reused, fresh);
+    // The attribute-only layer gives the same positions and normals as the mesh.
+    let part = fresh.parts[3];
+    let range = part.first_vertex as usize..(part.first_vertex + part.vertex_count()) as usize;
+    let (mut positions, mut normals) = (vec![DVec3::ZERO; 35], vec![DVec3::ZERO; 35]);
+    knotwork::cpu::evaluate_grid_into(&teapot[3], 7, 5, &mut positions, &mut normals).unwrap();
+    assert_eq!(positions, fresh.positions[range.clone()]);
+    assert_eq!(normals, fresh.normals[range]);
+    let short = knotwork::cpu::evaluate_grid_into(&teapot[3], 7, 5, &mut positions[..34], &mut normals).unwrap_err();
+    assert!(matches!(short, Error::BufferLength { expected: 35, found: 34 }));
+    let tiny = knotwork::cpu::evaluate_grid_into(&teapot[3], 1, 35, &mut positions, &mut normals).unwrap_err();
+    assert!(matches!(tiny, Error::GridTooSmall { nu: 1, nv: 35 }));
+}
+
 // ---------------------------------------------------------------- errors
 
 fn unit_points(n: usize) -> Vec<DVec3> {

@@ -266,3 +266,42 @@ impl Row<'_> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::KnotVector;
+
+    /// The portable kernel and the AVX2+FMA kernel agree to rounding (FMA rounds once where
+    /// the portable code rounds twice), including on run remainders shorter than four lanes.
+    #[test]
+    fn portable_and_simd_kernels_agree() {
+        if !has_fma() {
+            eprintln!("skipped: this CPU has no AVX2+FMA, only the portable kernel exists here");
+            return;
+        }
+        let (p, q, nu, nv) = (3, 2, 7, 5);
+        let points: Vec<DVec3> = (0..nu * nv).map(|k| DVec3::new((k % nu) as f64, (k / nu) as f64, ((k * 37) % 11) as f64 * 0.3)).collect();
+        let weights: Vec<f64> = (0..nu * nv).map(|k| 0.3 + ((k * 13) % 7) as f64 * 0.5).collect();
+        let knots_u = KnotVector::try_new(p, vec![0.0, 0.0, 0.0, 0.0, 0.2, 0.5, 0.5, 1.0, 1.0, 1.0, 1.0]).unwrap();
+        let surface = BSplineSurface::try_new(knots_u, KnotVector::uniform(q, nv).unwrap(), &points, Some(&weights)).unwrap();
+        let columns = AxisTable::new(surface.knots_u(), surface.range_u(), 23);
+        let rows = AxisTable::new(surface.knots_v(), surface.range_v(), 6);
+        let mut scratch = RowScratch { column_value: vec![DVec4::ZERO; nu], column_dv: vec![DVec4::ZERO; nu] };
+        let size = surface.control_box_diagonal();
+        for j in 0..6 {
+            contract_columns(&surface, &columns, &rows, j, &mut scratch);
+            let row = Row { surface: &surface, columns: &columns, v: rows.params[j], scratch: &scratch };
+            let (mut p1, mut n1, mut p2, mut n2) = (vec![DVec3::ZERO; 23], vec![DVec3::ZERO; 23], vec![DVec3::ZERO; 23], vec![DVec3::ZERO; 23]);
+            row.evaluate::<Portable>(&mut p1, &mut n1);
+            // SAFETY: has_fma() was checked above.
+            unsafe { row.evaluate_avx2_fma(&mut p2, &mut n2) };
+            for i in 0..23 {
+                assert!((p1[i] - p2[i]).length() <= 1e-14 * size, "position {i},{j}");
+                assert!((n1[i] - n2[i]).length() <= 1e-12, "normal {i},{j}");
+                let exact = surface.evaluate(columns.params[i], rows.params[j]);
+                assert!((p1[i] - exact.position).length() <= 1e-13 * size);
+            }
+        }
+    }
+}
