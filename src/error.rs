@@ -48,6 +48,16 @@ pub enum Error {
     UnexpectedEnd { expected: String },
     #[error("unknown file format for {path:?}: expected one of {expected}")]
     UnknownFormat { path: PathBuf, expected: &'static str },
+    #[error("no GPU adapter: {reason}")]
+    NoAdapter { reason: String },
+    #[error("GPU error: {message}")]
+    Gpu { message: String },
+    #[error("the GPU job cannot fit: {what} needs {bytes} bytes, the adapter allows {limit}")]
+    GpuJobTooLarge { what: &'static str, bytes: u64, limit: u64 },
+    #[error("surface {index} changed shape (degrees, control point counts, knots or range): upload a new batch")]
+    SurfaceShapeChanged { index: usize },
+    #[error("surface index {index} is out of range: the batch has {count} surfaces")]
+    SurfaceIndex { index: usize, count: usize },
     #[error("line {line}: {source}")]
     AtLine { line: usize, source: Box<Error> },
     #[error("{}: {source}", path.display())]

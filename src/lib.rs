@@ -22,14 +22,17 @@
 //! The CPU path computes in f64 with the stable Cox–de Boor recurrence: positions agree with
 //! the exact surface to a few ulps of the model size (tests hold exact conics to ≤ 1e-12 of it).
 
+pub mod conformance;
 pub mod cpu;
 pub mod error;
 pub mod geom;
+pub mod gpu;
 pub mod io;
 pub mod mesh;
 
 pub use cpu::CpuTessellator;
 pub use error::{Error, Result};
+pub use gpu::{GpuBatch, GpuContext, GpuMesh, GpuTessellator};
 pub use geom::{BSplineCurve, BSplineSurface, BezierPatch, Interval, KnotVector};
 pub use mesh::{Mesh, MeshPart, TessOptions};
 

@@ -1,6 +1,6 @@
 //! The f64 reference path: basis functions, point evaluation and grid tessellation.
 
-mod basis;
+pub(crate) mod basis;
 mod eval;
 mod grid;
 mod lanes;

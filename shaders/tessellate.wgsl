@@ -1,0 +1,200 @@
+// Grid tessellation of rational tensor-product B-spline surfaces, in f32.
+//
+// The host (src/gpu/pack.rs) splits every surface into pieces (bands of grid rows), computes
+// the basis values of every grid column and row in f64, and uploads them with the control
+// points, which are stored relative to the surface's own origin. Three passes, one
+// workgroup per tile of 64 work items:
+//   contract_rows     — per grid row and control column: the control net contracted along v
+//                       (value, ∂v, ∂vv; homogeneous);
+//   evaluate_vertices — per vertex: contraction along u of p+1 of those, the quotient rule,
+//                       the unit normal (limit from second derivatives where S_u × S_v
+//                       vanishes); position = origin + local point, added last;
+//   connect_cells     — per grid cell: two counter-clockwise triangles.
+// Only core WGSL and f32: it runs on WebGPU as well as native adapters.
+
+// Mirrors src/gpu/pack.rs `Piece`: all scalars, 80 bytes.
+struct Piece {
+    origin_x: f32, origin_y: f32, origin_z: f32,
+    // |S_u × S_v|² at or below this (model units² per parameter²) counts as degenerate.
+    degenerate_sq: f32,
+    // Widths of the evaluation range (parameter units): the approach direction of limits.
+    width_u: f32, width_v: f32,
+    count_u: u32, degree_u: u32, degree_v: u32,
+    grid_u: u32, grid_v: u32,
+    // The band of grid rows [first_row, first_row + rows) this piece covers, and the number
+    // of cell rows it connects.
+    first_row: u32, rows: u32, cell_rows: u32,
+    // Global index of the band's first vertex and first index.
+    first_vertex: u32, first_index: u32,
+    // Offsets: control points (vec4 units), column and row tables (f32 units), contracted
+    // scratch (vec4 units, relative to the chunk).
+    points: u32, columns: u32, row_table: u32, contracted: u32,
+}
+
+// Mirrors src/gpu/pack.rs `ChunkParams`: where this chunk's bound ranges begin, so that
+// global offsets can be made binding-relative.
+struct ChunkParams {
+    tile_offset: u32, tile_count: u32,
+    vertex_origin: u32, index_origin: u32,
+    point_origin: u32, table_origin: u32,
+    piece_origin: u32, pad: u32,
+}
+
+// One workgroup's work: items first_item .. first_item + 64 (clipped) of a piece.
+struct Tile { piece: u32, first_item: u32 }
+
+const TILE: u32 = 64u;
+const MAX_ORDER: u32 = 21u;
+
+@group(0) @binding(0) var<uniform> chunk: ChunkParams;
+@group(0) @binding(1) var<storage, read> pieces: array<Piece>;
+@group(0) @binding(2) var<storage, read> tiles: array<Tile>;
+@group(0) @binding(3) var<storage, read> points: array<vec4<f32>>;
+// Per column (then per row) entry of a piece: [fraction, span (bits), N_0..N_p, N'_0..N'_p,
+// N''_0..N''_p]: 2 + 3(p+1) floats.
+@group(0) @binding(4) var<storage, read> tables: array<f32>;
+@group(0) @binding(5) var<storage, read_write> contracted: array<vec4<f32>>;
+// 8 floats per vertex: position xyz, normal xyz, uv.
+@group(0) @binding(6) var<storage, read_write> vertices: array<f32>;
+@group(0) @binding(7) var<storage, read_write> indices: array<u32>;
+
+// The piece (binding-relative) and item of this invocation (callers check the item against
+// the piece).
+fn work_item(wid: vec3<u32>, groups: vec3<u32>, lid: u32) -> vec2<u32> {
+    let tile = tiles[chunk.tile_offset + wid.x + wid.y * groups.x];
+    return vec2<u32>(tile.piece - chunk.piece_origin, tile.first_item + lid);
+}
+
+fn entry_stride(degree: u32) -> u32 {
+    return 2u + 3u * (degree + 1u);
+}
+
+@compute @workgroup_size(64)
+fn contract_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
+                 @builtin(local_invocation_index) lid: u32) {
+    if (wid.x + wid.y * groups.x >= chunk.tile_count) { return; }
+    let work = work_item(wid, groups, lid);
+    let piece = pieces[work.x];
+    let item = work.y;
+    if (item >= piece.rows * piece.count_u) { return; }
+    let row = item / piece.count_u;
+    let column = item % piece.count_u;
+    let q = piece.degree_v;
+    let entry = piece.row_table + row * entry_stride(q) - chunk.table_origin;
+    let span = bitcast<u32>(tables[entry + 1u]);
+    var value = vec4<f32>(0.0);
+    var dv = vec4<f32>(0.0);
+    var dvv = vec4<f32>(0.0);
+    for (var b = 0u; b <= q; b++) {
+        let point = points[piece.points - chunk.point_origin + (span - q + b) * piece.count_u + column];
+        value += tables[entry + 2u + b] * point;
+        dv += tables[entry + 3u + q + b] * point;
+        dvv += tables[entry + 4u + 2u * q + b] * point;
+    }
+    let out = piece.contracted + 3u * item;
+    contracted[out] = value;
+    contracted[out + 1u] = dv;
+    contracted[out + 2u] = dvv;
+}
+
+@compute @workgroup_size(64)
+fn evaluate_vertices(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
+                     @builtin(local_invocation_index) lid: u32) {
+    if (wid.x + wid.y * groups.x >= chunk.tile_count) { return; }
+    let work = work_item(wid, groups, lid);
+    let piece = pieces[work.x];
+    let item = work.y;
+    if (item >= piece.rows * piece.grid_u) { return; }
+    let row = item / piece.grid_u;
+    let i = item % piece.grid_u;
+    let p = piece.degree_u;
+    let column = piece.columns + i * entry_stride(p) - chunk.table_origin;
+    let span = bitcast<u32>(tables[column + 1u]);
+    let base = piece.contracted + 3u * (row * piece.count_u + span - p);
+    // Homogeneous A, A_u, A_v.
+    var a = vec4<f32>(0.0);
+    var au = vec4<f32>(0.0);
+    var av = vec4<f32>(0.0);
+    for (var k = 0u; k <= p; k++) {
+        let t = contracted[base + 3u * k];
+        let t_v = contracted[base + 3u * k + 1u];
+        let n = tables[column + 2u + k];
+        a += n * t;
+        au += tables[column + 3u + p + k] * t;
+        av += n * t_v;
+    }
+    let s = a.xyz / a.w;
+    let su = (au.xyz - au.w * s) / a.w;
+    let sv = (av.xyz - av.w * s) / a.w;
+    var normal = cross(su, sv);
+    if (dot(normal, normal) <= piece.degenerate_sq) {
+        normal = limit_normal(piece, column, base, a, au, av, s, su, sv, row);
+    }
+    normal = normalize(normal);
+    let row_entry = piece.row_table + row * entry_stride(piece.degree_v) - chunk.table_origin;
+    let out = 8u * (piece.first_vertex + item - chunk.vertex_origin);
+    vertices[out] = s.x + piece.origin_x;
+    vertices[out + 1u] = s.y + piece.origin_y;
+    vertices[out + 2u] = s.z + piece.origin_z;
+    vertices[out + 3u] = normal.x;
+    vertices[out + 4u] = normal.y;
+    vertices[out + 5u] = normal.z;
+    vertices[out + 6u] = tables[column];
+    vertices[out + 7u] = tables[row_entry];
+}
+
+// Where S_u × S_v vanishes: the first-order term of its expansion along the direction
+// (±width_u, ±width_v) pointing to the centre of the range,
+//   du (S_u × S_uv + S_uu × S_v) + dv (S_u × S_vv + S_uv × S_v),
+// from the second derivatives; +Z where that vanishes too (no tangent plane nearby).
+fn limit_normal(piece: Piece, column: u32, base: u32, a: vec4<f32>, au: vec4<f32>, av: vec4<f32>,
+                s: vec3<f32>, su: vec3<f32>, sv: vec3<f32>, row: u32) -> vec3<f32> {
+    let p = piece.degree_u;
+    var auu = vec4<f32>(0.0);
+    var auv = vec4<f32>(0.0);
+    var avv = vec4<f32>(0.0);
+    for (var k = 0u; k <= p; k++) {
+        let t = contracted[base + 3u * k];
+        let t_v = contracted[base + 3u * k + 1u];
+        let t_vv = contracted[base + 3u * k + 2u];
+        auu += tables[column + 4u + 2u * p + k] * t;
+        auv += tables[column + 3u + p + k] * t_v;
+        avv += tables[column + 2u + k] * t_vv;
+    }
+    let w = a.w;
+    let suu = (auu.xyz - 2.0 * au.w * su - auu.w * s) / w;
+    let suv = (auv.xyz - au.w * sv - av.w * su - auv.w * s) / w;
+    let svv = (avv.xyz - 2.0 * av.w * sv - avv.w * s) / w;
+    let row_entry = piece.row_table + row * entry_stride(piece.degree_v) - chunk.table_origin;
+    let step_u = select(piece.width_u, -piece.width_u, tables[column] > 0.5);
+    let step_v = select(piece.width_v, -piece.width_v, tables[row_entry] > 0.5);
+    let first = step_u * (cross(su, suv) + cross(suu, sv)) + step_v * (cross(su, svv) + cross(suv, sv));
+    if (dot(first, first) <= piece.degenerate_sq) {
+        return vec3<f32>(0.0, 0.0, 1.0);
+    }
+    return first;
+}
+
+@compute @workgroup_size(64)
+fn connect_cells(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
+                 @builtin(local_invocation_index) lid: u32) {
+    if (wid.x + wid.y * groups.x >= chunk.tile_count) { return; }
+    let work = work_item(wid, groups, lid);
+    let piece = pieces[work.x];
+    let item = work.y;
+    let cells_per_row = piece.grid_u - 1u;
+    if (item >= piece.cell_rows * cells_per_row) { return; }
+    let row = item / cells_per_row;
+    let i = item % cells_per_row;
+    let a = piece.first_vertex + row * piece.grid_u + i;
+    let b = a + 1u;
+    let c = a + piece.grid_u + 1u;
+    let d = a + piece.grid_u;
+    let out = piece.first_index + 6u * item - chunk.index_origin;
+    indices[out] = a;
+    indices[out + 1u] = b;
+    indices[out + 2u] = c;
+    indices[out + 3u] = a;
+    indices[out + 4u] = c;
+    indices[out + 5u] = d;
+}

@@ -1,0 +1,212 @@
+//! GPU-vs-CPU conformance: a suite of surfaces that exercise every feature of the evaluator,
+//! and the comparison of a mesh from any backend against the f64 reference, with the bars
+//! the GPU path promises.
+
+use crate::error::Result;
+use crate::geom::{BSplineSurface, Interval, KnotVector, bezier_surface};
+use crate::mesh::{Mesh, TessOptions};
+use crate::{CpuTessellator, Tessellator};
+use glam::DVec3;
+
+/// Position bar, relative to the surface's bounding-box diagonal.
+pub const POSITION_REL_BAR: f64 = 1e-5;
+/// Extra position allowance relative to the point's distance from the world origin: the f32
+/// rounding of the surface origin and of the result (2 × 2⁻²⁴).
+pub const F32_ROUNDING: f64 = 1.0 / 8_388_608.0;
+/// Normal bar at regular points, in radians.
+pub const NORMAL_BAR: f64 = 1e-4;
+/// Normal bar near degenerate points (collapsed edges, poles), in radians.
+pub const DEGENERATE_NORMAL_BAR: f64 = 1e-2;
+/// A vertex is regular when |S_u × S_v| ≥ this × (size / parameter width)²; closer to a
+/// degenerate point the f32 cross product loses digits and the looser bar applies.
+pub const REGULAR_REL: f64 = 1e-3;
+
+/// One case: surfaces and the grid to tessellate them on.
+pub struct Case {
+    pub name: String,
+    pub surfaces: Vec<BSplineSurface>,
+    pub options: TessOptions,
+}
+
+/// What a comparison measured.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Report {
+    /// Largest position error minus the f32 rounding allowance, over the surface's diagonal.
+    pub worst_position: f64,
+    /// Largest normal angle at regular vertices (radians).
+    pub worst_normal: f64,
+    /// Largest normal angle near degenerate points (radians; 0 if there are none).
+    pub worst_degenerate_normal: f64,
+    /// Vertices compared, and how many of them were near a degenerate point.
+    pub vertices: usize,
+    pub degenerate_vertices: usize,
+    /// Index buffers identical and the layout the same.
+    pub topology_equal: bool,
+}
+
+impl Report {
+    pub fn passes(&self) -> bool {
+        self.topology_equal
+            && self.worst_position <= POSITION_REL_BAR
+            && self.worst_normal <= NORMAL_BAR
+            && self.worst_degenerate_normal <= DEGENERATE_NORMAL_BAR
+    }
+}
+
+fn angle(a: DVec3, b: DVec3) -> f64 {
+    a.cross(b).length().atan2(a.dot(b))
+}
+
+/// Compares `mesh` (from any backend) with the f64 reference for `surfaces`.
+pub fn compare(surfaces: &[BSplineSurface], options: &TessOptions, mesh: &Mesh) -> Result<Report> {
+    let reference = CpuTessellator.tessellate(surfaces, options)?;
+    let mut report = Report {
+        worst_position: 0.0,
+        worst_normal: 0.0,
+        worst_degenerate_normal: 0.0,
+        vertices: reference.vertex_count(),
+        degenerate_vertices: 0,
+        topology_equal: reference.indices == mesh.indices && reference.parts == mesh.parts && reference.vertex_count() == mesh.vertex_count(),
+    };
+    if reference.vertex_count() != mesh.vertex_count() {
+        report.worst_position = f64::INFINITY;
+        return Ok(report);
+    }
+    for (surface, part) in surfaces.iter().zip(&reference.parts) {
+        let size = surface.control_box_diagonal();
+        let (du, dv) = (surface.knots_u().domain(), surface.knots_v().domain());
+        let regular = REGULAR_REL * size * size / ((du.1 - du.0) * (dv.1 - dv.0));
+        for k in part.first_vertex as usize..(part.first_vertex + part.vertex_count()) as usize {
+            let expected = reference.positions[k];
+            let error = (mesh.positions[k] - expected).length() - F32_ROUNDING * expected.length();
+            report.worst_position = report.worst_position.max(error.max(0.0) / size);
+            let uv = reference.uvs[k];
+            let sample = surface.evaluate(surface.range_u().lerp(uv.x), surface.range_v().lerp(uv.y));
+            let normal_error = angle(mesh.normals[k], reference.normals[k]);
+            if sample.du.cross(sample.dv).length() >= regular {
+                report.worst_normal = report.worst_normal.max(normal_error);
+            } else {
+                report.degenerate_vertices += 1;
+                report.worst_degenerate_normal = report.worst_degenerate_normal.max(normal_error);
+            }
+            if !normal_error.is_finite() || !mesh.positions[k].is_finite() {
+                report.worst_normal = f64::INFINITY;
+            }
+        }
+    }
+    Ok(report)
+}
+
+/// A net of `nu × nv` points on a wavy sheet spanning `size`, deterministic.
+fn wavy_net(nu: usize, nv: usize, size: f64) -> Vec<DVec3> {
+    (0..nu * nv)
+        .map(|k| {
+            let (i, j) = ((k % nu) as f64, (k / nu) as f64);
+            let z = (0.7 * i).sin() * (0.4 * j + 0.3).cos() + 0.25 * ((k * 7919) % 17) as f64 / 17.0;
+            DVec3::new(i / (nu - 1).max(1) as f64, j / (nv - 1).max(1) as f64, 0.3 * z) * size
+        })
+        .collect()
+}
+
+/// Weights spread over [lo, hi] (geometrically), deterministic.
+fn spread_weights(n: usize, lo: f64, hi: f64) -> Vec<f64> {
+    (0..n).map(|k| lo * (hi / lo).powf(((k * 37) % 101) as f64 / 100.0)).collect()
+}
+
+fn surface(ku: KnotVector, kv: KnotVector, points: &[DVec3], weights: Option<&[f64]>) -> BSplineSurface {
+    BSplineSurface::try_new(ku, kv, points, weights).expect("conformance surfaces are valid")
+}
+
+/// A rational sphere of radius `r` about `centre` (u around z, v pole to pole).
+fn sphere(centre: DVec3, r: f64) -> BSplineSurface {
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    let circle = [(1.0, 0.0, 1.0), (1.0, 1.0, s), (0.0, 1.0, 1.0), (-1.0, 1.0, s), (-1.0, 0.0, 1.0), (-1.0, -1.0, s), (0.0, -1.0, 1.0), (1.0, -1.0, s), (1.0, 0.0, 1.0)];
+    let profile = [(0.0, -r, 1.0), (r, -r, s), (r, 0.0, 1.0), (r, r, s), (0.0, r, 1.0)];
+    let (mut points, mut weights) = (Vec::new(), Vec::new());
+    for &(x, z, wp) in &profile {
+        for &(cx, cy, wc) in &circle {
+            points.push(centre + DVec3::new(cx * x, cy * x, z));
+            weights.push(wc * wp);
+        }
+    }
+    let ku = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1.0, 1.0, 1.0]).expect("circle knots");
+    let kv = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 0.5, 0.5, 1.0, 1.0, 1.0]).expect("semicircle knots");
+    surface(ku, kv, &points, Some(&weights))
+}
+
+/// The conformance suite: degrees 1..=20 in both directions, rational and not, clamped,
+/// unclamped and periodic knots, repeated interior knots, tiny spans, sub-ranges, large
+/// offsets and scales, weights from 0.01 to 100, collapsed edges and poles.
+pub fn suite() -> Vec<Case> {
+    let grid = |n| TessOptions::DEFAULT.with_grid(n, n);
+    let mut cases = Vec::new();
+    // Every degree in u and in v: (d, 21 − d).
+    let degrees = (1..=20)
+        .map(|d| {
+            let (p, q) = (d, 21 - d);
+            let (nu, nv) = (p + 2, q + 1);
+            surface(KnotVector::clamped_uniform(p, nu).unwrap(), KnotVector::clamped_uniform(q, nv).unwrap(), &wavy_net(nu, nv, 2.0), None)
+        })
+        .collect();
+    cases.push(Case { name: "degrees 1..=20 (u) × 20..=1 (v), clamped".into(), surfaces: degrees, options: grid(17) });
+    let rational_high = (1..=20)
+        .step_by(3)
+        .map(|d| {
+            let (nu, nv) = (d + 3, 21 - d + 2);
+            let ku = KnotVector::uniform(d, nu).unwrap();
+            let kv = KnotVector::clamped_uniform(21 - d, nv).unwrap();
+            surface(ku, kv, &wavy_net(nu, nv, 5.0), Some(&spread_weights(nu * nv, 0.2, 5.0)))
+        })
+        .collect();
+    cases.push(Case { name: "rational, high degree, unclamped × clamped".into(), surfaces: rational_high, options: grid(19) });
+    let (nu, nv) = (12, 9);
+    let bicubic = |weights: Option<&[f64]>| surface(KnotVector::clamped_uniform(3, nu).unwrap(), KnotVector::clamped_uniform(3, nv).unwrap(), &wavy_net(nu, nv, 10.0), weights);
+    cases.push(Case { name: "bicubic, non-rational".into(), surfaces: vec![bicubic(None)], options: grid(64) });
+    cases.push(Case { name: "bicubic, weights 0.01..100".into(), surfaces: vec![bicubic(Some(&spread_weights(nu * nv, 0.01, 100.0)))], options: grid(64) });
+    // Periodic: uniform knots with the first `degree` columns repeated at the end.
+    let periodic = {
+        let n = 10;
+        let ring: Vec<DVec3> = (0..n).map(|k| (std::f64::consts::TAU * k as f64 / n as f64).sin_cos()).map(|(s, c)| DVec3::new(c, s, 0.0)).collect();
+        let mut points = Vec::new();
+        for j in 0..5 {
+            for i in 0..n + 3 {
+                points.push(ring[i % n] * (1.0 + 0.1 * j as f64) + DVec3::Z * j as f64);
+            }
+        }
+        let ku = KnotVector::uniform(3, n + 3).unwrap();
+        let kv = KnotVector::clamped_uniform(3, 5).unwrap();
+        surface(ku, kv, &points, Some(&spread_weights(points.len(), 0.5, 2.0)))
+    };
+    cases.push(Case { name: "periodic (unclamped uniform, wrapped net)".into(), surfaces: vec![periodic], options: grid(48) });
+    let repeated = {
+        let ku = KnotVector::try_new(3, vec![0.0, 0.0, 0.0, 0.0, 0.3, 0.3, 0.3, 0.6, 0.6, 1.0, 1.0, 1.0, 1.0]).unwrap();
+        let kv = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 0.5, 0.5, 1.0, 1.0, 1.0]).unwrap();
+        surface(ku, kv, &wavy_net(9, 5, 3.0), Some(&spread_weights(45, 0.3, 3.0)))
+    };
+    cases.push(Case { name: "repeated interior knots (C0 creases)".into(), surfaces: vec![repeated], options: grid(41) });
+    let tiny = {
+        let ku = KnotVector::try_new(3, vec![0.0, 0.0, 0.0, 0.0, 0.5, 0.5 + 1e-6, 0.5 + 2e-6, 1.0, 1.0, 1.0, 1.0]).unwrap();
+        let kv = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 1e-5, 1.0, 1.0, 1.0]).unwrap();
+        surface(ku, kv, &wavy_net(7, 4, 4.0), None)
+    };
+    cases.push(Case { name: "tiny knot spans (1e-6)".into(), surfaces: vec![tiny], options: grid(33) });
+    let sub_range = bicubic(None).with_range(Interval::new(0.13, 0.71), Interval::new(0.4, 0.45)).unwrap();
+    cases.push(Case { name: "sub-range of the knot domain".into(), surfaces: vec![sub_range], options: grid(30) });
+    let offset = |shift: DVec3, scale: f64| {
+        let points: Vec<DVec3> = wavy_net(nu, nv, scale).into_iter().map(|p| p + shift).collect();
+        surface(KnotVector::clamped_uniform(3, nu).unwrap(), KnotVector::clamped_uniform(3, nv).unwrap(), &points, Some(&spread_weights(nu * nv, 0.5, 2.0)))
+    };
+    cases.push(Case { name: "offset 1e5 from the origin".into(), surfaces: vec![offset(DVec3::new(1e5, -2e5, 3e4), 10.0)], options: grid(40) });
+    cases.push(Case { name: "scale 1e-3 and 1e4".into(), surfaces: vec![offset(DVec3::ZERO, 1e-3), offset(DVec3::splat(5e4), 1e4)], options: grid(40) });
+    cases.push(Case { name: "sphere: poles (collapsed edges)".into(), surfaces: vec![sphere(DVec3::new(3.0, -1.0, 2.0), 2.0)], options: grid(33) });
+    let pinched = {
+        // A bicubic patch whose whole v = 0 row collapses to one point, like the teapot's lid.
+        let mut points = wavy_net(4, 4, 1.0);
+        for p in &mut points[..4] {
+            *p = DVec3::new(0.5, 0.0, 0.1);
+        }
+        bezier_surface(3, 3, &points, None).unwrap()
+    };
+    cases.push(Case { name: "collapsed edge (pinched bicubic)".into(), surfaces: vec![pinched], options: grid(25) });
+    cases
+}

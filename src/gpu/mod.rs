@@ -1,0 +1,475 @@
+//! The GPU path: WGSL compute kernels (`shaders/tessellate.wgsl`) on wgpu, in f32.
+//!
+//! - [`GpuContext`] holds a device, its queue and the compiled kernels — either opened
+//!   headless ([`GpuContext::new`]) or wrapped around a renderer's own device and queue
+//!   ([`GpuContext::from_device`]).
+//! - [`GpuBatch`] is a prepared batch: control points, knot-derived basis tables and work
+//!   lists uploaded once; [`GpuBatch::dispatch`] fills its [`GpuMesh`] vertex and index buffers
+//!   in one submission, [`GpuBatch::update_surface`] re-uploads one surface's control points.
+//! - [`GpuTessellator`] answers the same [`Tessellator`] interface as the CPU path: upload,
+//!   dispatch and read back into a [`Mesh`].
+//!
+//! # Precision
+//! Every surface is evaluated relative to its own origin (the centre of its control box) with
+//! basis values computed on the host in f64, so f32 rounding acts on the surface's size, not on
+//! its distance from the world origin; the origin is added back last. Measured against the f64
+//! reference (tests/gpu.rs): positions within 1e-5 of the bounding-box diagonal plus the
+//! rounding of the f32 result itself (|p|·2⁻²⁴), normals within 1e-4 rad at regular points.
+//! Within ~1e-5 (relative parameter distance) of a degenerate point the normal is the limit
+//! computed in f32 — within 1e-2 rad there.
+//!
+//! Large batches are split into chunks that fit the adapter's `max_storage_buffer_binding_size`
+//! and dispatched in the same submission; a batch whose buffers exceed `max_buffer_size` is
+//! refused with [`Error::GpuJobTooLarge`].
+
+mod pack;
+
+pub use pack::{ChunkParams, Limits, Piece, Tile, VERTEX_BYTES};
+
+use crate::error::{Error, Result};
+use crate::geom::BSplineSurface;
+use crate::mesh::{Mesh, MeshPart, TessOptions};
+use crate::Tessellator;
+use glam::{DVec2, DVec3};
+use pack::{PASSES, Packed};
+use std::num::NonZeroU64;
+
+/// The WGSL source of the tessellation kernels.
+pub const TESSELLATE_WGSL: &str = include_str!("../../shaders/tessellate.wgsl");
+
+const ENTRY_POINTS: [&str; PASSES] = ["contract_rows", "evaluate_vertices", "connect_cells"];
+/// Stride of the per-chunk, per-pass uniforms (the WebGPU maximum of
+/// `min_uniform_buffer_offset_alignment`).
+const UNIFORM_STRIDE: u64 = 256;
+/// Largest workgroup count per dispatch dimension (WebGPU default limit).
+const MAX_GROUPS_PER_DIMENSION: u32 = 65535;
+
+/// A device, its queue and the compiled kernels.
+pub struct GpuContext {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    adapter: Option<wgpu::AdapterInfo>,
+    layout: wgpu::BindGroupLayout,
+    pipelines: Vec<wgpu::ComputePipeline>,
+}
+
+impl GpuContext {
+    /// Opens the system's default adapter (no window), with the adapter's full buffer limits.
+    pub fn new() -> Result<Self> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions::default()))
+            .map_err(|e| Error::NoAdapter { reason: e.to_string() })?;
+        let info = adapter.get_info();
+        let descriptor = wgpu::DeviceDescriptor { label: Some("knotwork"), required_limits: adapter.limits(), ..Default::default() };
+        let (device, queue) = pollster::block_on(adapter.request_device(&descriptor)).map_err(|e| Error::NoAdapter { reason: e.to_string() })?;
+        let mut context = Self::from_device(device, queue)?;
+        context.adapter = Some(info);
+        Ok(context)
+    }
+
+    /// Wraps a renderer's device and queue; the buffers knotwork fills live on this device.
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Result<Self> {
+        let (layout, pipelines) = scoped(&device, || {
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("knotwork tessellate.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(TESSELLATE_WGSL.into()),
+            });
+            let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
+                count: None,
+            };
+            let mut entries = vec![wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: true,
+                    min_binding_size: NonZeroU64::new(size_of::<ChunkParams>() as u64),
+                },
+                count: None,
+            }];
+            entries.extend((1..=4).map(|b| storage(b, true)));
+            entries.extend((5..=7).map(|b| storage(b, false)));
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("knotwork"), entries: &entries });
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("knotwork"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let pipelines = ENTRY_POINTS
+                .iter()
+                .map(|entry| {
+                    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some(entry),
+                        layout: Some(&pipeline_layout),
+                        module: &module,
+                        entry_point: Some(entry),
+                        compilation_options: Default::default(),
+                        cache: None,
+                    })
+                })
+                .collect::<Vec<_>>();
+            (layout, pipelines)
+        })?;
+        Ok(Self { device, queue, adapter: None, layout, pipelines })
+    }
+
+    pub fn device(&self) -> &wgpu::Device {
+        &self.device
+    }
+
+    pub fn queue(&self) -> &wgpu::Queue {
+        &self.queue
+    }
+
+    /// The adapter, when this context opened it itself.
+    pub fn adapter_info(&self) -> Option<&wgpu::AdapterInfo> {
+        self.adapter.as_ref()
+    }
+
+    /// "name (backend, device type, driver)" of the adapter, for summaries.
+    pub fn adapter_summary(&self) -> String {
+        match &self.adapter {
+            Some(a) => format!("{} ({:?}, {:?}, {} {})", a.name, a.backend, a.device_type, a.driver, a.driver_info),
+            None => "a caller-provided device".to_string(),
+        }
+    }
+
+    /// The buffer limits batches on this device must respect.
+    pub fn limits(&self) -> Limits {
+        let l = self.device.limits();
+        Limits {
+            binding_bytes: u64::from(l.max_storage_buffer_binding_size),
+            buffer_bytes: l.max_buffer_size,
+            offset_alignment: u64::from(l.min_storage_buffer_offset_alignment),
+        }
+    }
+}
+
+/// Runs `work` inside out-of-memory and validation error scopes and turns what they caught
+/// into [`Error::Gpu`].
+fn scoped<T>(device: &wgpu::Device, work: impl FnOnce() -> T) -> Result<T> {
+    let memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let value = work();
+    let errors = [pollster::block_on(validation.pop()), pollster::block_on(memory.pop())];
+    match errors.into_iter().flatten().next() {
+        Some(error) => Err(Error::Gpu { message: error.to_string() }),
+        None => Ok(value),
+    }
+}
+
+/// The output buffers of a batch, ready to bind in a render pass.
+///
+/// `vertices` holds 32-byte vertices — position `Float32x3` at offset 0, normal `Float32x3`
+/// at 12, uv `Float32x2` at 24 — in the grid layout of [`Mesh`]; `indices` holds u32
+/// triangle-list indices. Both are also STORAGE and COPY_SRC.
+pub struct GpuMesh {
+    pub vertices: wgpu::Buffer,
+    pub indices: wgpu::Buffer,
+    pub vertex_count: u32,
+    pub index_count: u32,
+    pub parts: Vec<MeshPart>,
+}
+
+impl GpuMesh {
+    /// The vertex layout of `vertices`, for a render pipeline.
+    pub const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 3] = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2];
+}
+
+/// A batch of surfaces prepared on one device: upload once, dispatch whenever.
+pub struct GpuBatch {
+    packed: Packed,
+    /// Degrees, counts, knots and ranges of each surface: what an update may not change.
+    shapes: Vec<BSplineSurface>,
+    points: wgpu::Buffer,
+    bind_groups: Vec<wgpu::BindGroup>,
+    // Kept alive for the bind groups.
+    _buffers: Vec<wgpu::Buffer>,
+    mesh: GpuMesh,
+}
+
+/// Binds elements `r.origin..r.end` of `buffer` (clipped to the buffer, never empty).
+fn bind_range(buffer: &wgpu::Buffer, r: pack::Range, bytes_each: u64) -> wgpu::BindingResource<'_> {
+    let offset = r.origin * bytes_each;
+    let size = ((r.end - r.origin) * bytes_each).max(4).min(buffer.size() - offset);
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer, offset, size: NonZeroU64::new(size) })
+}
+
+fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8], extra: wgpu::BufferUsages) -> wgpu::Buffer {
+    use wgpu::util::DeviceExt;
+    // Zero-sized buffers cannot be bound: keep at least one element.
+    let padded;
+    let contents = if bytes.is_empty() {
+        padded = [0u8; 16];
+        &padded[..]
+    } else {
+        bytes
+    };
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage: wgpu::BufferUsages::STORAGE | extra })
+}
+
+impl GpuBatch {
+    /// Packs and uploads `surfaces` for the grid of `options`, and allocates the output
+    /// buffers. Fails with [`Error::GpuJobTooLarge`] if the outputs exceed the device's
+    /// largest buffer.
+    pub fn new(context: &GpuContext, surfaces: &[BSplineSurface], options: &TessOptions) -> Result<Self> {
+        Self::with_limits(context, surfaces, options, context.limits())
+    }
+
+    /// As [`GpuBatch::new`], with buffer limits lower than the device's (memory budgets;
+    /// tests of the chunking).
+    pub fn with_limits(context: &GpuContext, surfaces: &[BSplineSurface], options: &TessOptions, limits: Limits) -> Result<Self> {
+        let device = &context.device;
+        let packed = pack::pack(surfaces, options, &limits)?;
+        scoped(device, || {
+            let copy = wgpu::BufferUsages::COPY_DST;
+            let pieces = storage_buffer(device, "knotwork pieces", bytemuck::cast_slice(&packed.pieces), copy);
+            let tiles = storage_buffer(device, "knotwork tiles", bytemuck::cast_slice(&packed.tiles), copy);
+            let points = storage_buffer(device, "knotwork control points", bytemuck::cast_slice(&packed.points), copy);
+            let tables = storage_buffer(device, "knotwork basis tables", bytemuck::cast_slice(&packed.tables), copy);
+            let contracted = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("knotwork contracted rows"),
+                size: (packed.contracted_len * 16).max(16),
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            });
+            let vertices = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("knotwork vertices"),
+                size: (packed.vertex_count * VERTEX_BYTES).max(VERTEX_BYTES),
+                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let indices = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("knotwork indices"),
+                size: (packed.index_count * 4).max(16),
+                usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let uniforms: Vec<u8> = packed
+                .chunks
+                .iter()
+                .flat_map(|chunk| {
+                    chunk.passes.map(|(tile_offset, tile_count)| ChunkParams {
+                        tile_offset,
+                        tile_count,
+                        vertex_origin: chunk.vertices.origin as u32,
+                        index_origin: chunk.indices.origin as u32,
+                        point_origin: chunk.points.origin as u32,
+                        table_origin: chunk.tables.origin as u32,
+                        piece_origin: chunk.pieces.origin as u32,
+                        pad: 0,
+                    })
+                })
+                .flat_map(|params| {
+                    let mut entry = bytemuck::bytes_of(&params).to_vec();
+                    entry.resize(UNIFORM_STRIDE as usize, 0);
+                    entry
+                })
+                .collect();
+            let uniform = {
+                use wgpu::util::DeviceExt;
+                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("knotwork chunk parameters"),
+                    contents: if uniforms.is_empty() { &[0; UNIFORM_STRIDE as usize] } else { &uniforms },
+                    usage: wgpu::BufferUsages::UNIFORM,
+                })
+            };
+            let bind_groups = packed
+                .chunks
+                .iter()
+                .map(|chunk| {
+                    let resources = [
+                        wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer: &uniform, offset: 0, size: NonZeroU64::new(size_of::<ChunkParams>() as u64) }),
+                        bind_range(&pieces, chunk.pieces, size_of::<Piece>() as u64),
+                        bind_range(&tiles, chunk.tiles, size_of::<Tile>() as u64),
+                        bind_range(&points, chunk.points, 16),
+                        bind_range(&tables, chunk.tables, 4),
+                        contracted.as_entire_binding(),
+                        bind_range(&vertices, chunk.vertices, VERTEX_BYTES),
+                        bind_range(&indices, chunk.indices, 4),
+                    ];
+                    let entries: Vec<wgpu::BindGroupEntry> =
+                        resources.into_iter().enumerate().map(|(binding, resource)| wgpu::BindGroupEntry { binding: binding as u32, resource }).collect();
+                    device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("knotwork chunk"), layout: &context.layout, entries: &entries })
+                })
+                .collect();
+            let mesh = GpuMesh {
+                vertices,
+                indices,
+                vertex_count: packed.vertex_count as u32,
+                index_count: packed.index_count as u32,
+                parts: packed.parts.clone(),
+            };
+            GpuBatch { packed, shapes: surfaces.to_vec(), points, bind_groups, _buffers: vec![pieces, tiles, tables, contracted, uniform], mesh }
+        })
+    }
+
+    /// Chunks the batch is dispatched in (each fits the binding limits), and pieces (bands of
+    /// grid rows) its surfaces were split into.
+    pub fn chunk_and_piece_counts(&self) -> (usize, usize) {
+        (self.packed.chunks.len(), self.packed.pieces.len())
+    }
+
+    /// The output buffers.
+    pub fn mesh(&self) -> &GpuMesh {
+        &self.mesh
+    }
+
+    /// Records the kernels of every chunk into `encoder` (for callers who submit themselves).
+    pub fn encode(&self, context: &GpuContext, encoder: &mut wgpu::CommandEncoder) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("knotwork tessellate"), timestamp_writes: None });
+        for (chunk_index, (chunk, bind_group)) in self.packed.chunks.iter().zip(&self.bind_groups).enumerate() {
+            for (pass_index, pipeline) in context.pipelines.iter().enumerate() {
+                let tile_count = chunk.passes[pass_index].1;
+                if tile_count == 0 {
+                    continue;
+                }
+                let offset = ((chunk_index * PASSES + pass_index) as u64 * UNIFORM_STRIDE) as u32;
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, bind_group, &[offset]);
+                let x = tile_count.min(MAX_GROUPS_PER_DIMENSION);
+                pass.dispatch_workgroups(x, tile_count.div_ceil(x), 1);
+            }
+        }
+    }
+
+    /// Fills the output buffers: every chunk and pass in one submission. Returns once the
+    /// work is submitted; errors the device reports while validating it are returned.
+    pub fn dispatch(&self, context: &GpuContext) -> Result<wgpu::SubmissionIndex> {
+        scoped(&context.device, || {
+            let mut encoder = context.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("knotwork dispatch") });
+            self.encode(context, &mut encoder);
+            context.queue.submit([encoder.finish()])
+        })
+    }
+
+    /// Replaces the control points (and weights) of surface `index` with those of `surface`,
+    /// which must have the same degrees, point counts, knots and range; only that surface's
+    /// points are uploaded. Takes effect at the next dispatch.
+    pub fn update_surface(&mut self, context: &GpuContext, index: usize, surface: &BSplineSurface) -> Result<()> {
+        let count = self.shapes.len();
+        let old = self.shapes.get(index).ok_or(Error::SurfaceIndex { index, count })?;
+        let same_shape = old.knots_u() == surface.knots_u()
+            && old.knots_v() == surface.knots_v()
+            && old.range_u() == surface.range_u()
+            && old.range_v() == surface.range_v();
+        if !same_shape {
+            return Err(Error::SurfaceShapeChanged { index });
+        }
+        let slot = self.packed.surfaces[index];
+        let mut local = Vec::with_capacity(slot.point_count);
+        pack::local_points(surface, slot.origin, &mut local);
+        self.packed.points[slot.first_point..slot.first_point + slot.point_count].copy_from_slice(&local);
+        context.queue.write_buffer(&self.points, slot.first_point as u64 * 16, bytemuck::cast_slice(&local));
+        self.shapes[index] = surface.clone();
+        Ok(())
+    }
+
+    /// Copies the outputs back and converts them into a [`Mesh`] (f32 values widened to f64).
+    pub fn read_mesh(&self, context: &GpuContext) -> Result<Mesh> {
+        let device = &context.device;
+        let vertex_bytes = self.packed.vertex_count * VERTEX_BYTES;
+        let index_bytes = self.packed.index_count * 4;
+        let mut mesh = Mesh { parts: self.mesh.parts.clone(), ..Mesh::default() };
+        if vertex_bytes == 0 {
+            return Ok(mesh);
+        }
+        let staging = scoped(device, || {
+            let staging = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("knotwork readback"),
+                size: vertex_bytes + index_bytes,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("knotwork readback") });
+            encoder.copy_buffer_to_buffer(&self.mesh.vertices, 0, &staging, 0, vertex_bytes);
+            encoder.copy_buffer_to_buffer(&self.mesh.indices, 0, &staging, vertex_bytes, index_bytes);
+            context.queue.submit([encoder.finish()]);
+            staging
+        })?;
+        let (sender, receiver) = std::sync::mpsc::channel();
+        staging.map_async(wgpu::MapMode::Read, .., move |result| {
+            let _ = sender.send(result);
+        });
+        device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| Error::Gpu { message: e.to_string() })?;
+        receiver
+            .recv()
+            .map_err(|_| Error::Gpu { message: "the readback never completed".into() })?
+            .map_err(|e| Error::Gpu { message: e.to_string() })?;
+        {
+            let view = staging.get_mapped_range(..).map_err(|e| Error::Gpu { message: e.to_string() })?;
+            let floats: &[f32] = bytemuck::cast_slice(&view[..vertex_bytes as usize]);
+            let n = self.packed.vertex_count as usize;
+            mesh.positions.reserve_exact(n);
+            mesh.normals.reserve_exact(n);
+            mesh.uvs.reserve_exact(n);
+            for v in floats.chunks_exact(8) {
+                mesh.positions.push(DVec3::new(v[0].into(), v[1].into(), v[2].into()));
+                mesh.normals.push(DVec3::new(v[3].into(), v[4].into(), v[5].into()));
+                mesh.uvs.push(DVec2::new(v[6].into(), v[7].into()));
+            }
+            mesh.indices = bytemuck::cast_slice(&view[vertex_bytes as usize..]).to_vec();
+        }
+        staging.unmap();
+        Ok(mesh)
+    }
+}
+
+/// The GPU tessellator: uploads, dispatches and reads back on its own context.
+pub struct GpuTessellator {
+    context: GpuContext,
+}
+
+impl GpuTessellator {
+    /// Opens the default adapter.
+    pub fn new() -> Result<Self> {
+        Ok(Self { context: GpuContext::new()? })
+    }
+
+    pub fn from_context(context: GpuContext) -> Self {
+        Self { context }
+    }
+
+    pub fn context(&self) -> &GpuContext {
+        &self.context
+    }
+}
+
+impl Tessellator for GpuTessellator {
+    fn tessellate_into(&self, surfaces: &[BSplineSurface], options: &TessOptions, mesh: &mut Mesh) -> Result<()> {
+        let batch = GpuBatch::new(&self.context, surfaces, options)?;
+        batch.dispatch(&self.context)?;
+        *mesh = batch.read_mesh(&self.context)?;
+        Ok(())
+    }
+
+    fn name(&self) -> String {
+        format!("gpu: {}", self.context.adapter_summary())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The host structs match the WGSL structs byte for byte.
+    #[test]
+    fn host_mirrors_have_the_shader_layout() {
+        let module = naga::front::wgsl::parse_str(TESSELLATE_WGSL).expect("tessellate.wgsl parses");
+        let layout = |name: &str| {
+            let (handle, _) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some(name)).expect("struct exists");
+            let mut layouter = naga::proc::Layouter::default();
+            layouter.update(module.to_ctx()).expect("layout");
+            (layouter[handle].size, layouter[handle].alignment.round_up(1))
+        };
+        assert_eq!(layout("Piece"), (size_of::<Piece>() as u32, 4));
+        assert_eq!(layout("ChunkParams"), (size_of::<ChunkParams>() as u32, 4));
+        assert_eq!(layout("Tile"), (size_of::<Tile>() as u32, 4));
+        assert_eq!(size_of::<Piece>(), 80);
+        assert_eq!(size_of::<ChunkParams>(), 32);
+        assert_eq!(pack::TILE, 64);
+    }
+}

@@ -1,0 +1,327 @@
+//! Host-side preparation of a GPU batch, in f64 until the last step: surfaces are split into
+//! pieces (bands of grid rows), control points moved to each surface's own origin and packed
+//! as f32, basis tables of every grid column and row computed in f64 and rounded once, and
+//! the pieces grouped into chunks whose buffer ranges fit the adapter's binding limits.
+
+use crate::cpu::basis::{BasisDers, MAX_ORDER, basis_ders};
+use crate::error::{Error, Result};
+use crate::geom::{BSplineSurface, Interval, KnotVector};
+use crate::mesh::{MeshPart, TessOptions, plan_parts};
+use bytemuck::{Pod, Zeroable};
+use glam::DVec3;
+
+/// Work items per workgroup (`TILE` in the shader).
+pub(crate) const TILE: u32 = 64;
+/// Bytes per output vertex: position, normal (3 × f32 each), uv (2 × f32).
+pub const VERTEX_BYTES: u64 = 32;
+/// Bytes per contracted entry: value, ∂v, ∂vv as vec4<f32>.
+const CONTRACTED_BYTES: u64 = 48;
+/// Below this fraction of (size / parameter width)², |S_u × S_v| counts as zero in f32:
+/// vertices that close to a degenerate point take the limit normal (an angle change of the
+/// same order, 1e-5 rad).
+const GPU_DEGENERATE_REL: f64 = 1e-5;
+
+/// One band of grid rows of one surface, as the shader reads it (`Piece` in tessellate.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct Piece {
+    pub origin: [f32; 3],
+    pub degenerate_sq: f32,
+    pub width_u: f32,
+    pub width_v: f32,
+    pub count_u: u32,
+    pub degree_u: u32,
+    pub degree_v: u32,
+    pub grid_u: u32,
+    pub grid_v: u32,
+    pub first_row: u32,
+    pub rows: u32,
+    pub cell_rows: u32,
+    pub first_vertex: u32,
+    pub first_index: u32,
+    pub points: u32,
+    pub columns: u32,
+    pub row_table: u32,
+    pub contracted: u32,
+}
+
+/// Per-chunk, per-pass uniform (`ChunkParams` in tessellate.wgsl): where the chunk's bound
+/// ranges begin, so the shader can turn global offsets into binding-relative ones.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct ChunkParams {
+    pub tile_offset: u32,
+    pub tile_count: u32,
+    pub vertex_origin: u32,
+    pub index_origin: u32,
+    pub point_origin: u32,
+    pub table_origin: u32,
+    pub piece_origin: u32,
+    pub pad: u32,
+}
+
+/// One workgroup's work: items `first_item .. first_item + TILE` of piece `piece`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct Tile {
+    pub piece: u32,
+    pub first_item: u32,
+}
+
+/// The three kernels, in dispatch order.
+pub(crate) const PASSES: usize = 3;
+
+/// Buffer limits a plan must respect (from the device, or smaller for tests and budgets).
+#[derive(Clone, Copy, Debug)]
+pub struct Limits {
+    /// Largest range of a storage buffer one binding may cover.
+    pub binding_bytes: u64,
+    /// Largest buffer.
+    pub buffer_bytes: u64,
+    /// Alignment of binding offsets.
+    pub offset_alignment: u64,
+}
+
+/// An element range of one of the batch's buffers, bound for one chunk.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Range {
+    /// First element the binding covers (aligned down so the byte offset is aligned).
+    pub origin: u64,
+    /// One past the last element.
+    pub end: u64,
+}
+
+/// Pieces dispatched with one set of bindings.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Chunk {
+    /// (first tile, tile count) of each pass, tiles counted from `tiles.origin`.
+    pub passes: [(u32, u32); PASSES],
+    pub pieces: Range,
+    pub tiles: Range,
+    pub vertices: Range,
+    pub indices: Range,
+    pub points: Range,
+    pub tables: Range,
+    /// vec4 entries of contracted scratch the chunk needs.
+    pub contracted_len: u64,
+}
+
+/// A batch ready to upload.
+#[derive(Clone, Debug)]
+pub(crate) struct Packed {
+    pub parts: Vec<MeshPart>,
+    pub pieces: Vec<Piece>,
+    pub tiles: Vec<Tile>,
+    pub chunks: Vec<Chunk>,
+    pub points: Vec<[f32; 4]>,
+    pub tables: Vec<f32>,
+    /// Per surface: its origin (f64) and the element range of its points in `points`.
+    pub surfaces: Vec<SurfaceSlot>,
+    /// Index of the surface each piece belongs to.
+    pub piece_surfaces: Vec<usize>,
+    pub vertex_count: u64,
+    pub index_count: u64,
+    /// Largest `contracted_len` of any chunk.
+    pub contracted_len: u64,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SurfaceSlot {
+    pub origin: DVec3,
+    pub first_point: usize,
+    pub point_count: usize,
+    /// Element range of the surface's column and row tables in `tables`.
+    pub tables: (usize, usize),
+}
+
+/// Control points of `surface` relative to `origin`, homogeneous, weights scaled so the
+/// largest is 1 (the surface does not change), rounded to f32.
+pub(crate) fn local_points(surface: &BSplineSurface, origin: DVec3, out: &mut Vec<[f32; 4]>) {
+    let points = surface.homogeneous_points();
+    let scale = 1.0 / points.iter().fold(0.0f64, |m, p| m.max(p.w));
+    out.extend(points.iter().map(|h| {
+        let local = (h.truncate() / h.w - origin) * (h.w * scale);
+        [local.x as f32, local.y as f32, local.z as f32, (h.w * scale) as f32]
+    }));
+}
+
+/// Table entries (see tessellate.wgsl) of `samples` uniform samples of `range`.
+fn push_table(knots: &KnotVector, range: Interval, samples: u32, out: &mut Vec<f32>) {
+    let p = knots.degree();
+    let mut ders: BasisDers = [[0.0; MAX_ORDER]; 3];
+    for i in 0..samples {
+        let fraction = f64::from(i) / f64::from(samples - 1);
+        let t = range.lerp(fraction);
+        let span = knots.find_span(t);
+        basis_ders(knots, span, t, 2, &mut ders);
+        out.push(fraction as f32);
+        out.push(f32::from_bits(span as u32));
+        for row in &ders {
+            out.extend(row[..=p].iter().map(|&x| x as f32));
+        }
+    }
+}
+
+fn too_large(what: &'static str, bytes: u64, limit: u64) -> Error {
+    Error::GpuJobTooLarge { what, bytes, limit }
+}
+
+/// Plans and packs `surfaces` on the grid of `options` within `limits`.
+pub(crate) fn pack(surfaces: &[BSplineSurface], options: &TessOptions, limits: &Limits) -> Result<Packed> {
+    let parts = plan_parts(surfaces.len(), options)?;
+    let (nu, nv) = (options.grid_u, options.grid_v);
+    let vertex_count = parts.last().map_or(0, |p| u64::from(p.first_vertex + p.vertex_count()));
+    let index_count = parts.last().map_or(0, |p| u64::from(p.first_index + p.index_count()));
+    for (what, bytes) in [("the vertex buffer", vertex_count * VERTEX_BYTES), ("the index buffer", index_count * 4)] {
+        if bytes > limits.buffer_bytes {
+            return Err(too_large(what, bytes, limits.buffer_bytes));
+        }
+    }
+    // Bands: as many rows as fit one binding (less alignment slack) in every output buffer.
+    let budget = limits.binding_bytes.saturating_sub(limits.offset_alignment);
+    let mut packed = Packed {
+        parts,
+        pieces: Vec::new(),
+        tiles: Vec::new(),
+        chunks: Vec::new(),
+        points: Vec::new(),
+        tables: Vec::new(),
+        surfaces: Vec::with_capacity(surfaces.len()),
+        piece_surfaces: Vec::new(),
+        vertex_count,
+        index_count,
+        contracted_len: 0,
+    };
+    for (surface_index, (surface, part)) in surfaces.iter().zip(&packed.parts).enumerate() {
+        let row_bytes = [u64::from(nu) * VERTEX_BYTES, u64::from(nu - 1) * 24, surface.count_u() as u64 * CONTRACTED_BYTES];
+        let widest = row_bytes.into_iter().max().unwrap_or(1);
+        if widest > budget {
+            return Err(too_large("one grid row", widest, budget));
+        }
+        let rows_per_piece = (budget / widest).min(u64::from(nv)) as u32;
+        let origin = {
+            let pts = surface.homogeneous_points();
+            let (lo, hi) = pts.iter().fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), h| {
+                let c = h.truncate() / h.w;
+                (lo.min(c), hi.max(c))
+            });
+            0.5 * (lo + hi)
+        };
+        let first_point = packed.points.len();
+        local_points(surface, origin, &mut packed.points);
+        let point_bytes = (packed.points.len() - first_point) as u64 * 16;
+        if point_bytes > budget {
+            return Err(too_large("the control points of one surface", point_bytes, budget));
+        }
+        let columns = packed.tables.len() as u32;
+        push_table(surface.knots_u(), surface.range_u(), nu, &mut packed.tables);
+        let rows_table = packed.tables.len() as u32;
+        push_table(surface.knots_v(), surface.range_v(), nv, &mut packed.tables);
+        let tables = (columns as usize, packed.tables.len());
+        if (tables.1 - tables.0) as u64 * 4 > budget {
+            return Err(too_large("the basis tables of one surface", (tables.1 - tables.0) as u64 * 4, budget));
+        }
+        packed.surfaces.push(SurfaceSlot { origin, first_point, point_count: packed.points.len() - first_point, tables });
+        let row_stride = 2 + 3 * (surface.degree_v() as u32 + 1);
+        let (du, dv) = (surface.knots_u().domain(), surface.knots_v().domain());
+        let size = surface.control_box_diagonal();
+        let degenerate = GPU_DEGENERATE_REL * size * size / ((du.1 - du.0) * (dv.1 - dv.0));
+        let mut first_row = 0;
+        while first_row < nv {
+            let rows = rows_per_piece.min(nv - first_row);
+            let cell_rows = rows.min(nv - 1 - first_row);
+            packed.pieces.push(Piece {
+                origin: origin.as_vec3().to_array(),
+                degenerate_sq: (degenerate * degenerate) as f32,
+                width_u: surface.range_u().width() as f32,
+                width_v: surface.range_v().width() as f32,
+                count_u: surface.count_u() as u32,
+                degree_u: surface.degree_u() as u32,
+                degree_v: surface.degree_v() as u32,
+                grid_u: nu,
+                grid_v: nv,
+                first_row,
+                rows,
+                cell_rows,
+                first_vertex: part.first_vertex + first_row * nu,
+                first_index: part.first_index + first_row * 6 * (nu - 1),
+                points: first_point as u32,
+                columns,
+                row_table: rows_table + first_row * row_stride,
+                contracted: 0,
+            });
+            packed.piece_surfaces.push(surface_index);
+            first_row += rows;
+        }
+    }
+    plan_chunks(&mut packed, limits, budget)?;
+    Ok(packed)
+}
+
+/// Work items of `piece` in each pass: (row, control column) pairs, vertices, cells.
+fn pass_items(piece: &Piece) -> [u32; PASSES] {
+    [piece.rows * piece.count_u, piece.rows * piece.grid_u, piece.cell_rows * (piece.grid_u - 1)]
+}
+
+/// Groups consecutive pieces into chunks whose bound ranges fit `budget` bytes each, sets
+/// each piece's chunk-relative contracted offset, and writes the tiles of every pass.
+fn plan_chunks(packed: &mut Packed, limits: &Limits, budget: u64) -> Result<()> {
+    let align = |elements: u64, bytes_each: u64| (elements * bytes_each) / limits.offset_alignment * limits.offset_alignment / bytes_each;
+    let tiles_of = |piece: &Piece| pass_items(piece).iter().map(|&n| u64::from(n.div_ceil(TILE))).sum::<u64>();
+    let mut start = 0;
+    while start < packed.pieces.len() {
+        // Extend the chunk while every binding still fits.
+        let first = packed.pieces[start];
+        let first_slot = packed.surfaces[packed.piece_surfaces[start]];
+        let (mut end, mut contracted, mut tiles) = (start, 0u64, 0u64);
+        loop {
+            let piece = packed.pieces[end];
+            let slot = packed.surfaces[packed.piece_surfaces[end]];
+            let next_contracted = contracted + u64::from(piece.rows) * u64::from(piece.count_u) * 3;
+            let next_tiles = tiles + tiles_of(&piece);
+            let bytes = [
+                (u64::from(piece.first_vertex + piece.rows * piece.grid_u) - u64::from(first.first_vertex)) * VERTEX_BYTES,
+                (u64::from(piece.first_index + piece.cell_rows * 6 * (piece.grid_u - 1)) - u64::from(first.first_index)) * 4,
+                (slot.first_point + slot.point_count - first_slot.first_point) as u64 * 16,
+                (slot.tables.1 - first_slot.tables.0) as u64 * 4,
+                (end + 1 - start) as u64 * size_of::<Piece>() as u64,
+                next_tiles * size_of::<Tile>() as u64,
+                next_contracted * 16,
+            ];
+            if end > start && bytes.iter().any(|&b| b > budget) {
+                break;
+            }
+            packed.pieces[end].contracted = contracted as u32;
+            (contracted, tiles) = (next_contracted, next_tiles);
+            end += 1;
+            if end == packed.pieces.len() {
+                break;
+            }
+        }
+        let last = packed.pieces[end - 1];
+        let last_slot = packed.surfaces[packed.piece_surfaces[end - 1]];
+        let tiles_origin = align(packed.tiles.len() as u64, size_of::<Tile>() as u64);
+        let mut passes = [(0, 0); PASSES];
+        for (pass, slot) in passes.iter_mut().enumerate() {
+            let first_tile = packed.tiles.len() as u32;
+            for index in start..end {
+                let items = pass_items(&packed.pieces[index])[pass];
+                packed.tiles.extend((0..items.div_ceil(TILE)).map(|t| Tile { piece: index as u32, first_item: t * TILE }));
+            }
+            *slot = (first_tile - tiles_origin as u32, packed.tiles.len() as u32 - first_tile);
+        }
+        packed.chunks.push(Chunk {
+            passes,
+            pieces: Range { origin: align(start as u64, size_of::<Piece>() as u64), end: end as u64 },
+            tiles: Range { origin: tiles_origin, end: packed.tiles.len() as u64 },
+            vertices: Range { origin: align(u64::from(first.first_vertex), VERTEX_BYTES), end: u64::from(last.first_vertex + last.rows * last.grid_u) },
+            indices: Range { origin: align(u64::from(first.first_index), 4), end: u64::from(last.first_index + last.cell_rows * 6 * (last.grid_u - 1)) },
+            points: Range { origin: align(first_slot.first_point as u64, 16), end: (last_slot.first_point + last_slot.point_count) as u64 },
+            tables: Range { origin: align(first_slot.tables.0 as u64, 4), end: last_slot.tables.1 as u64 },
+            contracted_len: contracted,
+        });
+        packed.contracted_len = packed.contracted_len.max(contracted);
+        start = end;
+    }
+    Ok(())
+}
