@@ -171,3 +171,25 @@ fn moving_control_points_reuploads_one_surface() {
     assert!(matches!(batch.update_surface(context, 21, &other_shape), Err(Error::SurfaceShapeChanged { index: 21 })));
     assert!(matches!(batch.update_surface(context, 99, &other_shape), Err(Error::SurfaceIndex { index: 99, count: 33 })));
 }
+
+#[test]
+fn cli_gpu_backend_and_info() {
+    let Some(_) = gpu() else { return };
+    let dir = std::env::temp_dir().join(format!("knotwork-gpu-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |args: &[&str]| std::process::Command::new(env!("CARGO_BIN_EXE_knotwork")).args(args).output().unwrap();
+    let (gpu_out, cpu_out) = (dir.join("gpu.obj"), dir.join("cpu.obj"));
+    let gpu_run = run(&["tessellate", "data/teapot.bpt", "-o", gpu_out.to_str().unwrap(), "--grid", "9x9", "--backend", "gpu"]);
+    assert!(gpu_run.status.success(), "{}", String::from_utf8_lossy(&gpu_run.stderr));
+    let summary = String::from_utf8_lossy(&gpu_run.stdout);
+    assert!(summary.contains("gpu: ") && summary.contains("32 surfaces"), "{summary}");
+    let auto = run(&["tessellate", "data/teapot.bpt", "-o", cpu_out.to_str().unwrap(), "--grid", "9x9"]);
+    assert!(String::from_utf8_lossy(&auto.stdout).contains("gpu: "), "auto picks the adapter");
+    let cpu_run = run(&["tessellate", "data/teapot.bpt", "-o", cpu_out.to_str().unwrap(), "--grid", "9x9", "--backend", "cpu"]);
+    assert!(cpu_run.status.success());
+    let lines = |p: &std::path::Path| std::fs::read_to_string(p).unwrap().lines().filter(|l| l.starts_with("f ")).map(String::from).collect::<Vec<_>>();
+    assert_eq!(lines(&gpu_out), lines(&cpu_out), "same topology from both backends");
+    let info = run(&["info"]);
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(info.status.success() && text.contains("max_storage_buffer_binding_size") && text.contains("default adapter"), "{text}");
+}

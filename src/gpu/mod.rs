@@ -53,10 +53,19 @@ pub struct GpuContext {
     pipelines: Vec<wgpu::ComputePipeline>,
 }
 
+/// A headless wgpu instance on the primary backends (Vulkan, Metal, DX12, WebGPU), or on
+/// those `WGPU_BACKEND` names.
+pub fn headless_instance() -> wgpu::Instance {
+    let mut descriptor = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+    descriptor.backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::PRIMARY);
+    wgpu::Instance::new(descriptor)
+}
+
 impl GpuContext {
-    /// Opens the system's default adapter (no window), with the adapter's full buffer limits.
+    /// Opens the default adapter of [`headless_instance`] (no window), with the adapter's
+    /// full buffer limits.
     pub fn new() -> Result<Self> {
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let instance = headless_instance();
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions::default()))
             .map_err(|e| Error::NoAdapter { reason: e.to_string() })?;
         let info = adapter.get_info();
