@@ -38,6 +38,8 @@ use std::num::NonZeroU64;
 pub const TESSELLATE_WGSL: &str = include_str!("../../shaders/tessellate.wgsl");
 
 const ENTRY_POINTS: [&str; PASSES] = ["contract_rows", "evaluate_vertices", "connect_cells"];
+/// Index of `connect_cells` in [`ENTRY_POINTS`].
+const CONNECT_PASS: usize = 2;
 /// Stride of the per-chunk, per-pass uniforms (the WebGPU maximum of
 /// `min_uniform_buffer_offset_alignment`).
 const UNIFORM_STRIDE: u64 = 256;
@@ -195,6 +197,9 @@ pub struct GpuBatch {
     shapes: Vec<BSplineSurface>,
     points: wgpu::Buffer,
     bind_groups: Vec<wgpu::BindGroup>,
+    /// Set once the index buffer holds the triangles: they depend on the grid only, so later
+    /// dispatches (moved control points) evaluate vertices and leave the indices alone.
+    connected: std::sync::atomic::AtomicBool,
     // Kept alive for the bind groups.
     _buffers: Vec<wgpu::Buffer>,
     mesh: GpuMesh,
@@ -312,7 +317,7 @@ impl GpuBatch {
                 index_count: packed.index_count as u32,
                 parts: packed.parts.clone(),
             };
-            GpuBatch { packed, shapes: surfaces.to_vec(), points, bind_groups, _buffers: vec![pieces, tiles, tables, contracted, uniform], mesh }
+            GpuBatch { packed, shapes: surfaces.to_vec(), points, bind_groups, connected: false.into(), _buffers: vec![pieces, tiles, tables, contracted, uniform], mesh }
         })
     }
 
@@ -328,12 +333,14 @@ impl GpuBatch {
     }
 
     /// Records the kernels of every chunk into `encoder` (for callers who submit themselves).
+    /// The triangles are recorded the first time only; the vertices every time.
     pub fn encode(&self, context: &GpuContext, encoder: &mut wgpu::CommandEncoder) {
+        let connect = !self.connected.swap(true, std::sync::atomic::Ordering::Relaxed);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("knotwork tessellate"), timestamp_writes: None });
         for (chunk_index, (chunk, bind_group)) in self.packed.chunks.iter().zip(&self.bind_groups).enumerate() {
             for (pass_index, pipeline) in context.pipelines.iter().enumerate() {
                 let tile_count = chunk.passes[pass_index].1;
-                if tile_count == 0 {
+                if tile_count == 0 || (pass_index == CONNECT_PASS && !connect) {
                     continue;
                 }
                 let offset = ((chunk_index * PASSES + pass_index) as u64 * UNIFORM_STRIDE) as u32;

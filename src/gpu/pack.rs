@@ -12,6 +12,8 @@ use glam::DVec3;
 
 /// Work items per workgroup (`TILE` in the shader).
 pub(crate) const TILE: u32 = 64;
+/// Vertices per invocation of `evaluate_vertices` (`RUN` in the shader).
+pub(crate) const RUN: u32 = 8;
 /// Bytes per output vertex: position, normal (3 × f32 each), uv (2 × f32).
 pub const VERTEX_BYTES: u64 = 32;
 /// Bytes per contracted entry: value, ∂v, ∂vv as vec4<f32>.
@@ -258,9 +260,10 @@ pub(crate) fn pack(surfaces: &[BSplineSurface], options: &TessOptions, limits: &
     Ok(packed)
 }
 
-/// Work items of `piece` in each pass: (row, control column) pairs, vertices, cells.
+/// Work items of `piece` in each pass: (row, control column) pairs, runs of `RUN` vertices
+/// along a row, cells.
 fn pass_items(piece: &Piece) -> [u32; PASSES] {
-    [piece.rows * piece.count_u, piece.rows * piece.grid_u, piece.cell_rows * (piece.grid_u - 1)]
+    [piece.rows * piece.count_u, piece.rows * piece.grid_u.div_ceil(RUN), piece.cell_rows * (piece.grid_u - 1)]
 }
 
 /// Groups consecutive pieces into chunks whose bound ranges fit `budget` bytes each, sets

@@ -1,0 +1,73 @@
+//! GPU and CPU on the same batches, in vertices per second (positions + normals + uvs +
+//! indices):
+//! - `gpu dispatch`: the batch is uploaded once; one submission of the kernels, waited for;
+//! - `gpu upload+dispatch+readback`: `GpuTessellator::tessellate` into a `Mesh`;
+//! - `cpu`: the f64 path on every core into a reused `Mesh`.
+//!
+//! Batches: 1024 rational bicubic patches at 64×64, the teapot at 256×256 per patch, the
+//! 32×32-point rational bicubic at 2000×2000, a degree-7 surface at 1000×1000.
+
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use glam::DVec3;
+use knotwork::geom::bezier_surface;
+use knotwork::{BSplineSurface, CpuTessellator, GpuBatch, GpuContext, GpuTessellator, KnotVector, Mesh, TessOptions, Tessellator};
+use std::path::Path;
+
+/// 32 × 32 rational bicubic Bezier patches tiling a wavy sheet.
+fn patches_1024() -> Vec<BSplineSurface> {
+    let mut surfaces = Vec::with_capacity(1024);
+    for tile in 0..1024 {
+        let (tx, ty) = ((tile % 32) as f64, (tile / 32) as f64);
+        let points: Vec<DVec3> = (0..16)
+            .map(|k| {
+                let (x, y) = (tx + (k % 4) as f64 / 3.0, ty + (k / 4) as f64 / 3.0);
+                DVec3::new(x, y, 0.5 * (0.3 * x).sin() * (0.2 * y).cos())
+            })
+            .collect();
+        let weights: Vec<f64> = (0..16).map(|k| 0.5 + ((k * 7 + tile) % 5) as f64 * 0.25).collect();
+        surfaces.push(bezier_surface(3, 3, &points, Some(&weights)).expect("valid patch"));
+    }
+    surfaces
+}
+
+/// A degree-7 × 7 rational B-spline with 16 × 16 control points.
+fn degree_7() -> BSplineSurface {
+    let n = 16;
+    let points: Vec<DVec3> = (0..n * n).map(|k| DVec3::new((k % n) as f64, (k / n) as f64, ((k * 7919) % 13) as f64 / 6.0)).collect();
+    let weights: Vec<f64> = (0..n * n).map(|k| 0.5 + ((k * 31) % 9) as f64 / 8.0).collect();
+    let knots = KnotVector::clamped_uniform(7, n).expect("valid knots");
+    BSplineSurface::try_new(knots.clone(), knots, &points, Some(&weights)).expect("valid surface")
+}
+
+fn bench_gpu(c: &mut Criterion) {
+    let context = GpuContext::new().expect("a GPU adapter (install mesa-vulkan-drivers for lavapipe)");
+    let read = |p: &str| knotwork::io::read_scene(Path::new(p)).expect("bench input").surfaces;
+    let cases = [
+        ("1024 rational bicubic patches 64x64", patches_1024(), 64u32),
+        ("teapot 256x256 per patch", read("data/teapot.bpt"), 256),
+        ("peer_bicubic_32x32 2000x2000", read("data/peer_bicubic_32x32.obj"), 2000),
+        ("degree 7 16x16 points 1000x1000", vec![degree_7()], 1000),
+    ];
+    let mut group = c.benchmark_group("gpu");
+    group.sample_size(10);
+    println!("adapter: {}", context.adapter_summary());
+    for (name, surfaces, n) in &cases {
+        let options = TessOptions::DEFAULT.with_grid(*n, *n);
+        group.throughput(Throughput::Elements(u64::from(*n) * u64::from(*n) * surfaces.len() as u64));
+        let batch = GpuBatch::new(&context, surfaces, &options).expect("fits the adapter");
+        group.bench_function(format!("gpu dispatch, {name}"), |b| {
+            b.iter(|| {
+                let submission = batch.dispatch(&context).expect("dispatch");
+                context.device().poll(wgpu::PollType::Wait { submission_index: Some(submission), timeout: None }).expect("completes");
+            })
+        });
+        let tessellator = GpuTessellator::from_context(GpuContext::from_device(context.device().clone(), context.queue().clone()).expect("context"));
+        group.bench_function(format!("gpu upload+dispatch+readback, {name}"), |b| b.iter(|| tessellator.tessellate(surfaces, &options).expect("tessellates")));
+        let mut mesh = Mesh::default();
+        group.bench_function(format!("cpu, {name}"), |b| b.iter(|| CpuTessellator.tessellate_into(surfaces, &options, &mut mesh).expect("tessellates")));
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_gpu);
+criterion_main!(benches);
