@@ -71,7 +71,10 @@ impl GpuContext {
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions::default()))
             .map_err(|e| Error::NoAdapter { reason: e.to_string() })?;
         let info = adapter.get_info();
-        let descriptor = wgpu::DeviceDescriptor { label: Some("knotwork"), required_limits: adapter.limits(), ..Default::default() };
+        // Mappable storage buffers (unified-memory adapters) let headless readback skip the
+        // staging copy.
+        let required_features = adapter.features() & wgpu::Features::MAPPABLE_PRIMARY_BUFFERS;
+        let descriptor = wgpu::DeviceDescriptor { label: Some("knotwork"), required_features, required_limits: adapter.limits(), ..Default::default() };
         let (device, queue) = pollster::block_on(adapter.request_device(&descriptor)).map_err(|e| Error::NoAdapter { reason: e.to_string() })?;
         let mut context = Self::from_device(device, queue)?;
         context.adapter = Some(info);
@@ -200,6 +203,8 @@ pub struct GpuBatch {
     /// Set once the index buffer holds the triangles: they depend on the grid only, so later
     /// dispatches (moved control points) evaluate vertices and leave the indices alone.
     connected: std::sync::atomic::AtomicBool,
+    /// The output buffers can be mapped directly (see [`GpuBatch::for_readback`]).
+    mappable: bool,
     // Kept alive for the bind groups.
     _buffers: Vec<wgpu::Buffer>,
     mesh: GpuMesh,
@@ -236,7 +241,20 @@ impl GpuBatch {
     /// As [`GpuBatch::new`], with buffer limits lower than the device's (memory budgets;
     /// tests of the chunking).
     pub fn with_limits(context: &GpuContext, surfaces: &[BSplineSurface], options: &TessOptions, limits: Limits) -> Result<Self> {
+        Self::build(context, surfaces, options, limits, false)
+    }
+
+    /// A batch whose outputs are read back rather than drawn: where the device has
+    /// `MAPPABLE_PRIMARY_BUFFERS` (unified memory) they are mapped directly, without a staging
+    /// copy. (Not for rendering: on discrete GPUs mappable buffers live in slower memory.)
+    pub fn for_readback(context: &GpuContext, surfaces: &[BSplineSurface], options: &TessOptions) -> Result<Self> {
+        Self::build(context, surfaces, options, context.limits(), true)
+    }
+
+    fn build(context: &GpuContext, surfaces: &[BSplineSurface], options: &TessOptions, limits: Limits, readback: bool) -> Result<Self> {
         let device = &context.device;
+        let mappable = readback && device.features().contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
+        let map_read = if mappable { wgpu::BufferUsages::MAP_READ } else { wgpu::BufferUsages::empty() };
         let packed = pack::pack(surfaces, options, &limits)?;
         scoped(device, || {
             let copy = wgpu::BufferUsages::COPY_DST;
@@ -253,13 +271,13 @@ impl GpuBatch {
             let vertices = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("knotwork vertices"),
                 size: (packed.vertex_count * VERTEX_BYTES).max(VERTEX_BYTES),
-                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | map_read,
                 mapped_at_creation: false,
             });
             let indices = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("knotwork indices"),
                 size: (packed.index_count * 4).max(16),
-                usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | map_read,
                 mapped_at_creation: false,
             });
             let uniforms: Vec<u8> = packed
@@ -317,7 +335,7 @@ impl GpuBatch {
                 index_count: packed.index_count as u32,
                 parts: packed.parts.clone(),
             };
-            GpuBatch { packed, shapes: surfaces.to_vec(), points, bind_groups, connected: false.into(), _buffers: vec![pieces, tiles, tables, contracted, uniform], mesh }
+            GpuBatch { packed, shapes: surfaces.to_vec(), points, bind_groups, connected: false.into(), mappable, _buffers: vec![pieces, tiles, tables, contracted, uniform], mesh }
         })
     }
 
@@ -384,7 +402,9 @@ impl GpuBatch {
         Ok(())
     }
 
-    /// Copies the outputs back and converts them into a [`Mesh`] (f32 values widened to f64).
+    /// Reads the outputs back into a [`Mesh`] (f32 values widened to f64): mapped directly for
+    /// a [`GpuBatch::for_readback`] batch on a unified-memory adapter, else through a staging
+    /// copy.
     pub fn read_mesh(&self, context: &GpuContext) -> Result<Mesh> {
         let device = &context.device;
         let vertex_bytes = self.packed.vertex_count * VERTEX_BYTES;
@@ -393,31 +413,39 @@ impl GpuBatch {
         if vertex_bytes == 0 {
             return Ok(mesh);
         }
-        let staging = scoped(device, || {
-            let staging = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("knotwork readback"),
-                size: vertex_bytes + index_bytes,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("knotwork readback") });
-            encoder.copy_buffer_to_buffer(&self.mesh.vertices, 0, &staging, 0, vertex_bytes);
-            encoder.copy_buffer_to_buffer(&self.mesh.indices, 0, &staging, vertex_bytes, index_bytes);
-            context.queue.submit([encoder.finish()]);
-            staging
-        })?;
+        let staged;
+        let (vertices, indices) = if self.mappable {
+            (&self.mesh.vertices, &self.mesh.indices)
+        } else {
+            staged = scoped(device, || {
+                let staging = |label, size| {
+                    device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false })
+                };
+                let (vertices, indices) = (staging("knotwork vertex readback", vertex_bytes), staging("knotwork index readback", index_bytes));
+                let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("knotwork readback") });
+                encoder.copy_buffer_to_buffer(&self.mesh.vertices, 0, &vertices, 0, vertex_bytes);
+                encoder.copy_buffer_to_buffer(&self.mesh.indices, 0, &indices, 0, index_bytes);
+                context.queue.submit([encoder.finish()]);
+                (vertices, indices)
+            })?;
+            (&staged.0, &staged.1)
+        };
         let (sender, receiver) = std::sync::mpsc::channel();
-        staging.map_async(wgpu::MapMode::Read, .., move |result| {
-            let _ = sender.send(result);
-        });
+        for buffer in [vertices, indices] {
+            let sender = sender.clone();
+            buffer.map_async(wgpu::MapMode::Read, .., move |result| {
+                let _ = sender.send(result);
+            });
+        }
+        drop(sender);
         device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| Error::Gpu { message: e.to_string() })?;
-        receiver
-            .recv()
-            .map_err(|_| Error::Gpu { message: "the readback never completed".into() })?
-            .map_err(|e| Error::Gpu { message: e.to_string() })?;
+        for result in receiver.iter() {
+            result.map_err(|e| Error::Gpu { message: e.to_string() })?;
+        }
+        let gpu_error = |e: wgpu::MapRangeError| Error::Gpu { message: e.to_string() };
         {
-            let view = staging.get_mapped_range(..).map_err(|e| Error::Gpu { message: e.to_string() })?;
-            let floats: &[f32] = bytemuck::cast_slice(&view[..vertex_bytes as usize]);
+            let view = vertices.get_mapped_range(..vertex_bytes).map_err(gpu_error)?;
+            let floats: &[f32] = bytemuck::cast_slice(&view);
             let n = self.packed.vertex_count as usize;
             mesh.positions.reserve_exact(n);
             mesh.normals.reserve_exact(n);
@@ -427,9 +455,10 @@ impl GpuBatch {
                 mesh.normals.push(DVec3::new(v[3].into(), v[4].into(), v[5].into()));
                 mesh.uvs.push(DVec2::new(v[6].into(), v[7].into()));
             }
-            mesh.indices = bytemuck::cast_slice(&view[vertex_bytes as usize..]).to_vec();
+            mesh.indices = bytemuck::cast_slice(&indices.get_mapped_range(..index_bytes).map_err(gpu_error)?).to_vec();
         }
-        staging.unmap();
+        vertices.unmap();
+        indices.unmap();
         Ok(mesh)
     }
 }
@@ -456,7 +485,7 @@ impl GpuTessellator {
 
 impl Tessellator for GpuTessellator {
     fn tessellate_into(&self, surfaces: &[BSplineSurface], options: &TessOptions, mesh: &mut Mesh) -> Result<()> {
-        let batch = GpuBatch::new(&self.context, surfaces, options)?;
+        let batch = GpuBatch::for_readback(&self.context, surfaces, options)?;
         batch.dispatch(&self.context)?;
         *mesh = batch.read_mesh(&self.context)?;
         Ok(())
