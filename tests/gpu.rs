@@ -193,3 +193,24 @@ fn cli_gpu_backend_and_info() {
     let text = String::from_utf8_lossy(&info.stdout);
     assert!(info.status.success() && text.contains("max_storage_buffer_binding_size") && text.contains("default adapter"), "{text}");
 }
+
+/// Without any adapter (a backend this machine does not have), `--backend gpu` fails with a
+/// one-line error and writes nothing, and `--backend auto` falls back to the CPU.
+#[test]
+fn missing_adapter_is_an_error_for_gpu_and_a_fallback_for_auto() {
+    let dir = std::env::temp_dir().join(format!("knotwork-no-adapter-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("out.obj");
+    let run = |backend: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_knotwork"))
+            .args(["tessellate", "data/teapot.bpt", "-o", out.to_str().unwrap(), "--grid", "5x5", "--backend", backend])
+            .env("WGPU_BACKEND", "metal")
+            .output()
+            .unwrap()
+    };
+    let gpu_run = run("gpu");
+    assert!(!gpu_run.status.success() && !out.exists());
+    assert!(String::from_utf8_lossy(&gpu_run.stderr).contains("no GPU adapter"), "{}", String::from_utf8_lossy(&gpu_run.stderr));
+    let auto = run("auto");
+    assert!(auto.status.success() && String::from_utf8_lossy(&auto.stdout).contains("cpu (f64)"));
+}

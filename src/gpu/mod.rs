@@ -500,6 +500,22 @@ impl Tessellator for GpuTessellator {
 mod tests {
     use super::*;
 
+    /// A validation error inside a scope comes back as `Error::Gpu`, not as a panic.
+    #[test]
+    fn validation_errors_become_errors() {
+        let context = match GpuContext::new() {
+            Ok(context) => context,
+            Err(e) if std::env::var("KNOTWORK_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("KNOTWORK_REQUIRE_GPU=1 but {e}"),
+            Err(e) => return eprintln!("skipped: {e}"),
+        };
+        let result = scoped(&context.device, || {
+            // Larger than the device allows: invalid everywhere.
+            let size = context.device.limits().max_buffer_size + 256;
+            context.device.create_buffer(&wgpu::BufferDescriptor { label: None, size, usage: wgpu::BufferUsages::STORAGE, mapped_at_creation: false })
+        });
+        assert!(matches!(result, Err(Error::Gpu { .. })));
+    }
+
     /// The host structs match the WGSL structs byte for byte.
     #[test]
     fn host_mirrors_have_the_shader_layout() {
