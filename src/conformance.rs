@@ -3,7 +3,7 @@
 //! the GPU path promises.
 
 use crate::error::Result;
-use crate::geom::{BSplineSurface, Interval, KnotVector, bezier_surface};
+use crate::geom::{BSplineSurface, Interval, KnotVector, bezier_surface, shapes};
 use crate::mesh::{Mesh, TessOptions};
 use crate::{CpuTessellator, Tessellator};
 use glam::DVec3;
@@ -117,23 +117,6 @@ fn surface(ku: KnotVector, kv: KnotVector, points: &[DVec3], weights: Option<&[f
     BSplineSurface::try_new(ku, kv, points, weights).expect("conformance surfaces are valid")
 }
 
-/// A rational sphere of radius `r` about `centre` (u around z, v pole to pole).
-fn sphere(centre: DVec3, r: f64) -> BSplineSurface {
-    let s = std::f64::consts::FRAC_1_SQRT_2;
-    let circle = [(1.0, 0.0, 1.0), (1.0, 1.0, s), (0.0, 1.0, 1.0), (-1.0, 1.0, s), (-1.0, 0.0, 1.0), (-1.0, -1.0, s), (0.0, -1.0, 1.0), (1.0, -1.0, s), (1.0, 0.0, 1.0)];
-    let profile = [(0.0, -r, 1.0), (r, -r, s), (r, 0.0, 1.0), (r, r, s), (0.0, r, 1.0)];
-    let (mut points, mut weights) = (Vec::new(), Vec::new());
-    for &(x, z, wp) in &profile {
-        for &(cx, cy, wc) in &circle {
-            points.push(centre + DVec3::new(cx * x, cy * x, z));
-            weights.push(wc * wp);
-        }
-    }
-    let ku = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1.0, 1.0, 1.0]).expect("circle knots");
-    let kv = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 0.5, 0.5, 1.0, 1.0, 1.0]).expect("semicircle knots");
-    surface(ku, kv, &points, Some(&weights))
-}
-
 /// The conformance suite: degrees 1..=20 in both directions, rational and not, clamped,
 /// unclamped and periodic knots, repeated interior knots, tiny spans, sub-ranges, large
 /// offsets and scales, weights from 0.01 to 100, collapsed edges and poles.
@@ -198,7 +181,7 @@ pub fn suite() -> Vec<Case> {
     };
     cases.push(Case { name: "offset 1e5 from the origin".into(), surfaces: vec![offset(DVec3::new(1e5, -2e5, 3e4), 10.0)], options: grid(40) });
     cases.push(Case { name: "scale 1e-3 and 1e4".into(), surfaces: vec![offset(DVec3::ZERO, 1e-3), offset(DVec3::splat(5e4), 1e4)], options: grid(40) });
-    cases.push(Case { name: "sphere: poles (collapsed edges)".into(), surfaces: vec![sphere(DVec3::new(3.0, -1.0, 2.0), 2.0)], options: grid(33) });
+    cases.push(Case { name: "sphere: poles (collapsed edges)".into(), surfaces: vec![shapes::sphere(DVec3::new(3.0, -1.0, 2.0), 2.0)], options: grid(33) });
     let pinched = {
         // A bicubic patch whose whole v = 0 row collapses to one point, like the teapot's lid.
         let mut points = wavy_net(4, 4, 1.0);

@@ -5,6 +5,7 @@
 mod bezier;
 mod curve;
 mod knots;
+pub mod shapes;
 mod surface;
 
 pub use bezier::{BezierPatch, bezier_curve, bezier_surface, piecewise_bezier_surface};

@@ -9,51 +9,14 @@ pub const EXACT_REL: f64 = 1e-12;
 
 pub const S: f64 = std::f64::consts::FRAC_1_SQRT_2;
 
-/// The 9-point rational quadratic unit circle, counter-clockwise from (1, 0): (x, y, weight).
-pub fn unit_circle() -> (KnotVector, Vec<(f64, f64, f64)>) {
-    let knots = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 0.25, 0.25, 0.5, 0.5, 0.75, 0.75, 1.0, 1.0, 1.0]).unwrap();
-    let points = vec![
-        (1.0, 0.0, 1.0),
-        (1.0, 1.0, S),
-        (0.0, 1.0, 1.0),
-        (-1.0, 1.0, S),
-        (-1.0, 0.0, 1.0),
-        (-1.0, -1.0, S),
-        (0.0, -1.0, 1.0),
-        (1.0, -1.0, S),
-        (1.0, 0.0, 1.0),
-    ];
-    (knots, points)
-}
-
-/// Revolves a rational profile in the xz-plane, given as (x, z, weight), about the z axis:
-/// u runs around the axis (counter-clockwise seen from +z), v along the profile.
-pub fn revolve(profile_knots: KnotVector, profile: &[(f64, f64, f64)]) -> BSplineSurface {
-    let (circle_knots, circle) = unit_circle();
-    let mut points = Vec::new();
-    let mut weights = Vec::new();
-    for &(x, z, wp) in profile {
-        for &(cx, cy, wc) in &circle {
-            points.push(DVec3::new(cx * x, cy * x, z));
-            weights.push(wc * wp);
-        }
-    }
-    BSplineSurface::try_new(circle_knots, profile_knots, &points, Some(&weights)).unwrap()
-}
-
 /// A sphere of radius `r` centred at the origin; v runs from the south pole to the north.
 pub fn sphere(r: f64) -> BSplineSurface {
-    let knots = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 0.5, 0.5, 1.0, 1.0, 1.0]).unwrap();
-    let profile = [(0.0, -r, 1.0), (r, -r, S), (r, 0.0, 1.0), (r, r, S), (0.0, r, 1.0)];
-    revolve(knots, &profile)
+    knotwork::geom::shapes::sphere(DVec3::ZERO, r)
 }
 
-/// A torus about the z axis with major radius `big` and minor radius `small`; normals point
-/// out of the tube.
+/// A torus about the z axis with major radius `big` and minor radius `small`.
 pub fn torus(big: f64, small: f64) -> BSplineSurface {
-    let (knots, circle) = unit_circle();
-    let profile: Vec<(f64, f64, f64)> = circle.iter().map(|&(a, b, w)| (big + small * a, small * b, w)).collect();
-    revolve(knots, &profile)
+    knotwork::geom::shapes::torus(DVec3::ZERO, big, small)
 }
 
 /// A quarter of the unit cylinder about z, x, y ≥ 0, height 1: degree 2 around, 1 along z.
