@@ -76,7 +76,7 @@ pub fn compare(surfaces: &[BSplineSurface], options: &TessOptions, mesh: &Mesh) 
         let size = surface.control_box_diagonal();
         let (du, dv) = (surface.knots_u().domain(), surface.knots_v().domain());
         let regular = REGULAR_REL * size * size / ((du.1 - du.0) * (dv.1 - dv.0));
-        for k in part.first_vertex as usize..(part.first_vertex + part.vertex_count()) as usize {
+        for k in part.first_vertex as usize..(part.first_vertex + part.vertex_count) as usize {
             let expected = reference.positions[k];
             let error = (mesh.positions[k] - expected).length() - F32_ROUNDING * expected.length();
             report.worst_position = report.worst_position.max(error.max(0.0) / size);

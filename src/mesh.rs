@@ -29,21 +29,19 @@ impl Default for TessOptions {
 }
 
 /// Where one surface's vertices and indices sit in a [`Mesh`].
+///
+/// For a tessellated grid the part owns vertices `first_vertex .. first_vertex +
+/// vertex_count` (grid_u × grid_v of them) and indices `first_index .. first_index +
+/// index_count`. After [`Mesh::weld`] its triangles may use vertices shared with other parts;
+/// the vertex range is then the span of the vertices its triangles use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MeshPart {
-    pub first_vertex: u32,
     pub grid_u: u32,
     pub grid_v: u32,
+    pub first_vertex: u32,
+    pub vertex_count: u32,
     pub first_index: u32,
-}
-
-impl MeshPart {
-    pub fn vertex_count(&self) -> u32 {
-        self.grid_u * self.grid_v
-    }
-    pub fn index_count(&self) -> u32 {
-        6 * (self.grid_u - 1) * (self.grid_v - 1)
-    }
+    pub index_count: u32,
 }
 
 /// A triangle mesh: per-vertex position, unit normal and uv, and u32 triangle indices.
@@ -87,10 +85,12 @@ pub(crate) fn plan_parts(count: usize, options: &TessOptions) -> Result<Vec<Mesh
     }
     Ok((0..count as u32)
         .map(|s| MeshPart {
-            first_vertex: s * nu * nv,
             grid_u: nu,
             grid_v: nv,
+            first_vertex: s * nu * nv,
+            vertex_count: nu * nv,
             first_index: s * 6 * (nu - 1) * (nv - 1),
+            index_count: 6 * (nu - 1) * (nv - 1),
         })
         .collect())
 }
@@ -117,4 +117,85 @@ pub(crate) fn fill_grid_indices(parts: &[MeshPart], indices: &mut [u32]) {
             cell.copy_from_slice(&[a, b, c, a, c, d]);
         }
     });
+}
+
+/// What [`Mesh::weld`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct WeldReport {
+    /// Vertices merged into another (the mesh lost this many).
+    pub merged_vertices: usize,
+    /// Triangles dropped because two of their corners became one (collapsed edges).
+    pub dropped_triangles: usize,
+}
+
+/// Default weld tolerance, relative to the mesh's bounding-box diagonal: far above the f32
+/// disagreement of two patches evaluating their shared edge (~1e-7), far below any grid
+/// spacing a tessellation would use.
+pub const WELD_REL_TOLERANCE: f64 = 1e-6;
+
+impl Mesh {
+    /// Diagonal of the bounding box of the positions (0 for an empty mesh).
+    pub fn bounding_box_diagonal(&self) -> f64 {
+        let (lo, hi) = self.positions.iter().fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        if self.positions.is_empty() { 0.0 } else { (hi - lo).length() }
+    }
+
+    /// Merges vertices closer than `tolerance` (model units) so patches that share an edge
+    /// share its vertices, then drops the triangles that collapse. Merged vertices keep the
+    /// position, normal and uv of the first of them in vertex order; vertex order is kept
+    /// otherwise. Part index ranges are updated.
+    pub fn weld(&self, tolerance: f64) -> (Mesh, WeldReport) {
+        use std::collections::HashMap;
+        let cell = tolerance.max(f64::MIN_POSITIVE);
+        let key = |p: DVec3| ((p.x / cell).floor() as i64, (p.y / cell).floor() as i64, (p.z / cell).floor() as i64);
+        let mut grid: HashMap<(i64, i64, i64), Vec<u32>> = HashMap::new();
+        let mut remap = Vec::with_capacity(self.positions.len());
+        let mut welded = Mesh::default();
+        for (index, &p) in self.positions.iter().enumerate() {
+            let (x, y, z) = key(p);
+            let mut found = None;
+            'search: for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        for &candidate in grid.get(&(x + dx, y + dy, z + dz)).into_iter().flatten() {
+                            if (welded.positions[candidate as usize] - p).length() <= tolerance {
+                                found = Some(candidate);
+                                break 'search;
+                            }
+                        }
+                    }
+                }
+            }
+            let target = found.unwrap_or_else(|| {
+                let new = welded.positions.len() as u32;
+                welded.positions.push(p);
+                welded.normals.push(self.normals[index]);
+                welded.uvs.push(self.uvs[index]);
+                grid.entry((x, y, z)).or_default().push(new);
+                new
+            });
+            remap.push(target);
+        }
+        let mut report = WeldReport { merged_vertices: self.positions.len() - welded.positions.len(), dropped_triangles: 0 };
+        welded.indices.reserve(self.indices.len());
+        for part in &self.parts {
+            let first_index = welded.indices.len() as u32;
+            let (mut lo, mut hi) = (u32::MAX, 0);
+            let triangles = self.indices[part.first_index as usize..(part.first_index + part.index_count) as usize].chunks_exact(3);
+            for triangle in triangles {
+                let [a, b, c] = [0, 1, 2].map(|k| remap[triangle[k] as usize]);
+                if a == b || b == c || a == c {
+                    report.dropped_triangles += 1;
+                    continue;
+                }
+                welded.indices.extend_from_slice(&[a, b, c]);
+                lo = lo.min(a.min(b).min(c));
+                hi = hi.max(a.max(b).max(c));
+            }
+            let index_count = welded.indices.len() as u32 - first_index;
+            let (first_vertex, vertex_count) = if index_count == 0 { (0, 0) } else { (lo, hi - lo + 1) };
+            welded.parts.push(MeshPart { first_vertex, vertex_count, first_index, index_count, ..*part });
+        }
+        (welded, report)
+    }
 }

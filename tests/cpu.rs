@@ -305,7 +305,7 @@ fn teapot_normals_point_out_and_are_never_degenerate() {
     assert!(mesh.normals.iter().all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-12));
     // Body patches 5–12: normals point away from the z axis.
     for part in &mesh.parts[4..12] {
-        for k in part.first_vertex..part.first_vertex + part.vertex_count() {
+        for k in part.first_vertex..part.first_vertex + part.vertex_count {
             let (p, n) = (mesh.positions[k as usize], mesh.normals[k as usize]);
             assert!(n.dot(DVec3::new(p.x, p.y, 0.0)) > 0.0, "body normal {n} at {p}");
         }
@@ -392,7 +392,7 @@ fn evaluate_grid_and_reused_meshes_match_fresh_tessellation() {
     assert_eq!(reused, fresh);
     // The attribute-only layer gives the same positions and normals as the mesh.
     let part = fresh.parts[3];
-    let range = part.first_vertex as usize..(part.first_vertex + part.vertex_count()) as usize;
+    let range = part.first_vertex as usize..(part.first_vertex + part.vertex_count) as usize;
     let (mut positions, mut normals) = (vec![DVec3::ZERO; 35], vec![DVec3::ZERO; 35]);
     knotwork::cpu::evaluate_grid_into(&teapot[3], 7, 5, &mut positions, &mut normals).unwrap();
     assert_eq!(positions, fresh.positions[range.clone()]);

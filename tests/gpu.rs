@@ -214,3 +214,14 @@ fn missing_adapter_is_an_error_for_gpu_and_a_fallback_for_auto() {
     let auto = run("auto");
     assert!(auto.status.success() && String::from_utf8_lossy(&auto.stdout).contains("cpu (f64)"));
 }
+
+#[test]
+fn cli_conformance_prints_a_table_and_a_verdict() {
+    let Some(_) = gpu() else { return };
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_knotwork")).arg("conformance").output().unwrap();
+    let text = String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{text}");
+    let rows = text.lines().filter(|l| l.ends_with(" pass")).count();
+    assert_eq!(rows, knotwork::conformance::suite().len(), "{text}");
+    assert!(text.contains("verdict: this adapter conforms"), "{text}");
+}

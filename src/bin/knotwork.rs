@@ -1,8 +1,12 @@
 //! The knotwork command line: parse arguments into a command, then run it.
 
 use clap::{Parser, Subcommand, ValueEnum};
+use knotwork::io::{MeshFormat, SceneFormat};
+use knotwork::mesh::WELD_REL_TOLERANCE;
 use knotwork::{CpuTessellator, GpuContext, GpuTessellator, TessOptions, Tessellator};
-use std::path::PathBuf;
+use rayon::prelude::*;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -15,13 +19,17 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Tessellate the surfaces of INPUT (.obj free-form, .bpt) into a mesh file (.obj).
+    /// Tessellate surface files (.obj free-form, .bpt) into mesh files (.obj, .ply, .stl, .glb).
     ///
-    /// The GPU computes in f32 (positions within 1e-5 of each surface's size); `--backend cpu`
-    /// gives the f64 reference.
+    /// One input and an output file name: writes that file. Several inputs, a directory of
+    /// inputs, or an output that is a directory: writes OUTPUT/<input name>.<format> for each,
+    /// files in parallel. The GPU computes in f32 (positions within 1e-5 of each surface's
+    /// size); `--backend cpu` gives the f64 reference.
     Tessellate {
-        input: PathBuf,
-        /// Output mesh file.
+        /// Input files or directories (their .obj and .bpt files).
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        /// Output file, or directory for several inputs.
         #[arg(short, long)]
         output: PathBuf,
         /// Vertices per surface, NUxNV (u along the first number).
@@ -30,9 +38,20 @@ enum Command {
         /// Which tessellator runs.
         #[arg(long, value_enum, default_value_t = Backend::Auto)]
         backend: Backend,
+        /// Output format (default: the output's extension; obj in a directory).
+        #[arg(long, value_enum)]
+        format: Option<OutputFormat>,
+        /// Input format (default: each input's extension).
+        #[arg(long, value_enum)]
+        input_format: Option<InputFormat>,
+        /// Merge vertices that coincide across patch edges and drop collapsed triangles.
+        #[arg(long)]
+        weld: bool,
     },
     /// List the GPU adapters and the limits that matter to knotwork.
     Info,
+    /// Run the GPU-vs-CPU conformance suite on this machine's adapter.
+    Conformance,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -45,8 +64,68 @@ enum Backend {
     Cpu,
 }
 
+#[derive(Clone, Copy, ValueEnum)]
+enum OutputFormat {
+    Obj,
+    Ply,
+    Stl,
+    Glb,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum InputFormat {
+    Obj,
+    Bpt,
+}
+
+fn parse_grid(text: &str) -> Result<(u32, u32), String> {
+    let (u, v) = text.split_once(['x', 'X']).ok_or("expected NUxNV, e.g. 33x33")?;
+    let parse = |s: &str| s.trim().parse::<u32>().map_err(|_| format!("`{s}` is not a vertex count"));
+    let (u, v) = (parse(u)?, parse(v)?);
+    if u < 2 || v < 2 {
+        return Err("each side of the grid needs at least 2 vertices".into());
+    }
+    Ok((u, v))
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Tessellate { inputs, output, grid, backend, format, input_format, weld } => {
+            let job = Job {
+                options: TessOptions::DEFAULT.with_grid(grid.0, grid.1),
+                format: format.map(|f| match f {
+                    OutputFormat::Obj => MeshFormat::Obj,
+                    OutputFormat::Ply => MeshFormat::Ply,
+                    OutputFormat::Stl => MeshFormat::Stl,
+                    OutputFormat::Glb => MeshFormat::Glb,
+                }),
+                input_format: input_format.map(|f| match f {
+                    InputFormat::Obj => SceneFormat::Obj,
+                    InputFormat::Bpt => SceneFormat::Bpt,
+                }),
+                weld,
+            };
+            tessellate(&inputs, &output, backend, &job)
+        }
+        Command::Info => {
+            println!("{}", info());
+            Ok(true)
+        }
+        Command::Conformance => conformance(),
+    };
+    match result {
+        Ok(true) => ExitCode::SUCCESS,
+        Ok(false) => ExitCode::FAILURE,
+        Err(error) => {
+            eprintln!("error: {error}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
 /// The tessellator `backend` asks for.
-fn tessellator(backend: Backend) -> knotwork::Result<Box<dyn Tessellator>> {
+fn tessellator(backend: Backend) -> knotwork::Result<Box<dyn Tessellator + Sync>> {
     Ok(match backend {
         Backend::Cpu => Box::new(CpuTessellator),
         Backend::Gpu => Box::new(GpuTessellator::new()?),
@@ -55,6 +134,148 @@ fn tessellator(backend: Backend) -> knotwork::Result<Box<dyn Tessellator>> {
             Err(_) => Box::new(CpuTessellator),
         },
     })
+}
+
+/// What to do with every input.
+struct Job {
+    options: TessOptions,
+    format: Option<MeshFormat>,
+    input_format: Option<SceneFormat>,
+    weld: bool,
+}
+
+/// Counts for one file.
+#[derive(Default)]
+struct Tally {
+    surfaces: usize,
+    vertices: usize,
+    triangles: usize,
+    merged: usize,
+}
+
+fn process(input: &Path, output: &Path, tessellator: &dyn Tessellator, job: &Job) -> knotwork::Result<Tally> {
+    let scene = knotwork::io::read_scene_as(input, job.input_format)?;
+    let mut mesh = tessellator.tessellate(&scene.surfaces, &job.options)?;
+    let mut merged = 0;
+    if job.weld {
+        let (welded, report) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
+        (mesh, merged) = (welded, report.merged_vertices);
+    }
+    knotwork::io::write_mesh_as(output, &mesh, job.format)?;
+    Ok(Tally { surfaces: scene.surfaces.len(), vertices: mesh.vertex_count(), triangles: mesh.triangle_count(), merged })
+}
+
+/// Expands directories into the surface files they hold (sorted), keeps files as given.
+fn expand_inputs(inputs: &[PathBuf]) -> knotwork::Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    for input in inputs {
+        if input.is_dir() {
+            let entries = std::fs::read_dir(input).map_err(|source| knotwork::Error::Io { path: input.clone(), source })?;
+            let mut found: Vec<PathBuf> = entries
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.is_file() && p.extension().and_then(|e| e.to_str()).and_then(SceneFormat::from_extension).is_some())
+                .collect();
+            found.sort();
+            files.extend(found);
+        } else {
+            files.push(input.clone());
+        }
+    }
+    Ok(files)
+}
+
+/// Tessellates every input; returns whether all succeeded.
+fn tessellate(inputs: &[PathBuf], output: &Path, backend: Backend, job: &Job) -> knotwork::Result<bool> {
+    let start = Instant::now();
+    let batch = inputs.len() > 1 || inputs.iter().any(|p| p.is_dir()) || output.is_dir();
+    let tessellator = tessellator(backend)?;
+    if !batch {
+        let tally = process(&inputs[0], output, tessellator.as_ref(), job)?;
+        let weld = if job.weld { format!(", {} vertices merged", tally.merged) } else { String::new() };
+        println!(
+            "{}: {} surfaces, {} vertices, {} triangles{weld} in {:.3} s ({}) -> {}",
+            inputs[0].display(),
+            tally.surfaces,
+            tally.vertices,
+            tally.triangles,
+            start.elapsed().as_secs_f64(),
+            tessellator.name(),
+            output.display()
+        );
+        return Ok(true);
+    }
+    let files = expand_inputs(inputs)?;
+    std::fs::create_dir_all(output).map_err(|source| knotwork::Error::Io { path: output.to_path_buf(), source })?;
+    let extension = job.format.unwrap_or(MeshFormat::Obj).extension();
+    let progress = if std::io::stderr().is_terminal() { indicatif::ProgressBar::new(files.len() as u64) } else { indicatif::ProgressBar::hidden() };
+    let results: Vec<(PathBuf, knotwork::Result<Tally>)> = files
+        .par_iter()
+        .map(|input| {
+            let name = input.file_stem().map_or_else(|| "mesh".into(), |s| s.to_owned());
+            let target = output.join(name).with_extension(extension);
+            let result = process(input, &target, tessellator.as_ref(), job);
+            progress.inc(1);
+            (input.clone(), result)
+        })
+        .collect();
+    progress.finish_and_clear();
+    let mut total = Tally::default();
+    let mut failed = 0;
+    for (input, result) in &results {
+        match result {
+            Ok(t) => {
+                total.surfaces += t.surfaces;
+                total.vertices += t.vertices;
+                total.triangles += t.triangles;
+                total.merged += t.merged;
+            }
+            Err(error) => {
+                failed += 1;
+                // The error names the file itself when it came from reading it.
+                let message = error.to_string();
+                if message.contains(&*input.to_string_lossy()) { eprintln!("error: {message}") } else { eprintln!("error: {}: {message}", input.display()) }
+            }
+        }
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    let weld = if job.weld { format!(", {} vertices merged", total.merged) } else { String::new() };
+    println!(
+        "{} files ({} failed): {} surfaces, {} vertices, {} triangles{weld} in {seconds:.3} s, {:.1} M vertices/s ({}) -> {}",
+        results.len(),
+        failed,
+        total.surfaces,
+        total.vertices,
+        total.triangles,
+        total.vertices as f64 / seconds / 1e6,
+        tessellator.name(),
+        output.display()
+    );
+    Ok(failed == 0)
+}
+
+/// Runs the conformance suite on the default adapter; prints a table and a verdict.
+fn conformance() -> knotwork::Result<bool> {
+    use knotwork::conformance::{self, DEGENERATE_NORMAL_BAR, NORMAL_BAR, POSITION_REL_BAR};
+    let gpu = GpuTessellator::new()?;
+    println!("adapter: {}", gpu.context().adapter_summary());
+    println!("bars: position {POSITION_REL_BAR:e} of the diagonal (+ f32 rounding), normal {NORMAL_BAR:e} rad ({DEGENERATE_NORMAL_BAR:e} near degenerate points)");
+    println!("{:<48} {:>14} {:>14} {:>14}  result", "case", "position/diag", "normal (rad)", "degen. (rad)");
+    let mut all_pass = true;
+    for case in conformance::suite() {
+        let mesh = gpu.tessellate(&case.surfaces, &case.options)?;
+        let report = conformance::compare(&case.surfaces, &case.options, &mesh)?;
+        all_pass &= report.passes();
+        println!(
+            "{:<48} {:>14.3e} {:>14.3e} {:>14.3e}  {}",
+            case.name,
+            report.worst_position,
+            report.worst_normal,
+            report.worst_degenerate_normal,
+            if report.passes() { "pass" } else { "FAIL" }
+        );
+    }
+    println!("verdict: {}", if all_pass { "this adapter conforms" } else { "this adapter does NOT conform" });
+    Ok(all_pass)
 }
 
 /// Adapters, backends, device types, drivers and the limits that decide chunking.
@@ -90,51 +311,4 @@ fn info() -> String {
         Err(error) => out.push_str(&format!("default adapter: none ({error})")),
     }
     out
-}
-
-fn parse_grid(text: &str) -> Result<(u32, u32), String> {
-    let (u, v) = text.split_once(['x', 'X']).ok_or("expected NUxNV, e.g. 33x33")?;
-    let parse = |s: &str| s.trim().parse::<u32>().map_err(|_| format!("`{s}` is not a vertex count"));
-    let (u, v) = (parse(u)?, parse(v)?);
-    if u < 2 || v < 2 {
-        return Err("each side of the grid needs at least 2 vertices".into());
-    }
-    Ok((u, v))
-}
-
-fn main() -> ExitCode {
-    let cli = Cli::parse();
-    match run(cli.command) {
-        Ok(summary) => {
-            println!("{summary}");
-            ExitCode::SUCCESS
-        }
-        Err(error) => {
-            eprintln!("error: {error}");
-            ExitCode::FAILURE
-        }
-    }
-}
-
-fn run(command: Command) -> knotwork::Result<String> {
-    match command {
-        Command::Tessellate { input, output, grid, backend } => {
-            let start = Instant::now();
-            let scene = knotwork::io::read_scene(&input)?;
-            let tessellator = tessellator(backend)?;
-            let mesh = tessellator.tessellate(&scene.surfaces, &TessOptions::DEFAULT.with_grid(grid.0, grid.1))?;
-            knotwork::io::write_mesh(&output, &mesh)?;
-            Ok(format!(
-                "{}: {} surfaces, {} vertices, {} triangles in {:.3} s ({}) -> {}",
-                input.display(),
-                scene.surfaces.len(),
-                mesh.vertex_count(),
-                mesh.triangle_count(),
-                start.elapsed().as_secs_f64(),
-                tessellator.name(),
-                output.display()
-            ))
-        }
-        Command::Info => Ok(info()),
-    }
 }

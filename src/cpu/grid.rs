@@ -19,8 +19,8 @@ use rayon::prelude::*;
 /// buffers (see [`Mesh`] for the layout).
 pub fn tessellate_grid_into(surfaces: &[BSplineSurface], options: &TessOptions, mesh: &mut Mesh) -> Result<()> {
     let parts = plan_parts(surfaces.len(), options)?;
-    let total_vertices = parts.last().map_or(0, |p| (p.first_vertex + p.vertex_count()) as usize);
-    let total_indices = parts.last().map_or(0, |p| (p.first_index + p.index_count()) as usize);
+    let total_vertices = parts.last().map_or(0, |p| (p.first_vertex + p.vertex_count) as usize);
+    let total_indices = parts.last().map_or(0, |p| (p.first_index + p.index_count) as usize);
     // Every element is overwritten below; resizing only touches memory when a buffer grows.
     mesh.positions.resize(total_vertices, DVec3::ZERO);
     mesh.normals.resize(total_vertices, DVec3::ZERO);
@@ -31,7 +31,7 @@ pub fn tessellate_grid_into(surfaces: &[BSplineSurface], options: &TessOptions, 
     let mut jobs = Vec::with_capacity(surfaces.len());
     let (mut pos, mut nrm, mut uv) = (&mut mesh.positions[..], &mut mesh.normals[..], &mut mesh.uvs[..]);
     for (surface, part) in surfaces.iter().zip(&mesh.parts) {
-        let n = part.vertex_count() as usize;
+        let n = part.vertex_count as usize;
         let (p0, p1) = pos.split_at_mut(n);
         let (n0, n1) = nrm.split_at_mut(n);
         let (u0, u1) = uv.split_at_mut(n);

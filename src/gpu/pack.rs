@@ -172,8 +172,8 @@ fn too_large(what: &'static str, bytes: u64, limit: u64) -> Error {
 pub(crate) fn pack(surfaces: &[BSplineSurface], options: &TessOptions, limits: &Limits) -> Result<Packed> {
     let parts = plan_parts(surfaces.len(), options)?;
     let (nu, nv) = (options.grid_u, options.grid_v);
-    let vertex_count = parts.last().map_or(0, |p| u64::from(p.first_vertex + p.vertex_count()));
-    let index_count = parts.last().map_or(0, |p| u64::from(p.first_index + p.index_count()));
+    let vertex_count = parts.last().map_or(0, |p| u64::from(p.first_vertex + p.vertex_count));
+    let index_count = parts.last().map_or(0, |p| u64::from(p.first_index + p.index_count));
     for (what, bytes) in [("the vertex buffer", vertex_count * VERTEX_BYTES), ("the index buffer", index_count * 4)] {
         if bytes > limits.buffer_bytes {
             return Err(too_large(what, bytes, limits.buffer_bytes));

@@ -3,10 +3,12 @@
 //! Formats are chosen by extension. Every writer goes through [`write_atomic`]: the output
 //! appears complete, under its final name, or not at all.
 
+mod binary_meshes;
 mod bpt;
 mod obj_freeform;
 mod obj_mesh;
 
+pub use binary_meshes::{write_glb, write_ply, write_stl};
 pub use bpt::read_bpt;
 pub use obj_freeform::read_obj_freeform;
 pub use obj_mesh::{format_f64, write_obj_mesh};
@@ -25,29 +27,103 @@ pub struct Scene {
 }
 
 const INPUT_FORMATS: &str = ".obj (free-form), .bpt";
-const OUTPUT_FORMATS: &str = ".obj";
+const OUTPUT_FORMATS: &str = ".obj, .ply, .stl, .glb";
 
 fn extension(path: &Path) -> String {
     path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
 }
 
+/// A surface file format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SceneFormat {
+    /// Wavefront OBJ free-form geometry.
+    Obj,
+    /// The tea-set Bezier patch format.
+    Bpt,
+}
+
+impl SceneFormat {
+    /// The format a file extension names (`obj`, `bpt`; any case).
+    pub fn from_extension(extension: &str) -> Option<Self> {
+        match extension.to_ascii_lowercase().as_str() {
+            "obj" => Some(Self::Obj),
+            "bpt" => Some(Self::Bpt),
+            _ => None,
+        }
+    }
+}
+
+/// Reads a surface file in `format`, or in the format its extension names. Errors name the
+/// file and line.
+pub fn read_scene_as(path: &Path, format: Option<SceneFormat>) -> Result<Scene> {
+    let format = format
+        .or_else(|| SceneFormat::from_extension(&extension(path)))
+        .ok_or_else(|| Error::UnknownFormat { path: path.to_path_buf(), expected: INPUT_FORMATS })?;
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+    let scene = match format {
+        SceneFormat::Obj => read_obj_freeform(&text),
+        SceneFormat::Bpt => read_bpt(&text),
+    };
+    scene.map_err(|e| e.in_file(path))
+}
+
 /// Reads a surface file, choosing the reader by extension. Errors name the file and line.
 pub fn read_scene(path: &Path) -> Result<Scene> {
-    let reader: fn(&str) -> Result<Scene> = match extension(path).as_str() {
-        "obj" => read_obj_freeform,
-        "bpt" => read_bpt,
-        _ => return Err(Error::UnknownFormat { path: path.to_path_buf(), expected: INPUT_FORMATS }),
-    };
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
-    reader(&text).map_err(|e| e.in_file(path))
+    read_scene_as(path, None)
+}
+
+/// A mesh file format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MeshFormat {
+    /// Wavefront OBJ, text, every f64 exact.
+    Obj,
+    /// Binary little-endian PLY (f32).
+    Ply,
+    /// Binary STL (f32, triangles only).
+    Stl,
+    /// glTF 2.0 binary.
+    Glb,
+}
+
+impl MeshFormat {
+    /// The format a file extension names (`obj`, `ply`, `stl`, `glb`; any case).
+    pub fn from_extension(extension: &str) -> Option<Self> {
+        match extension.to_ascii_lowercase().as_str() {
+            "obj" => Some(Self::Obj),
+            "ply" => Some(Self::Ply),
+            "stl" => Some(Self::Stl),
+            "glb" => Some(Self::Glb),
+            _ => None,
+        }
+    }
+
+    /// The usual file extension.
+    pub fn extension(self) -> &'static str {
+        match self {
+            Self::Obj => "obj",
+            Self::Ply => "ply",
+            Self::Stl => "stl",
+            Self::Glb => "glb",
+        }
+    }
+}
+
+/// Writes `mesh` to `path` in `format`, or in the format its extension names, atomically.
+pub fn write_mesh_as(path: &Path, mesh: &Mesh, format: Option<MeshFormat>) -> Result<()> {
+    let format = format
+        .or_else(|| MeshFormat::from_extension(&extension(path)))
+        .ok_or_else(|| Error::UnknownFormat { path: path.to_path_buf(), expected: OUTPUT_FORMATS })?;
+    write_atomic(path, |w| match format {
+        MeshFormat::Obj => write_obj_mesh(mesh, w),
+        MeshFormat::Ply => write_ply(mesh, w),
+        MeshFormat::Stl => write_stl(mesh, w),
+        MeshFormat::Glb => write_glb(mesh, w),
+    })
 }
 
 /// Writes `mesh` to `path` in the format its extension names, atomically.
 pub fn write_mesh(path: &Path, mesh: &Mesh) -> Result<()> {
-    match extension(path).as_str() {
-        "obj" => write_atomic(path, |w| write_obj_mesh(mesh, w)),
-        _ => Err(Error::UnknownFormat { path: path.to_path_buf(), expected: OUTPUT_FORMATS }),
-    }
+    write_mesh_as(path, mesh, None)
 }
 
 /// Writes through a temporary file next to `path` and renames it into place on success; on

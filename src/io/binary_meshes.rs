@@ -1,0 +1,142 @@
+//! Binary mesh writers: PLY and STL are written by hand — each is a fixed header followed by
+//! packed little-endian records, a few lines of code, and the crates that write them add
+//! nothing but a dependency. glTF 2.0 binary goes through the `gltf` crate's JSON model and
+//! GLB container writer: its schema is large and easy to get subtly wrong by hand.
+
+use crate::mesh::Mesh;
+use gltf::json;
+use json::validation::{Checked, USize64};
+use std::io::{Result, Write};
+
+/// Binary little-endian PLY: per vertex x y z nx ny nz (f32) and u v (f32, named `s t`
+/// as most readers expect), per face a u8 count and three u32 indices.
+pub fn write_ply(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
+    write!(
+        w,
+        "ply\nformat binary_little_endian 1.0\ncomment knotwork mesh\nelement vertex {}\n\
+         property float x\nproperty float y\nproperty float z\n\
+         property float nx\nproperty float ny\nproperty float nz\n\
+         property float s\nproperty float t\n\
+         element face {}\nproperty list uchar uint vertex_indices\nend_header\n",
+        mesh.vertex_count(),
+        mesh.triangle_count()
+    )?;
+    for ((p, n), t) in mesh.positions.iter().zip(&mesh.normals).zip(&mesh.uvs) {
+        let record = [p.x, p.y, p.z, n.x, n.y, n.z, t.x, t.y].map(|x| x as f32);
+        w.write_all(bytemuck::cast_slice(&record))?;
+    }
+    for triangle in mesh.indices.chunks_exact(3) {
+        w.write_all(&[3])?;
+        w.write_all(bytemuck::cast_slice(triangle))?;
+    }
+    Ok(())
+}
+
+/// Binary STL: an 80-byte header, the triangle count, and per triangle its unit face normal
+/// (from the winding), three corners (f32) and a zero attribute word. STL has no shared
+/// vertices, no vertex normals and no uvs.
+pub fn write_stl(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
+    let mut header = [0u8; 80];
+    let title = b"knotwork mesh (binary STL)";
+    header[..title.len()].copy_from_slice(title);
+    w.write_all(&header)?;
+    let count = u32::try_from(mesh.triangle_count()).map_err(|_| std::io::Error::other("more triangles than binary STL can count"))?;
+    w.write_all(&count.to_le_bytes())?;
+    for triangle in mesh.indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[triangle[k] as usize]);
+        let normal = (b - a).cross(c - a).normalize_or_zero();
+        let record = [normal, a, b, c].map(|v| v.as_vec3().to_array());
+        w.write_all(bytemuck::cast_slice(&record))?;
+        w.write_all(&[0, 0])?;
+    }
+    Ok(())
+}
+
+/// glTF 2.0 binary (.glb): one buffer with POSITION, NORMAL, TEXCOORD_0 (f32) and u32
+/// indices; one mesh and node per surface (a primitive of triangles over the shared vertex
+/// accessors with its own index accessor); POSITION bounds filled in.
+pub fn write_glb(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
+    let n = mesh.vertex_count();
+    let mut bin: Vec<u8> = Vec::with_capacity(n * 32 + mesh.indices.len() * 4);
+    let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.as_vec3().to_array()).collect();
+    let (lo, hi) = positions.iter().fold(([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]), |(lo, hi), p| {
+        (std::array::from_fn(|k| lo[k].min(p[k])), std::array::from_fn(|k| hi[k].max(p[k])))
+    });
+    bin.extend_from_slice(bytemuck::cast_slice(&positions));
+    let normals: Vec<[f32; 3]> = mesh.normals.iter().map(|v| v.as_vec3().to_array()).collect();
+    bin.extend_from_slice(bytemuck::cast_slice(&normals));
+    let uvs: Vec<[f32; 2]> = mesh.uvs.iter().map(|v| v.as_vec2().to_array()).collect();
+    bin.extend_from_slice(bytemuck::cast_slice(&uvs));
+    let index_offset = bin.len();
+    bin.extend_from_slice(bytemuck::cast_slice(&mesh.indices));
+
+    let mut root = json::Root { asset: json::Asset { generator: Some("knotwork".into()), ..Default::default() }, ..Default::default() };
+    let buffer = root.push(json::Buffer { byte_length: USize64::from(bin.len()), name: None, uri: None, extensions: None, extras: Default::default() });
+    let view = |root: &mut json::Root, offset: usize, length: usize, stride: Option<usize>, target: json::buffer::Target| {
+        root.push(json::buffer::View {
+            buffer,
+            byte_length: USize64::from(length),
+            byte_offset: Some(USize64::from(offset)),
+            byte_stride: stride.map(json::buffer::Stride),
+            name: None,
+            target: Some(Checked::Valid(target)),
+            extensions: None,
+            extras: Default::default(),
+        })
+    };
+    let accessor = |root: &mut json::Root, view, offset: usize, count: usize, component, type_, bounds: Option<([f32; 3], [f32; 3])>| {
+        root.push(json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: Some(USize64::from(offset)),
+            count: USize64::from(count),
+            component_type: Checked::Valid(json::accessor::GenericComponentType(component)),
+            extensions: None,
+            extras: Default::default(),
+            type_: Checked::Valid(type_),
+            min: bounds.map(|b| json::serialize::to_value(b.0).expect("floats serialise")),
+            max: bounds.map(|b| json::serialize::to_value(b.1).expect("floats serialise")),
+            name: None,
+            normalized: false,
+            sparse: None,
+        })
+    };
+    use json::accessor::{ComponentType, Type};
+    use json::buffer::Target;
+    let array = Target::ArrayBuffer;
+    let position_view = view(&mut root, 0, n * 12, Some(12), array);
+    let normal_view = view(&mut root, n * 12, n * 12, Some(12), array);
+    let uv_view = view(&mut root, n * 24, n * 8, Some(8), array);
+    let index_view = view(&mut root, index_offset, mesh.indices.len() * 4, None, Target::ElementArrayBuffer);
+    let bounds = (n > 0).then_some((lo, hi));
+    let position = accessor(&mut root, position_view, 0, n, ComponentType::F32, Type::Vec3, bounds);
+    let normal = accessor(&mut root, normal_view, 0, n, ComponentType::F32, Type::Vec3, None);
+    let uv = accessor(&mut root, uv_view, 0, n, ComponentType::F32, Type::Vec2, None);
+    let mut nodes = Vec::new();
+    for (k, part) in mesh.parts.iter().enumerate().filter(|(_, p)| p.index_count > 0) {
+        let indices = accessor(&mut root, index_view, part.first_index as usize * 4, part.index_count as usize, ComponentType::U32, Type::Scalar, None);
+        let attributes = [(json::mesh::Semantic::Positions, position), (json::mesh::Semantic::Normals, normal), (json::mesh::Semantic::TexCoords(0), uv)]
+            .into_iter()
+            .map(|(semantic, accessor)| (Checked::Valid(semantic), accessor))
+            .collect();
+        let primitive = json::mesh::Primitive {
+            attributes,
+            extensions: None,
+            extras: Default::default(),
+            indices: Some(indices),
+            material: None,
+            mode: Checked::Valid(json::mesh::Mode::Triangles),
+            targets: None,
+        };
+        let mesh_index = root.push(json::Mesh { extensions: None, extras: Default::default(), name: Some(format!("surface {k}")), primitives: vec![primitive], weights: None });
+        nodes.push(root.push(json::Node { mesh: Some(mesh_index), name: Some(format!("surface {k}")), ..Default::default() }));
+    }
+    let scene = root.push(json::Scene { extensions: None, extras: Default::default(), name: None, nodes });
+    root.scene = Some(scene);
+    let json_bytes = root.to_vec().map_err(std::io::Error::other)?;
+    let glb = gltf::binary::Glb {
+        header: gltf::binary::Header { magic: *b"glTF", version: 2, length: 0 },
+        json: json_bytes.into(),
+        bin: Some(bin.into()),
+    };
+    glb.to_writer(w).map_err(std::io::Error::other)
+}
