@@ -57,9 +57,16 @@ fn angle(a: DVec3, b: DVec3) -> f64 {
     a.cross(b).length().atan2(a.dot(b))
 }
 
-/// Compares `mesh` (from any backend) with the f64 reference for `surfaces`.
+/// Compares `mesh` (from any backend) with the f64 reference for `surfaces`, all on the grid
+/// of `options`.
 pub fn compare(surfaces: &[BSplineSurface], options: &TessOptions, mesh: &Mesh) -> Result<Report> {
-    let reference = CpuTessellator.tessellate(surfaces, options)?;
+    compare_each(surfaces, &vec![*options; surfaces.len()], mesh)
+}
+
+/// As [`compare`], surface k on the grid of `options[k]`.
+pub fn compare_each(surfaces: &[BSplineSurface], options: &[TessOptions], mesh: &Mesh) -> Result<Report> {
+    let mut reference = Mesh::default();
+    CpuTessellator.tessellate_each_into(surfaces, options, &mut reference)?;
     let mut report = Report {
         worst_position: 0.0,
         worst_normal: 0.0,

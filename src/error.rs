@@ -32,10 +32,16 @@ pub enum Error {
     InvalidWeight { index: usize, value: f64 },
     #[error("parameter range [{start}, {end}] is not inside the domain [{domain_start}, {domain_end}] or is empty")]
     RangeOutsideDomain { start: f64, end: f64, domain_start: f64, domain_end: f64 },
+    #[error("{name} is {value}: it must be finite and > 0")]
+    InvalidParameter { name: &'static str, value: f64 },
     #[error("breakpoints must increase strictly: breakpoint {index} is {value}")]
     BreakpointsNotIncreasing { index: usize, value: f64 },
     #[error("grid {nu}x{nv} is invalid: each side needs at least 2 samples")]
     GridTooSmall { nu: u32, nv: u32 },
+    #[error("{found} sets of tessellation options for {expected} surfaces")]
+    OptionsCount { expected: usize, found: usize },
+    #[error("surface {index}: {source}")]
+    InSurface { index: usize, source: Box<Error> },
     #[error("a buffer holds {found} elements where {expected} are needed")]
     BufferLength { expected: usize, found: usize },
     #[error("the mesh would have {vertices} vertices, more than u32 indices can address")]
@@ -84,7 +90,7 @@ impl Error {
     /// The innermost error, past any line and file wrappers.
     pub fn root(&self) -> &Error {
         match self {
-            Error::AtLine { source, .. } | Error::InFile { source, .. } => source.root(),
+            Error::AtLine { source, .. } | Error::InFile { source, .. } | Error::InSurface { source, .. } => source.root(),
             other => other,
         }
     }

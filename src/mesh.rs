@@ -70,29 +70,32 @@ impl Mesh {
     }
 }
 
-/// Lays out `count` surfaces of one grid each: vertex and index offsets, checked against the
-/// u32 index range before anything is allocated.
-pub(crate) fn plan_parts(count: usize, options: &TessOptions) -> Result<Vec<MeshPart>> {
-    let (nu, nv) = (options.grid_u, options.grid_v);
-    if nu < 2 || nv < 2 {
-        return Err(Error::GridTooSmall { nu, nv });
-    }
-    let per_surface = u64::from(nu) * u64::from(nv);
-    let vertices = per_surface * count as u64;
-    let indices = 6 * u64::from(nu - 1) * u64::from(nv - 1) * count as u64;
-    if vertices > u64::from(u32::MAX) || indices > u64::from(u32::MAX) {
-        return Err(Error::MeshTooLarge { vertices });
-    }
-    Ok((0..count as u32)
-        .map(|s| MeshPart {
+/// Lays out one surface per entry of `options` (its grid): vertex and index offsets, checked
+/// against the u32 index range before anything is allocated.
+pub(crate) fn plan_parts(options: &[TessOptions]) -> Result<Vec<MeshPart>> {
+    let (mut vertices, mut indices) = (0u64, 0u64);
+    let mut parts = Vec::with_capacity(options.len());
+    for o in options {
+        let (nu, nv) = (o.grid_u, o.grid_v);
+        if nu < 2 || nv < 2 {
+            return Err(Error::GridTooSmall { nu, nv });
+        }
+        let (vertex_count, index_count) = (u64::from(nu) * u64::from(nv), 6 * u64::from(nu - 1) * u64::from(nv - 1));
+        if vertices + vertex_count > u64::from(u32::MAX) || indices + index_count > u64::from(u32::MAX) {
+            return Err(Error::MeshTooLarge { vertices: vertices + vertex_count });
+        }
+        parts.push(MeshPart {
             grid_u: nu,
             grid_v: nv,
-            first_vertex: s * nu * nv,
-            vertex_count: nu * nv,
-            first_index: s * 6 * (nu - 1) * (nv - 1),
-            index_count: 6 * (nu - 1) * (nv - 1),
-        })
-        .collect())
+            first_vertex: vertices as u32,
+            vertex_count: vertex_count as u32,
+            first_index: indices as u32,
+            index_count: index_count as u32,
+        });
+        vertices += vertex_count;
+        indices += index_count;
+    }
+    Ok(parts)
 }
 
 /// Writes the triangles of every part into `indices` (sized for all parts), in parallel: per

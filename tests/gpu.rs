@@ -225,3 +225,17 @@ fn cli_conformance_prints_a_table_and_a_verdict() {
     assert_eq!(rows, knotwork::conformance::suite().len(), "{text}");
     assert!(text.contains("verdict: this adapter conforms"), "{text}");
 }
+
+/// Surfaces with grids of their own (a JSON scene) give the same layout on the GPU and
+/// conform.
+#[test]
+fn per_surface_grids_conform() {
+    let Some(context) = gpu() else { return };
+    let scene = knotwork::io::read_scene(std::path::Path::new("data/scene.json")).unwrap();
+    let options = scene.options_or(TessOptions::DEFAULT.with_grid(13, 7));
+    let tessellator = GpuTessellator::from_context(GpuContext::from_device(context.device().clone(), context.queue().clone()).unwrap());
+    let mut mesh = knotwork::Mesh::default();
+    tessellator.tessellate_each_into(&scene.surfaces, &options, &mut mesh).unwrap();
+    let report = conformance::compare_each(&scene.surfaces, &options, &mesh).unwrap();
+    assert!(report.passes() && report.vertices == 24 * 24 + 3 * 13 * 7, "{report:?}");
+}

@@ -521,3 +521,43 @@ fn batch_cli_processes_a_folder_and_reports_bad_files() {
     assert!(!run.status.success(), "ducky.obj is not BPT");
     assert!(out2.join("teapot.obj").exists() && !out2.join("ducky.obj").exists());
 }
+
+// ---------------------------------------------------------------- JSON scenes
+
+#[test]
+fn json_scene_reads_every_kind_with_its_own_grid() {
+    let scene = read_scene(Path::new("data/scene.json")).unwrap();
+    assert_eq!(scene.surfaces.len(), 4);
+    let options = scene.options_or(TessOptions::DEFAULT.with_grid(9, 9));
+    assert_eq!((options[0].grid_u, options[0].grid_v), (24, 24));
+    assert_eq!((options[1].grid_u, options[1].grid_v), (9, 9));
+    assert!(scene.surfaces[0].is_rational() && !scene.surfaces[1].is_rational());
+    assert_eq!(scene.surfaces[1].range_v(), Interval::new(0.0, 0.5));
+    assert_eq!(scene.surfaces[1].knots_u().knots(), &[0.0, 0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 2.0]);
+    let ball = &scene.surfaces[2];
+    for (u, v) in [(0.1, 0.2), (0.7, 0.9), (0.5, 0.0)] {
+        let d = (ball.point(u, v) - DVec3::new(1.5, 6.0, 1.0)).length();
+        assert!((d - 1.0).abs() < 1e-14, "sphere point at distance {d}");
+    }
+    let mut mesh = knotwork::Mesh::default();
+    CpuTessellator.tessellate_each_into(&scene.surfaces, &options, &mut mesh).unwrap();
+    assert_eq!(mesh.vertex_count(), 24 * 24 + 3 * 81);
+}
+
+#[test]
+fn json_errors_name_the_line_or_the_surface() {
+    let err = knotwork::io::read_json_scene("{ \"surfaces\": [\n  { \"kind\": \"sphere\", \"centre\": [0, 0], \"radius\": 1 }\n] }").unwrap_err();
+    assert!(matches!(err.root(), Error::Syntax { .. }) && err.line() == Some(2), "{err}");
+    let err = knotwork::io::read_json_scene("{ \"surfaces\": [ { \"kind\": \"cone\" } ] }").unwrap_err();
+    assert!(err.to_string().contains("cone"), "{err}");
+    let sphere = |radius: &str| format!("{{ \"surfaces\": [ {{ \"kind\": \"torus\", \"centre\": [0, 0, 0], \"major_radius\": 2, \"minor_radius\": 1 }}, {{ \"kind\": \"sphere\", \"centre\": [0, 0, 0], \"radius\": {radius} }} ] }}");
+    let err = knotwork::io::read_json_scene(&sphere("0")).unwrap_err();
+    assert!(matches!(err, Error::InSurface { index: 1, .. }) && matches!(err.root(), Error::InvalidParameter { name: "radius", .. }), "{err}");
+    let bad_knots = r#"{ "surfaces": [ { "kind": "bspline", "degree": [1, 1], "knots_u": [0, 0, 2, 1], "knots_v": [0, 0, 1, 1], "points": [[0,0,0],[1,0,0],[0,1,0],[1,1,0]] } ] }"#;
+    let err = knotwork::io::read_json_scene(bad_knots).unwrap_err();
+    assert!(matches!(err, Error::InSurface { index: 0, .. }) && matches!(err.root(), Error::KnotsDecreasing { index: 3, .. }), "{err}");
+    let bad_grid = r#"{ "surfaces": [ { "kind": "sphere", "centre": [0, 0, 0], "radius": 1, "grid": [1, 5] } ] }"#;
+    assert!(matches!(knotwork::io::read_json_scene(bad_grid).unwrap_err().root(), Error::GridTooSmall { nu: 1, nv: 5 }));
+    let few_options = CpuTessellator.tessellate_each_into(&read_scene(Path::new("data/scene.json")).unwrap().surfaces, &[TessOptions::DEFAULT], &mut knotwork::Mesh::default());
+    assert!(matches!(few_options, Err(Error::OptionsCount { expected: 4, found: 1 })));
+}

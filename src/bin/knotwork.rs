@@ -19,20 +19,20 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Tessellate surface files (.obj free-form, .bpt) into mesh files (.obj, .ply, .stl, .glb).
+    /// Tessellate surface files (.obj free-form, .bpt, .json) into mesh files (.obj, .ply, .stl, .glb).
     ///
     /// One input and an output file name: writes that file. Several inputs, a directory of
     /// inputs, or an output that is a directory: writes OUTPUT/<input name>.<format> for each,
     /// files in parallel. The GPU computes in f32 (positions within 1e-5 of each surface's
     /// size); `--backend cpu` gives the f64 reference.
     Tessellate {
-        /// Input files or directories (their .obj and .bpt files).
+        /// Input files or directories (their .obj, .bpt and .json files).
         #[arg(required = true)]
         inputs: Vec<PathBuf>,
         /// Output file, or directory for several inputs.
         #[arg(short, long)]
         output: PathBuf,
-        /// Vertices per surface, NUxNV (u along the first number).
+        /// Vertices per surface, NUxNV (u along the first number); a JSON surface's own `grid` wins.
         #[arg(long, default_value = "33x33", value_parser = parse_grid)]
         grid: (u32, u32),
         /// Which tessellator runs.
@@ -76,6 +76,7 @@ enum OutputFormat {
 enum InputFormat {
     Obj,
     Bpt,
+    Json,
 }
 
 fn parse_grid(text: &str) -> Result<(u32, u32), String> {
@@ -103,6 +104,7 @@ fn main() -> ExitCode {
                 input_format: input_format.map(|f| match f {
                     InputFormat::Obj => SceneFormat::Obj,
                     InputFormat::Bpt => SceneFormat::Bpt,
+                    InputFormat::Json => SceneFormat::Json,
                 }),
                 weld,
             };
@@ -155,7 +157,8 @@ struct Tally {
 
 fn process(input: &Path, output: &Path, tessellator: &dyn Tessellator, job: &Job) -> knotwork::Result<Tally> {
     let scene = knotwork::io::read_scene_as(input, job.input_format)?;
-    let mut mesh = tessellator.tessellate(&scene.surfaces, &job.options)?;
+    let mut mesh = knotwork::Mesh::default();
+    tessellator.tessellate_each_into(&scene.surfaces, &scene.options_or(job.options), &mut mesh)?;
     let mut merged = 0;
     if job.weld {
         let (welded, report) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());

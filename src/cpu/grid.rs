@@ -15,10 +15,13 @@ use crate::mesh::{Mesh, MeshPart, TessOptions, fill_grid_indices, plan_parts};
 use glam::{DVec2, DVec3, DVec4};
 use rayon::prelude::*;
 
-/// Tessellates every surface on its grid into `mesh`, replacing its contents but reusing its
-/// buffers (see [`Mesh`] for the layout).
-pub fn tessellate_grid_into(surfaces: &[BSplineSurface], options: &TessOptions, mesh: &mut Mesh) -> Result<()> {
-    let parts = plan_parts(surfaces.len(), options)?;
+/// Tessellates every surface on its own grid (`options[k]` for surface k) into `mesh`,
+/// replacing its contents but reusing its buffers (see [`Mesh`] for the layout).
+pub fn tessellate_grid_into(surfaces: &[BSplineSurface], options: &[TessOptions], mesh: &mut Mesh) -> Result<()> {
+    if options.len() != surfaces.len() {
+        return Err(Error::OptionsCount { expected: surfaces.len(), found: options.len() });
+    }
+    let parts = plan_parts(options)?;
     let total_vertices = parts.last().map_or(0, |p| (p.first_vertex + p.vertex_count) as usize);
     let total_indices = parts.last().map_or(0, |p| (p.first_index + p.index_count) as usize);
     // Every element is overwritten below; resizing only touches memory when a buffer grows.

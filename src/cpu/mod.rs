@@ -19,7 +19,7 @@ use crate::Tessellator;
 pub struct CpuTessellator;
 
 impl Tessellator for CpuTessellator {
-    fn tessellate_into(&self, surfaces: &[BSplineSurface], options: &TessOptions, mesh: &mut Mesh) -> Result<()> {
+    fn tessellate_each_into(&self, surfaces: &[BSplineSurface], options: &[TessOptions], mesh: &mut Mesh) -> Result<()> {
         tessellate_grid_into(surfaces, options, mesh)
     }
 

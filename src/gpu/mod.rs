@@ -238,20 +238,25 @@ impl GpuBatch {
         Self::with_limits(context, surfaces, options, context.limits())
     }
 
+    /// As [`GpuBatch::new`], with options (a grid) of its own for every surface.
+    pub fn new_each(context: &GpuContext, surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Self> {
+        Self::build(context, surfaces, options, context.limits(), false)
+    }
+
     /// As [`GpuBatch::new`], with buffer limits lower than the device's (memory budgets;
     /// tests of the chunking).
     pub fn with_limits(context: &GpuContext, surfaces: &[BSplineSurface], options: &TessOptions, limits: Limits) -> Result<Self> {
-        Self::build(context, surfaces, options, limits, false)
+        Self::build(context, surfaces, &vec![*options; surfaces.len()], limits, false)
     }
 
     /// A batch whose outputs are read back rather than drawn: where the device has
     /// `MAPPABLE_PRIMARY_BUFFERS` (unified memory) they are mapped directly, without a staging
     /// copy. (Not for rendering: on discrete GPUs mappable buffers live in slower memory.)
-    pub fn for_readback(context: &GpuContext, surfaces: &[BSplineSurface], options: &TessOptions) -> Result<Self> {
+    pub fn for_readback(context: &GpuContext, surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Self> {
         Self::build(context, surfaces, options, context.limits(), true)
     }
 
-    fn build(context: &GpuContext, surfaces: &[BSplineSurface], options: &TessOptions, limits: Limits, readback: bool) -> Result<Self> {
+    fn build(context: &GpuContext, surfaces: &[BSplineSurface], options: &[TessOptions], limits: Limits, readback: bool) -> Result<Self> {
         let device = &context.device;
         let mappable = readback && device.features().contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
         let map_read = if mappable { wgpu::BufferUsages::MAP_READ } else { wgpu::BufferUsages::empty() };
@@ -484,7 +489,7 @@ impl GpuTessellator {
 }
 
 impl Tessellator for GpuTessellator {
-    fn tessellate_into(&self, surfaces: &[BSplineSurface], options: &TessOptions, mesh: &mut Mesh) -> Result<()> {
+    fn tessellate_each_into(&self, surfaces: &[BSplineSurface], options: &[TessOptions], mesh: &mut Mesh) -> Result<()> {
         let batch = GpuBatch::for_readback(&self.context, surfaces, options)?;
         batch.dispatch(&self.context)?;
         *mesh = batch.read_mesh(&self.context)?;

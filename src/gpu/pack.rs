@@ -168,10 +168,12 @@ fn too_large(what: &'static str, bytes: u64, limit: u64) -> Error {
     Error::GpuJobTooLarge { what, bytes, limit }
 }
 
-/// Plans and packs `surfaces` on the grid of `options` within `limits`.
-pub(crate) fn pack(surfaces: &[BSplineSurface], options: &TessOptions, limits: &Limits) -> Result<Packed> {
-    let parts = plan_parts(surfaces.len(), options)?;
-    let (nu, nv) = (options.grid_u, options.grid_v);
+/// Plans and packs `surfaces`, surface k on the grid of `options[k]`, within `limits`.
+pub(crate) fn pack(surfaces: &[BSplineSurface], options: &[TessOptions], limits: &Limits) -> Result<Packed> {
+    if options.len() != surfaces.len() {
+        return Err(Error::OptionsCount { expected: surfaces.len(), found: options.len() });
+    }
+    let parts = plan_parts(options)?;
     let vertex_count = parts.last().map_or(0, |p| u64::from(p.first_vertex + p.vertex_count));
     let index_count = parts.last().map_or(0, |p| u64::from(p.first_index + p.index_count));
     for (what, bytes) in [("the vertex buffer", vertex_count * VERTEX_BYTES), ("the index buffer", index_count * 4)] {
@@ -195,6 +197,7 @@ pub(crate) fn pack(surfaces: &[BSplineSurface], options: &TessOptions, limits: &
         contracted_len: 0,
     };
     for (surface_index, (surface, part)) in surfaces.iter().zip(&packed.parts).enumerate() {
+        let (nu, nv) = (part.grid_u, part.grid_v);
         let row_bytes = [u64::from(nu) * VERTEX_BYTES, u64::from(nu - 1) * 24, surface.count_u() as u64 * CONTRACTED_BYTES];
         let widest = row_bytes.into_iter().max().unwrap_or(1);
         if widest > budget {

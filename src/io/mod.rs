@@ -5,17 +5,19 @@
 
 mod binary_meshes;
 mod bpt;
+mod json;
 mod obj_freeform;
 mod obj_mesh;
 
 pub use binary_meshes::{write_glb, write_ply, write_stl};
 pub use bpt::read_bpt;
+pub use json::read_json_scene;
 pub use obj_freeform::read_obj_freeform;
 pub use obj_mesh::{format_f64, write_obj_mesh};
 
 use crate::error::{Error, Result};
 use crate::geom::{BSplineCurve, BSplineSurface};
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, TessOptions};
 use std::io::Write;
 use std::path::Path;
 
@@ -24,9 +26,19 @@ use std::path::Path;
 pub struct Scene {
     pub surfaces: Vec<BSplineSurface>,
     pub curves: Vec<BSplineCurve>,
+    /// Tessellation options a surface asks for itself (JSON `grid`), by surface index; empty
+    /// or `None` where the file says nothing.
+    pub options: Vec<Option<TessOptions>>,
 }
 
-const INPUT_FORMATS: &str = ".obj (free-form), .bpt";
+impl Scene {
+    /// The options of every surface: its own where the file gave some, else `default`.
+    pub fn options_or(&self, default: TessOptions) -> Vec<TessOptions> {
+        (0..self.surfaces.len()).map(|k| self.options.get(k).copied().flatten().unwrap_or(default)).collect()
+    }
+}
+
+const INPUT_FORMATS: &str = ".obj (free-form), .bpt, .json";
 const OUTPUT_FORMATS: &str = ".obj, .ply, .stl, .glb";
 
 fn extension(path: &Path) -> String {
@@ -40,6 +52,8 @@ pub enum SceneFormat {
     Obj,
     /// The tea-set Bezier patch format.
     Bpt,
+    /// knotwork's JSON scene format.
+    Json,
 }
 
 impl SceneFormat {
@@ -48,6 +62,7 @@ impl SceneFormat {
         match extension.to_ascii_lowercase().as_str() {
             "obj" => Some(Self::Obj),
             "bpt" => Some(Self::Bpt),
+            "json" => Some(Self::Json),
             _ => None,
         }
     }
@@ -63,6 +78,7 @@ pub fn read_scene_as(path: &Path, format: Option<SceneFormat>) -> Result<Scene> 
     let scene = match format {
         SceneFormat::Obj => read_obj_freeform(&text),
         SceneFormat::Bpt => read_bpt(&text),
+        SceneFormat::Json => read_json_scene(&text),
     };
     scene.map_err(|e| e.in_file(path))
 }
