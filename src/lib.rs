@@ -29,6 +29,7 @@ pub mod geom;
 pub mod gpu;
 pub mod io;
 pub mod mesh;
+pub mod render;
 
 pub use cpu::CpuTessellator;
 pub use error::{Error, Result};

@@ -239,3 +239,36 @@ fn per_surface_grids_conform() {
     let report = conformance::compare_each(&scene.surfaces, &options, &mesh).unwrap();
     assert!(report.passes() && report.vertices == 24 * 24 + 3 * 13 * 7, "{report:?}");
 }
+
+/// The teapot's render is not blank: in the middle of the image, where the model is, most
+/// pixels differ from the background; the corners show the background.
+#[test]
+fn teapot_render_is_not_blank() {
+    let Some(context) = gpu() else { return };
+    let surfaces = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt")).unwrap().surfaces;
+    let batch = GpuBatch::new(context, &surfaces, &TessOptions::DEFAULT.with_grid(17, 17)).unwrap();
+    batch.dispatch(context).unwrap();
+    for (wireframe, control_net) in [(false, false), (true, true)] {
+        let options = knotwork::render::RenderOptions { width: 160, height: 120, wireframe, control_net };
+        let image = knotwork::render::render(context, &batch, &surfaces, &options).unwrap();
+        assert_eq!(image.dimensions(), (160, 120));
+        // The background in sRGB bytes, as the clear colour is written to an sRGB target.
+        let srgb = |c: f64| (if c <= 0.0031308 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 } * 255.0).round();
+        let background = knotwork::render::BACKGROUND.map(srgb);
+        let differs = |x: u32, y: u32| {
+            let p = image.get_pixel(x, y);
+            (0..3).any(|c| (f64::from(p[c]) - background[c]).abs() > 2.0)
+        };
+        let centre: Vec<bool> = (50..110).flat_map(|x| (40..80).map(move |y| (x, y))).map(|(x, y)| differs(x, y)).collect();
+        let covered = centre.iter().filter(|&&d| d).count() as f64 / centre.len() as f64;
+        assert!(covered > 0.6, "only {covered:.2} of the centre shows the model");
+        assert!(![(0, 0), (159, 0), (0, 119), (159, 119)].iter().any(|&(x, y)| differs(x, y)), "corners show the background");
+    }
+    let dir = std::env::temp_dir().join(format!("knotwork-render-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("teapot.png");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_knotwork")).args(["render", "data/teapot.bpt", "-o", png.to_str().unwrap(), "--size", "64x48", "--wireframe"]).output().unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let decoded = image::open(&png).expect("a PNG the image crate reads").to_rgba8();
+    assert_eq!(decoded.dimensions(), (64, 48));
+}
