@@ -3,12 +3,17 @@
 //! reference path that every GPU result is checked against.
 //!
 //! # Pipeline
-//! 1. **Input** ([`io`]): OBJ free-form and `.bpt` files, or the API ([`geom`]). Every surface is
-//!    validated at construction and normalised to one canonical form, a rational
-//!    tensor-product [`BSplineSurface`] with homogeneous control points (x·w, y·w, z·w, w).
+//! 1. **Input** ([`io`]): OBJ free-form, `.bpt` and JSON scene files, or the API ([`geom`]).
+//!    Every surface is validated at construction and normalised to one canonical form, a
+//!    rational tensor-product [`BSplineSurface`] with homogeneous control points
+//!    (x·w, y·w, z·w, w).
 //! 2. **Tessellation** ([`Tessellator`]): each surface is sampled on a grid uniform in
-//!    parameter over its evaluation range and turned into a [`Mesh`].
-//! 3. **Output** ([`io`]): OBJ meshes whose coordinates read back to the same doubles.
+//!    parameter over its evaluation range and turned into a [`Mesh`] — by [`CpuTessellator`]
+//!    (f64) or [`GpuTessellator`] (WGSL compute kernels, f32); [`GpuBatch`] fills vertex and
+//!    index buffers a renderer draws directly.
+//! 3. **Output** ([`io`]): OBJ (every f64 exact), PLY, STL and glTF binary meshes, optionally
+//!    welded ([`Mesh::weld`]); PNG previews ([`render`]).
+//! 4. **Conformance** ([`conformance`]): the GPU result checked against the f64 reference.
 //!
 //! # Conventions
 //! - Grid: grid_u × grid_v vertices per surface; vertex (i, j) at index j·grid_u + i (u
@@ -19,8 +24,13 @@
 //! - `uv` is the surface parameter mapped to [0, 1]² over the evaluation range.
 //!
 //! # Precision
-//! The CPU path computes in f64 with the stable Cox–de Boor recurrence: positions agree with
-//! the exact surface to a few ulps of the model size (tests hold exact conics to ≤ 1e-12 of it).
+//! - CPU: f64 with the stable Cox–de Boor recurrence; positions agree with the exact surface
+//!   to a few ulps of the model size (tests hold exact conics to ≤ 1e-12 of it).
+//! - GPU: f32, each surface relative to its own origin with basis values computed in f64 on the
+//!   host. Bound, checked by [`conformance::suite`] on every run of the tests: position error
+//!   ≤ 1e-5 × the surface's bounding-box diagonal + 2⁻²³ × |position| (the f32 rounding of the
+//!   origin and of the result); normals within 1e-4 rad at regular points and 1e-2 rad near
+//!   degenerate points.
 
 pub mod conformance;
 pub mod cpu;

@@ -259,7 +259,7 @@ pub(crate) fn pack(surfaces: &[BSplineSurface], options: &[TessOptions], limits:
             first_row += rows;
         }
     }
-    plan_chunks(&mut packed, limits, budget)?;
+    plan_chunks(&mut packed, limits, budget);
     Ok(packed)
 }
 
@@ -271,8 +271,12 @@ fn pass_items(piece: &Piece) -> [u32; PASSES] {
 
 /// Groups consecutive pieces into chunks whose bound ranges fit `budget` bytes each, sets
 /// each piece's chunk-relative contracted offset, and writes the tiles of every pass.
-fn plan_chunks(packed: &mut Packed, limits: &Limits, budget: u64) -> Result<()> {
-    let align = |elements: u64, bytes_each: u64| (elements * bytes_each) / limits.offset_alignment * limits.offset_alignment / bytes_each;
+fn plan_chunks(packed: &mut Packed, limits: &Limits, budget: u64) {
+    // The largest element index ≤ `elements` whose byte offset is a multiple of the alignment.
+    let align = |elements: u64, bytes_each: u64| {
+        let step = limits.offset_alignment / gcd(bytes_each, limits.offset_alignment);
+        elements / step * step
+    };
     let tiles_of = |piece: &Piece| pass_items(piece).iter().map(|&n| u64::from(n.div_ceil(TILE))).sum::<u64>();
     let mut start = 0;
     while start < packed.pieces.len() {
@@ -329,5 +333,48 @@ fn plan_chunks(packed: &mut Packed, limits: &Limits, budget: u64) -> Result<()> 
         packed.contracted_len = packed.contracted_len.max(contracted);
         start = end;
     }
-    Ok(())
+}
+
+fn gcd(a: u64, b: u64) -> u64 {
+    if b == 0 { a } else { gcd(b, a % b) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::KnotVector;
+
+    /// With WebGPU's usual 256-byte offset alignment and a binding limit small enough to make
+    /// many chunks, every bound range starts on an aligned byte offset, and the chunks cover
+    /// every piece, vertex and index exactly once, in order.
+    #[test]
+    fn chunk_ranges_are_aligned_and_cover_everything() {
+        let knots = KnotVector::clamped_uniform(3, 6).unwrap();
+        let points: Vec<glam::DVec3> = (0..36).map(|k| glam::DVec3::new((k % 6) as f64, (k / 6) as f64, 0.0)).collect();
+        let surface = BSplineSurface::try_new(knots.clone(), knots, &points, None).unwrap();
+        let surfaces = vec![surface; 23];
+        let options: Vec<TessOptions> = (0..23).map(|k| TessOptions::DEFAULT.with_grid(5 + k % 7, 9 + k % 5)).collect();
+        let limits = Limits { binding_bytes: 4096, buffer_bytes: 1 << 30, offset_alignment: 256 };
+        let packed = pack(&surfaces, &options, &limits).unwrap();
+        assert!(packed.chunks.len() > 5);
+        let (mut next_piece, mut next_vertex, mut next_index) = (0u64, 0u64, 0u64);
+        for chunk in &packed.chunks {
+            for (range, size) in [
+                (chunk.pieces, size_of::<Piece>() as u64),
+                (chunk.tiles, size_of::<Tile>() as u64),
+                (chunk.vertices, VERTEX_BYTES),
+                (chunk.indices, 4),
+                (chunk.points, 16),
+                (chunk.tables, 4),
+            ] {
+                assert_eq!(range.origin * size % 256, 0, "{range:?} of {size}-byte elements");
+                assert!((range.end - range.origin) * size <= limits.binding_bytes);
+            }
+            assert!(chunk.pieces.origin <= next_piece && chunk.vertices.origin <= next_vertex && chunk.indices.origin <= next_index);
+            let first = packed.pieces[next_piece as usize];
+            assert_eq!((u64::from(first.first_vertex), u64::from(first.first_index)), (next_vertex, next_index));
+            (next_piece, next_vertex, next_index) = (chunk.pieces.end, chunk.vertices.end, chunk.indices.end);
+        }
+        assert_eq!((next_piece, next_vertex, next_index), (packed.pieces.len() as u64, packed.vertex_count, packed.index_count));
+    }
 }
