@@ -10,7 +10,10 @@
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::DVec3;
 use knotwork::geom::bezier_surface;
-use knotwork::{BSplineSurface, CpuTessellator, GpuBatch, GpuContext, GpuTessellator, KnotVector, Mesh, TessOptions, Tessellator};
+use knotwork::{
+    BSplineSurface, CpuTessellator, GpuBatch, GpuContext, GpuTessellator, KnotVector, Mesh,
+    TessOptions, Tessellator,
+};
 use std::path::Path;
 
 /// 32 × 32 rational bicubic Bezier patches tiling a wavy sheet.
@@ -24,7 +27,9 @@ fn patches_1024() -> Vec<BSplineSurface> {
                 DVec3::new(x, y, 0.5 * (0.3 * x).sin() * (0.2 * y).cos())
             })
             .collect();
-        let weights: Vec<f64> = (0..16).map(|k| 0.5 + ((k * 7 + tile) % 5) as f64 * 0.25).collect();
+        let weights: Vec<f64> = (0..16)
+            .map(|k| 0.5 + ((k * 7 + tile) % 5) as f64 * 0.25)
+            .collect();
         surfaces.push(bezier_surface(3, 3, &points, Some(&weights)).expect("valid patch"));
     }
     surfaces
@@ -33,19 +38,38 @@ fn patches_1024() -> Vec<BSplineSurface> {
 /// A degree-7 × 7 rational B-spline with 16 × 16 control points.
 fn degree_7() -> BSplineSurface {
     let n = 16;
-    let points: Vec<DVec3> = (0..n * n).map(|k| DVec3::new((k % n) as f64, (k / n) as f64, ((k * 7919) % 13) as f64 / 6.0)).collect();
-    let weights: Vec<f64> = (0..n * n).map(|k| 0.5 + ((k * 31) % 9) as f64 / 8.0).collect();
+    let points: Vec<DVec3> = (0..n * n)
+        .map(|k| {
+            DVec3::new(
+                (k % n) as f64,
+                (k / n) as f64,
+                ((k * 7919) % 13) as f64 / 6.0,
+            )
+        })
+        .collect();
+    let weights: Vec<f64> = (0..n * n)
+        .map(|k| 0.5 + ((k * 31) % 9) as f64 / 8.0)
+        .collect();
     let knots = KnotVector::clamped_uniform(7, n).expect("valid knots");
     BSplineSurface::try_new(knots.clone(), knots, &points, Some(&weights)).expect("valid surface")
 }
 
 fn bench_gpu(c: &mut Criterion) {
-    let context = GpuContext::new().expect("a GPU adapter (install mesa-vulkan-drivers for lavapipe)");
-    let read = |p: &str| knotwork::io::read_scene(Path::new(p)).expect("bench input").surfaces;
+    let context =
+        GpuContext::new().expect("a GPU adapter (install mesa-vulkan-drivers for lavapipe)");
+    let read = |p: &str| {
+        knotwork::io::read_scene(Path::new(p))
+            .expect("bench input")
+            .surfaces
+    };
     let cases = [
         ("1024 rational bicubic patches 64x64", patches_1024(), 64u32),
         ("teapot 256x256 per patch", read("data/teapot.bpt"), 256),
-        ("peer_bicubic_32x32 2000x2000", read("data/peer_bicubic_32x32.obj"), 2000),
+        (
+            "peer_bicubic_32x32 2000x2000",
+            read("data/peer_bicubic_32x32.obj"),
+            2000,
+        ),
         ("degree 7 16x16 points 1000x1000", vec![degree_7()], 1000),
     ];
     let mut group = c.benchmark_group("gpu");
@@ -53,18 +77,41 @@ fn bench_gpu(c: &mut Criterion) {
     println!("adapter: {}", context.adapter_summary());
     for (name, surfaces, n) in &cases {
         let options = TessOptions::DEFAULT.with_grid(*n, *n);
-        group.throughput(Throughput::Elements(u64::from(*n) * u64::from(*n) * surfaces.len() as u64));
+        group.throughput(Throughput::Elements(
+            u64::from(*n) * u64::from(*n) * surfaces.len() as u64,
+        ));
         let batch = GpuBatch::new(&context, surfaces, &options).expect("fits the adapter");
         group.bench_function(format!("gpu dispatch, {name}"), |b| {
             b.iter(|| {
                 let submission = batch.dispatch(&context).expect("dispatch");
-                context.device().poll(wgpu::PollType::Wait { submission_index: Some(submission), timeout: None }).expect("completes");
+                context
+                    .device()
+                    .poll(wgpu::PollType::Wait {
+                        submission_index: Some(submission),
+                        timeout: None,
+                    })
+                    .expect("completes");
             })
         });
-        let tessellator = GpuTessellator::from_context(GpuContext::from_device(context.device().clone(), context.queue().clone()).expect("context"));
-        group.bench_function(format!("gpu upload+dispatch+readback, {name}"), |b| b.iter(|| tessellator.tessellate(surfaces, &options).expect("tessellates")));
+        let tessellator = GpuTessellator::from_context(
+            GpuContext::from_device(context.device().clone(), context.queue().clone())
+                .expect("context"),
+        );
+        group.bench_function(format!("gpu upload+dispatch+readback, {name}"), |b| {
+            b.iter(|| {
+                tessellator
+                    .tessellate(surfaces, &options)
+                    .expect("tessellates")
+            })
+        });
         let mut mesh = Mesh::default();
-        group.bench_function(format!("cpu, {name}"), |b| b.iter(|| CpuTessellator.tessellate_into(surfaces, &options, &mut mesh).expect("tessellates")));
+        group.bench_function(format!("cpu, {name}"), |b| {
+            b.iter(|| {
+                CpuTessellator
+                    .tessellate_into(surfaces, &options, &mut mesh)
+                    .expect("tessellates")
+            })
+        });
     }
     group.finish();
 }

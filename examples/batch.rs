@@ -13,7 +13,11 @@ use std::path::{Path, PathBuf};
 fn convert(input: &Path, output: &Path) -> knotwork::Result<usize> {
     let scene = knotwork::io::read_scene(input)?;
     let mut mesh = Mesh::default();
-    CpuTessellator.tessellate_each_into(&scene.surfaces, &scene.options_or(TessOptions::DEFAULT), &mut mesh)?;
+    CpuTessellator.tessellate_each_into(
+        &scene.surfaces,
+        &scene.options_or(TessOptions::DEFAULT),
+        &mut mesh,
+    )?;
     let (welded, _) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
     knotwork::io::write_mesh_as(output, &welded, Some(MeshFormat::Glb))?;
     Ok(welded.triangle_count())
@@ -24,13 +28,24 @@ fn main() -> std::io::Result<()> {
     std::fs::create_dir_all(out)?;
     let mut inputs: Vec<PathBuf> = std::fs::read_dir("data")?
         .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().and_then(|e| e.to_str()).and_then(SceneFormat::from_extension).is_some())
+        .filter(|p| {
+            p.extension()
+                .and_then(|e| e.to_str())
+                .and_then(SceneFormat::from_extension)
+                .is_some()
+        })
         .collect();
     inputs.sort();
     inputs.par_iter().for_each(|input| {
-        let output = out.join(input.file_stem().unwrap_or_default()).with_extension("glb");
+        let output = out
+            .join(input.file_stem().unwrap_or_default())
+            .with_extension("glb");
         match convert(input, &output) {
-            Ok(triangles) => println!("{} -> {} ({triangles} triangles)", input.display(), output.display()),
+            Ok(triangles) => println!(
+                "{} -> {} ({triangles} triangles)",
+                input.display(),
+                output.display()
+            ),
             Err(error) => eprintln!("error: {error}"),
         }
     });

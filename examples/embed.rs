@@ -16,9 +16,21 @@ fn main() -> knotwork::Result<()> {
     let surfaces = knotwork::io::read_scene(Path::new("data/teapot.bpt"))?.surfaces;
     let mut batch = GpuBatch::new(&context, &surfaces, &TessOptions::DEFAULT.with_grid(24, 24))?;
     let frames = Path::new("embed_frames");
-    std::fs::create_dir_all(frames).map_err(|source| knotwork::Error::Io { path: frames.into(), source })?;
+    std::fs::create_dir_all(frames).map_err(|source| knotwork::Error::Io {
+        path: frames.into(),
+        source,
+    })?;
     let lid = 20..28; // patches 21–28: the lid and its knob
     let mut moved = surfaces.clone();
+    let preview = knotwork::render::Preview::new(
+        &context,
+        &knotwork::render::RenderOptions {
+            width: 320,
+            height: 240,
+            wireframe: false,
+            control_net: false,
+        },
+    )?;
     for frame in 0..8 {
         let lift = DVec3::new(0.0, 0.0, 0.12 * f64::from(frame));
         for index in lid.clone() {
@@ -26,8 +38,7 @@ fn main() -> knotwork::Result<()> {
             batch.update_surface(&context, index, &moved[index])?;
         }
         batch.dispatch(&context)?;
-        let options = knotwork::render::RenderOptions { width: 320, height: 240, wireframe: false, control_net: false };
-        let image = knotwork::render::render(&context, &batch, &moved, &options)?;
+        let image = preview.render(&context, &batch, &moved)?;
         let path = frames.join(format!("frame_{frame:02}.png"));
         knotwork::render::save_png(&path, &image)?;
         println!("{}", path.display());
@@ -39,8 +50,16 @@ fn main() -> knotwork::Result<()> {
 fn translated(surface: &BSplineSurface, offset: DVec3) -> knotwork::Result<BSplineSurface> {
     let (nu, nv) = (surface.count_u(), surface.count_v());
     let cells = || (0..nv).flat_map(move |j| (0..nu).map(move |i| (i, j)));
-    let points: Vec<DVec3> = cells().map(|(i, j)| surface.control_point(i, j) + offset).collect();
+    let points: Vec<DVec3> = cells()
+        .map(|(i, j)| surface.control_point(i, j) + offset)
+        .collect();
     let weights: Vec<f64> = cells().map(|(i, j)| surface.weight(i, j)).collect();
     let rational = surface.is_rational().then_some(&weights[..]);
-    BSplineSurface::try_new(surface.knots_u().clone(), surface.knots_v().clone(), &points, rational)?.with_range(surface.range_u(), surface.range_v())
+    BSplineSurface::try_new(
+        surface.knots_u().clone(),
+        surface.knots_v().clone(),
+        &points,
+        rational,
+    )?
+    .with_range(surface.range_u(), surface.range_v())
 }

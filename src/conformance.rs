@@ -64,7 +64,11 @@ pub fn compare(surfaces: &[BSplineSurface], options: &TessOptions, mesh: &Mesh) 
 }
 
 /// As [`compare`], surface k on the grid of `options[k]`.
-pub fn compare_each(surfaces: &[BSplineSurface], options: &[TessOptions], mesh: &Mesh) -> Result<Report> {
+pub fn compare_each(
+    surfaces: &[BSplineSurface],
+    options: &[TessOptions],
+    mesh: &Mesh,
+) -> Result<Report> {
     let mut reference = Mesh::default();
     CpuTessellator.tessellate_each_into(surfaces, options, &mut reference)?;
     let mut report = Report {
@@ -73,7 +77,9 @@ pub fn compare_each(surfaces: &[BSplineSurface], options: &[TessOptions], mesh: 
         worst_degenerate_normal: 0.0,
         vertices: reference.vertex_count(),
         degenerate_vertices: 0,
-        topology_equal: reference.indices == mesh.indices && reference.parts == mesh.parts && reference.vertex_count() == mesh.vertex_count(),
+        topology_equal: reference.indices == mesh.indices
+            && reference.parts == mesh.parts
+            && reference.vertex_count() == mesh.vertex_count(),
     };
     if reference.vertex_count() != mesh.vertex_count() {
         report.worst_position = f64::INFINITY;
@@ -88,7 +94,8 @@ pub fn compare_each(surfaces: &[BSplineSurface], options: &[TessOptions], mesh: 
             let error = (mesh.positions[k] - expected).length() - F32_ROUNDING * expected.length();
             report.worst_position = report.worst_position.max(error.max(0.0) / size);
             let uv = reference.uvs[k];
-            let sample = surface.evaluate(surface.range_u().lerp(uv.x), surface.range_v().lerp(uv.y));
+            let sample =
+                surface.evaluate(surface.range_u().lerp(uv.x), surface.range_v().lerp(uv.y));
             let normal_error = angle(mesh.normals[k], reference.normals[k]);
             if sample.du.cross(sample.dv).length() >= regular {
                 report.worst_normal = report.worst_normal.max(normal_error);
@@ -109,18 +116,30 @@ fn wavy_net(nu: usize, nv: usize, size: f64) -> Vec<DVec3> {
     (0..nu * nv)
         .map(|k| {
             let (i, j) = ((k % nu) as f64, (k / nu) as f64);
-            let z = (0.7 * i).sin() * (0.4 * j + 0.3).cos() + 0.25 * ((k * 7919) % 17) as f64 / 17.0;
-            DVec3::new(i / (nu - 1).max(1) as f64, j / (nv - 1).max(1) as f64, 0.3 * z) * size
+            let z =
+                (0.7 * i).sin() * (0.4 * j + 0.3).cos() + 0.25 * ((k * 7919) % 17) as f64 / 17.0;
+            DVec3::new(
+                i / (nu - 1).max(1) as f64,
+                j / (nv - 1).max(1) as f64,
+                0.3 * z,
+            ) * size
         })
         .collect()
 }
 
 /// Weights spread over [lo, hi] (geometrically), deterministic.
 fn spread_weights(n: usize, lo: f64, hi: f64) -> Vec<f64> {
-    (0..n).map(|k| lo * (hi / lo).powf(((k * 37) % 101) as f64 / 100.0)).collect()
+    (0..n)
+        .map(|k| lo * (hi / lo).powf(((k * 37) % 101) as f64 / 100.0))
+        .collect()
 }
 
-fn surface(ku: KnotVector, kv: KnotVector, points: &[DVec3], weights: Option<&[f64]>) -> BSplineSurface {
+fn surface(
+    ku: KnotVector,
+    kv: KnotVector,
+    points: &[DVec3],
+    weights: Option<&[f64]>,
+) -> BSplineSurface {
     BSplineSurface::try_new(ku, kv, points, weights).expect("conformance surfaces are valid")
 }
 
@@ -135,28 +154,64 @@ pub fn suite() -> Vec<Case> {
         .map(|d| {
             let (p, q) = (d, 21 - d);
             let (nu, nv) = (p + 2, q + 1);
-            surface(KnotVector::clamped_uniform(p, nu).unwrap(), KnotVector::clamped_uniform(q, nv).unwrap(), &wavy_net(nu, nv, 2.0), None)
+            surface(
+                KnotVector::clamped_uniform(p, nu).unwrap(),
+                KnotVector::clamped_uniform(q, nv).unwrap(),
+                &wavy_net(nu, nv, 2.0),
+                None,
+            )
         })
         .collect();
-    cases.push(Case { name: "degrees 1..=20 (u) × 20..=1 (v), clamped".into(), surfaces: degrees, options: grid(17) });
+    cases.push(Case {
+        name: "degrees 1..=20 (u) × 20..=1 (v), clamped".into(),
+        surfaces: degrees,
+        options: grid(17),
+    });
     let rational_high = (1..=20)
         .step_by(3)
         .map(|d| {
             let (nu, nv) = (d + 3, 21 - d + 2);
             let ku = KnotVector::uniform(d, nu).unwrap();
             let kv = KnotVector::clamped_uniform(21 - d, nv).unwrap();
-            surface(ku, kv, &wavy_net(nu, nv, 5.0), Some(&spread_weights(nu * nv, 0.2, 5.0)))
+            surface(
+                ku,
+                kv,
+                &wavy_net(nu, nv, 5.0),
+                Some(&spread_weights(nu * nv, 0.2, 5.0)),
+            )
         })
         .collect();
-    cases.push(Case { name: "rational, high degree, unclamped × clamped".into(), surfaces: rational_high, options: grid(19) });
+    cases.push(Case {
+        name: "rational, high degree, unclamped × clamped".into(),
+        surfaces: rational_high,
+        options: grid(19),
+    });
     let (nu, nv) = (12, 9);
-    let bicubic = |weights: Option<&[f64]>| surface(KnotVector::clamped_uniform(3, nu).unwrap(), KnotVector::clamped_uniform(3, nv).unwrap(), &wavy_net(nu, nv, 10.0), weights);
-    cases.push(Case { name: "bicubic, non-rational".into(), surfaces: vec![bicubic(None)], options: grid(64) });
-    cases.push(Case { name: "bicubic, weights 0.01..100".into(), surfaces: vec![bicubic(Some(&spread_weights(nu * nv, 0.01, 100.0)))], options: grid(64) });
+    let bicubic = |weights: Option<&[f64]>| {
+        surface(
+            KnotVector::clamped_uniform(3, nu).unwrap(),
+            KnotVector::clamped_uniform(3, nv).unwrap(),
+            &wavy_net(nu, nv, 10.0),
+            weights,
+        )
+    };
+    cases.push(Case {
+        name: "bicubic, non-rational".into(),
+        surfaces: vec![bicubic(None)],
+        options: grid(64),
+    });
+    cases.push(Case {
+        name: "bicubic, weights 0.01..100".into(),
+        surfaces: vec![bicubic(Some(&spread_weights(nu * nv, 0.01, 100.0)))],
+        options: grid(64),
+    });
     // Periodic: uniform knots with the first `degree` columns repeated at the end.
     let periodic = {
         let n = 10;
-        let ring: Vec<DVec3> = (0..n).map(|k| (std::f64::consts::TAU * k as f64 / n as f64).sin_cos()).map(|(s, c)| DVec3::new(c, s, 0.0)).collect();
+        let ring: Vec<DVec3> = (0..n)
+            .map(|k| (std::f64::consts::TAU * k as f64 / n as f64).sin_cos())
+            .map(|(s, c)| DVec3::new(c, s, 0.0))
+            .collect();
         let mut points = Vec::new();
         for j in 0..5 {
             for i in 0..n + 3 {
@@ -165,30 +220,100 @@ pub fn suite() -> Vec<Case> {
         }
         let ku = KnotVector::uniform(3, n + 3).unwrap();
         let kv = KnotVector::clamped_uniform(3, 5).unwrap();
-        surface(ku, kv, &points, Some(&spread_weights(points.len(), 0.5, 2.0)))
+        surface(
+            ku,
+            kv,
+            &points,
+            Some(&spread_weights(points.len(), 0.5, 2.0)),
+        )
     };
-    cases.push(Case { name: "periodic (unclamped uniform, wrapped net)".into(), surfaces: vec![periodic], options: grid(48) });
+    cases.push(Case {
+        name: "periodic (unclamped uniform, wrapped net)".into(),
+        surfaces: vec![periodic],
+        options: grid(48),
+    });
     let repeated = {
-        let ku = KnotVector::try_new(3, vec![0.0, 0.0, 0.0, 0.0, 0.3, 0.3, 0.3, 0.6, 0.6, 1.0, 1.0, 1.0, 1.0]).unwrap();
+        let ku = KnotVector::try_new(
+            3,
+            vec![
+                0.0, 0.0, 0.0, 0.0, 0.3, 0.3, 0.3, 0.6, 0.6, 1.0, 1.0, 1.0, 1.0,
+            ],
+        )
+        .unwrap();
         let kv = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 0.5, 0.5, 1.0, 1.0, 1.0]).unwrap();
-        surface(ku, kv, &wavy_net(9, 5, 3.0), Some(&spread_weights(45, 0.3, 3.0)))
+        surface(
+            ku,
+            kv,
+            &wavy_net(9, 5, 3.0),
+            Some(&spread_weights(45, 0.3, 3.0)),
+        )
     };
-    cases.push(Case { name: "repeated interior knots (C0 creases)".into(), surfaces: vec![repeated], options: grid(41) });
+    cases.push(Case {
+        name: "repeated interior knots (C0 creases)".into(),
+        surfaces: vec![repeated],
+        options: grid(41),
+    });
     let tiny = {
-        let ku = KnotVector::try_new(3, vec![0.0, 0.0, 0.0, 0.0, 0.5, 0.5 + 1e-6, 0.5 + 2e-6, 1.0, 1.0, 1.0, 1.0]).unwrap();
+        let ku = KnotVector::try_new(
+            3,
+            vec![
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.5,
+                0.5 + 1e-6,
+                0.5 + 2e-6,
+                1.0,
+                1.0,
+                1.0,
+                1.0,
+            ],
+        )
+        .unwrap();
         let kv = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 1e-5, 1.0, 1.0, 1.0]).unwrap();
         surface(ku, kv, &wavy_net(7, 4, 4.0), None)
     };
-    cases.push(Case { name: "tiny knot spans (1e-6)".into(), surfaces: vec![tiny], options: grid(33) });
-    let sub_range = bicubic(None).with_range(Interval::new(0.13, 0.71), Interval::new(0.4, 0.45)).unwrap();
-    cases.push(Case { name: "sub-range of the knot domain".into(), surfaces: vec![sub_range], options: grid(30) });
+    cases.push(Case {
+        name: "tiny knot spans (1e-6)".into(),
+        surfaces: vec![tiny],
+        options: grid(33),
+    });
+    let sub_range = bicubic(None)
+        .with_range(Interval::new(0.13, 0.71), Interval::new(0.4, 0.45))
+        .unwrap();
+    cases.push(Case {
+        name: "sub-range of the knot domain".into(),
+        surfaces: vec![sub_range],
+        options: grid(30),
+    });
     let offset = |shift: DVec3, scale: f64| {
-        let points: Vec<DVec3> = wavy_net(nu, nv, scale).into_iter().map(|p| p + shift).collect();
-        surface(KnotVector::clamped_uniform(3, nu).unwrap(), KnotVector::clamped_uniform(3, nv).unwrap(), &points, Some(&spread_weights(nu * nv, 0.5, 2.0)))
+        let points: Vec<DVec3> = wavy_net(nu, nv, scale)
+            .into_iter()
+            .map(|p| p + shift)
+            .collect();
+        surface(
+            KnotVector::clamped_uniform(3, nu).unwrap(),
+            KnotVector::clamped_uniform(3, nv).unwrap(),
+            &points,
+            Some(&spread_weights(nu * nv, 0.5, 2.0)),
+        )
     };
-    cases.push(Case { name: "offset 1e5 from the origin".into(), surfaces: vec![offset(DVec3::new(1e5, -2e5, 3e4), 10.0)], options: grid(40) });
-    cases.push(Case { name: "scale 1e-3 and 1e4".into(), surfaces: vec![offset(DVec3::ZERO, 1e-3), offset(DVec3::splat(5e4), 1e4)], options: grid(40) });
-    cases.push(Case { name: "sphere: poles (collapsed edges)".into(), surfaces: vec![shapes::sphere(DVec3::new(3.0, -1.0, 2.0), 2.0)], options: grid(33) });
+    cases.push(Case {
+        name: "offset 1e5 from the origin".into(),
+        surfaces: vec![offset(DVec3::new(1e5, -2e5, 3e4), 10.0)],
+        options: grid(40),
+    });
+    cases.push(Case {
+        name: "scale 1e-3 and 1e4".into(),
+        surfaces: vec![offset(DVec3::ZERO, 1e-3), offset(DVec3::splat(5e4), 1e4)],
+        options: grid(40),
+    });
+    cases.push(Case {
+        name: "sphere: poles (collapsed edges)".into(),
+        surfaces: vec![shapes::sphere(DVec3::new(3.0, -1.0, 2.0), 2.0)],
+        options: grid(33),
+    });
     let pinched = {
         // A bicubic patch whose whole v = 0 row collapses to one point, like the teapot's lid.
         let mut points = wavy_net(4, 4, 1.0);
@@ -197,6 +322,10 @@ pub fn suite() -> Vec<Case> {
         }
         bezier_surface(3, 3, &points, None).unwrap()
     };
-    cases.push(Case { name: "collapsed edge (pinched bicubic)".into(), surfaces: vec![pinched], options: grid(25) });
+    cases.push(Case {
+        name: "collapsed edge (pinched bicubic)".into(),
+        surfaces: vec![pinched],
+        options: grid(25),
+    });
     cases
 }

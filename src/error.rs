@@ -17,21 +17,47 @@ pub enum Error {
     #[error("knot {index} is not finite ({value})")]
     KnotNotFinite { index: usize, value: f64 },
     #[error("knots decrease at index {index} ({previous} > {value})")]
-    KnotsDecreasing { index: usize, previous: f64, value: f64 },
-    #[error("knot {value} at index {index} has multiplicity {multiplicity}, more than the {max} allowed there")]
-    KnotMultiplicity { index: usize, value: f64, multiplicity: usize, max: usize },
+    KnotsDecreasing {
+        index: usize,
+        previous: f64,
+        value: f64,
+    },
+    #[error(
+        "knot {value} at index {index} has multiplicity {multiplicity}, more than the {max} allowed there"
+    )]
+    KnotMultiplicity {
+        index: usize,
+        value: f64,
+        multiplicity: usize,
+        max: usize,
+    },
     #[error("{found} knots for degree {degree}: at least {min} are needed (2 × (degree + 1))")]
-    TooFewKnots { found: usize, degree: usize, min: usize },
+    TooFewKnots {
+        found: usize,
+        degree: usize,
+        min: usize,
+    },
     #[error("the knot domain [{start}, {end}] is empty")]
     EmptyDomain { start: f64, end: f64 },
     #[error("{found} control points given, {expected} expected ({what})")]
-    ControlPointCount { expected: usize, found: usize, what: &'static str },
+    ControlPointCount {
+        expected: usize,
+        found: usize,
+        what: &'static str,
+    },
     #[error("control point {index} is not finite")]
     ControlPointNotFinite { index: usize },
     #[error("weight {index} is {value}: weights must be finite and > 0")]
     InvalidWeight { index: usize, value: f64 },
-    #[error("parameter range [{start}, {end}] is not inside the domain [{domain_start}, {domain_end}] or is empty")]
-    RangeOutsideDomain { start: f64, end: f64, domain_start: f64, domain_end: f64 },
+    #[error(
+        "parameter range [{start}, {end}] is not inside the domain [{domain_start}, {domain_end}] or is empty"
+    )]
+    RangeOutsideDomain {
+        start: f64,
+        end: f64,
+        domain_start: f64,
+        domain_end: f64,
+    },
     #[error("{name} is {value}: it must be finite and > 0")]
     InvalidParameter { name: &'static str, value: f64 },
     #[error("breakpoints must increase strictly: breakpoint {index} is {value}")]
@@ -48,19 +74,30 @@ pub enum Error {
     MeshTooLarge { vertices: u64 },
     #[error("{message}")]
     Syntax { message: String },
-    #[error("vertex reference {reference} is out of range: {available} vertices are defined above it")]
+    #[error(
+        "vertex reference {reference} is out of range: {available} vertices are defined above it"
+    )]
     VertexReference { reference: i64, available: usize },
     #[error("the file ended early: {expected}")]
     UnexpectedEnd { expected: String },
     #[error("unknown file format for {path:?}: expected one of {expected}")]
-    UnknownFormat { path: PathBuf, expected: &'static str },
+    UnknownFormat {
+        path: PathBuf,
+        expected: &'static str,
+    },
     #[error("no GPU adapter: {reason}")]
     NoAdapter { reason: String },
     #[error("GPU error: {message}")]
     Gpu { message: String },
     #[error("the GPU job cannot fit: {what} needs {bytes} bytes, the adapter allows {limit}")]
-    GpuJobTooLarge { what: &'static str, bytes: u64, limit: u64 },
-    #[error("surface {index} changed shape (degrees, control point counts, knots or range): upload a new batch")]
+    GpuJobTooLarge {
+        what: &'static str,
+        bytes: u64,
+        limit: u64,
+    },
+    #[error(
+        "surface {index} changed shape (degrees, control point counts, knots or range): upload a new batch"
+    )]
     SurfaceShapeChanged { index: usize },
     #[error("surface index {index} is out of range: the batch has {count} surfaces")]
     SurfaceIndex { index: usize, count: usize },
@@ -69,28 +106,41 @@ pub enum Error {
     #[error("{}: {source}", path.display())]
     InFile { path: PathBuf, source: Box<Error> },
     #[error("{}: {source}", path.display())]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
 }
 
 impl Error {
     /// Wraps this error with the 1-based line of the file it was found on.
     pub fn at_line(self, line: usize) -> Error {
-        Error::AtLine { line, source: Box::new(self) }
+        Error::AtLine {
+            line,
+            source: Box::new(self),
+        }
     }
 
     /// Wraps this error with the file it was found in.
     pub fn in_file(self, path: impl Into<PathBuf>) -> Error {
-        Error::InFile { path: path.into(), source: Box::new(self) }
+        Error::InFile {
+            path: path.into(),
+            source: Box::new(self),
+        }
     }
 
     pub(crate) fn syntax(message: impl Into<String>) -> Error {
-        Error::Syntax { message: message.into() }
+        Error::Syntax {
+            message: message.into(),
+        }
     }
 
     /// The innermost error, past any line and file wrappers.
     pub fn root(&self) -> &Error {
         match self {
-            Error::AtLine { source, .. } | Error::InFile { source, .. } | Error::InSurface { source, .. } => source.root(),
+            Error::AtLine { source, .. }
+            | Error::InFile { source, .. }
+            | Error::InSurface { source, .. } => source.root(),
             other => other,
         }
     }

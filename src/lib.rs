@@ -43,8 +43,8 @@ pub mod render;
 
 pub use cpu::CpuTessellator;
 pub use error::{Error, Result};
-pub use gpu::{GpuBatch, GpuContext, GpuMesh, GpuTessellator};
 pub use geom::{BSplineCurve, BSplineSurface, BezierPatch, Interval, KnotVector};
+pub use gpu::{GpuBatch, GpuContext, GpuMesh, GpuTessellator};
 pub use mesh::{Mesh, MeshPart, TessOptions};
 
 /// One interface for every tessellation backend: the same surfaces and options give a
@@ -58,11 +58,21 @@ pub trait Tessellator {
     }
     /// Tessellates into `mesh`, replacing its contents and reusing its allocations — for
     /// re-tessellating every frame without fresh memory. On error `mesh` is left unchanged.
-    fn tessellate_into(&self, surfaces: &[BSplineSurface], options: &TessOptions, mesh: &mut Mesh) -> Result<()> {
+    fn tessellate_into(
+        &self,
+        surfaces: &[BSplineSurface],
+        options: &TessOptions,
+        mesh: &mut Mesh,
+    ) -> Result<()> {
         self.tessellate_each_into(surfaces, &vec![*options; surfaces.len()], mesh)
     }
     /// As [`Tessellator::tessellate_into`], with options (a grid) of its own for every surface.
-    fn tessellate_each_into(&self, surfaces: &[BSplineSurface], options: &[TessOptions], mesh: &mut Mesh) -> Result<()>;
+    fn tessellate_each_into(
+        &self,
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        mesh: &mut Mesh,
+    ) -> Result<()>;
     /// A human-readable name of the backend (and adapter), for summaries.
     fn name(&self) -> String;
 }

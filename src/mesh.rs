@@ -14,7 +14,10 @@ pub struct TessOptions {
 
 impl TessOptions {
     /// 33×33 vertices per surface.
-    pub const DEFAULT: TessOptions = TessOptions { grid_u: 33, grid_v: 33 };
+    pub const DEFAULT: TessOptions = TessOptions {
+        grid_u: 33,
+        grid_v: 33,
+    };
 
     /// Sets the number of vertices per surface along u and v.
     pub const fn with_grid(self, grid_u: u32, grid_v: u32) -> Self {
@@ -80,9 +83,16 @@ pub(crate) fn plan_parts(options: &[TessOptions]) -> Result<Vec<MeshPart>> {
         if nu < 2 || nv < 2 {
             return Err(Error::GridTooSmall { nu, nv });
         }
-        let (vertex_count, index_count) = (u64::from(nu) * u64::from(nv), 6 * u64::from(nu - 1) * u64::from(nv - 1));
-        if vertices + vertex_count > u64::from(u32::MAX) || indices + index_count > u64::from(u32::MAX) {
-            return Err(Error::MeshTooLarge { vertices: vertices + vertex_count });
+        let (vertex_count, index_count) = (
+            u64::from(nu) * u64::from(nv),
+            6 * u64::from(nu - 1) * u64::from(nv - 1),
+        );
+        if vertices + vertex_count > u64::from(u32::MAX)
+            || indices + index_count > u64::from(u32::MAX)
+        {
+            return Err(Error::MeshTooLarge {
+                vertices: vertices + vertex_count,
+            });
         }
         parts.push(MeshPart {
             grid_u: nu,
@@ -139,8 +149,15 @@ pub const WELD_REL_TOLERANCE: f64 = 1e-6;
 impl Mesh {
     /// Diagonal of the bounding box of the positions (0 for an empty mesh).
     pub fn bounding_box_diagonal(&self) -> f64 {
-        let (lo, hi) = self.positions.iter().fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
-        if self.positions.is_empty() { 0.0 } else { (hi - lo).length() }
+        let (lo, hi) = self.positions.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        );
+        if self.positions.is_empty() {
+            0.0
+        } else {
+            (hi - lo).length()
+        }
     }
 
     /// Merges vertices closer than `tolerance` (model units) so patches that share an edge
@@ -150,7 +167,13 @@ impl Mesh {
     pub fn weld(&self, tolerance: f64) -> (Mesh, WeldReport) {
         use std::collections::HashMap;
         let cell = tolerance.max(f64::MIN_POSITIVE);
-        let key = |p: DVec3| ((p.x / cell).floor() as i64, (p.y / cell).floor() as i64, (p.z / cell).floor() as i64);
+        let key = |p: DVec3| {
+            (
+                (p.x / cell).floor() as i64,
+                (p.y / cell).floor() as i64,
+                (p.z / cell).floor() as i64,
+            )
+        };
         let mut grid: HashMap<(i64, i64, i64), Vec<u32>> = HashMap::new();
         let mut remap = Vec::with_capacity(self.positions.len());
         let mut welded = Mesh::default();
@@ -160,7 +183,8 @@ impl Mesh {
             'search: for dx in -1..=1 {
                 for dy in -1..=1 {
                     for dz in -1..=1 {
-                        for &candidate in grid.get(&(x + dx, y + dy, z + dz)).into_iter().flatten() {
+                        for &candidate in grid.get(&(x + dx, y + dy, z + dz)).into_iter().flatten()
+                        {
                             if (welded.positions[candidate as usize] - p).length() <= tolerance {
                                 found = Some(candidate);
                                 break 'search;
@@ -179,12 +203,17 @@ impl Mesh {
             });
             remap.push(target);
         }
-        let mut report = WeldReport { merged_vertices: self.positions.len() - welded.positions.len(), dropped_triangles: 0 };
+        let mut report = WeldReport {
+            merged_vertices: self.positions.len() - welded.positions.len(),
+            dropped_triangles: 0,
+        };
         welded.indices.reserve(self.indices.len());
         for part in &self.parts {
             let first_index = welded.indices.len() as u32;
             let (mut lo, mut hi) = (u32::MAX, 0);
-            let triangles = self.indices[part.first_index as usize..(part.first_index + part.index_count) as usize].chunks_exact(3);
+            let triangles = self.indices
+                [part.first_index as usize..(part.first_index + part.index_count) as usize]
+                .chunks_exact(3);
             for triangle in triangles {
                 let [a, b, c] = [0, 1, 2].map(|k| remap[triangle[k] as usize]);
                 if a == b || b == c || a == c {
@@ -196,8 +225,18 @@ impl Mesh {
                 hi = hi.max(a.max(b).max(c));
             }
             let index_count = welded.indices.len() as u32 - first_index;
-            let (first_vertex, vertex_count) = if index_count == 0 { (0, 0) } else { (lo, hi - lo + 1) };
-            welded.parts.push(MeshPart { first_vertex, vertex_count, first_index, index_count, ..*part });
+            let (first_vertex, vertex_count) = if index_count == 0 {
+                (0, 0)
+            } else {
+                (lo, hi - lo + 1)
+            };
+            welded.parts.push(MeshPart {
+                first_vertex,
+                vertex_count,
+                first_index,
+                index_count,
+                ..*part
+            });
         }
         (welded, report)
     }

@@ -5,7 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::geom::BSplineSurface;
-use crate::gpu::{GpuBatch, GpuContext, GpuMesh, VERTEX_BYTES};
+use crate::gpu::{GpuBatch, GpuContext, GpuMesh, VERTEX_BYTES, scoped};
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 use wgpu::util::DeviceExt;
@@ -31,7 +31,12 @@ pub struct RenderOptions {
 
 impl RenderOptions {
     /// 800 × 600, shaded only.
-    pub const DEFAULT: RenderOptions = RenderOptions { width: 800, height: 600, wireframe: false, control_net: false };
+    pub const DEFAULT: RenderOptions = RenderOptions {
+        width: 800,
+        height: 600,
+        wireframe: false,
+        control_net: false,
+    };
 }
 
 /// Mirrors `Frame` in render.wgsl.
@@ -46,15 +51,23 @@ struct Frame {
     net_colour: [f32; 4],
 }
 
-/// Renders `batch` (already dispatched) and the control nets of `surfaces` into an RGBA image.
-pub fn render(context: &GpuContext, batch: &GpuBatch, surfaces: &[BSplineSurface], options: &RenderOptions) -> Result<image::RgbaImage> {
-    if options.width == 0 || options.height == 0 || options.width > 8192 || options.height > 8192 {
-        return Err(Error::InvalidParameter { name: "image size (1..=8192 per side)", value: f64::from(options.width.min(options.height)) });
-    }
+/// Renders `batch` (already dispatched) and the control nets of `surfaces` into an RGBA image,
+/// once. To render many frames, build a [`Preview`] once and call [`Preview::render`].
+pub fn render(
+    context: &GpuContext,
+    batch: &GpuBatch,
+    surfaces: &[BSplineSurface],
+    options: &RenderOptions,
+) -> Result<image::RgbaImage> {
+    Preview::new(context, options)?.render(context, batch, surfaces)
+}
+
+/// The camera and lights framing `surfaces` for an image of `width` × `height`.
+fn frame_for(surfaces: &[BSplineSurface], width: u32, height: u32) -> Frame {
     let (lo, hi) = control_box(surfaces);
     let centre = 0.5 * (lo + hi);
     let radius = (0.5 * (hi - lo).length()).max(1e-6);
-    let aspect = options.width as f32 / options.height as f32;
+    let aspect = width as f32 / height as f32;
     let fov = 35f32.to_radians();
     // Far enough that the bounding sphere fits the narrower half-angle of view.
     let half = ((0.5 * fov).tan() * aspect.min(1.0)).atan();
@@ -62,16 +75,20 @@ pub fn render(context: &GpuContext, batch: &GpuBatch, surfaces: &[BSplineSurface
     let distance = radius / half.sin() * 0.85;
     let eye = centre + Vec3::new(1.0, -1.6, 0.9).normalize() * distance;
     let view = look_at(eye, centre, Vec3::Z);
-    let projection = perspective(fov, aspect, (distance - radius * 1.5).max(distance * 1e-3), distance + radius * 1.5);
-    let frame = Frame {
+    let projection = perspective(
+        fov,
+        aspect,
+        (distance - radius * 1.5).max(distance * 1e-3),
+        distance + radius * 1.5,
+    );
+    Frame {
         view_projection: (projection * view).to_cols_array_2d(),
         eye: eye.extend(1.0).to_array(),
         light: [0.4, -0.5, 1.0, 0.0],
         surface_colour: [0.85, 0.45, 0.2, 1.0],
         line_colour: [0.05, 0.05, 0.1, 1.0],
         net_colour: [0.1, 0.35, 0.9, 1.0],
-    };
-    draw(context, batch.mesh(), &frame, &control_net_lines(surfaces), options)
+    }
 }
 
 /// Right-handed view matrix: the camera at `eye` looking at `target`, `up` roughly up.
@@ -109,7 +126,11 @@ fn control_box(surfaces: &[BSplineSurface]) -> (Vec3, Vec3) {
             hi = hi.max(c);
         }
     }
-    if surfaces.is_empty() { (Vec3::ZERO, Vec3::ONE) } else { (lo, hi) }
+    if surfaces.is_empty() {
+        (Vec3::ZERO, Vec3::ONE)
+    } else {
+        (lo, hi)
+    }
 }
 
 /// Line segments between neighbouring control points (along u and along v), as point pairs.
@@ -134,145 +155,320 @@ fn control_net_lines(surfaces: &[BSplineSurface]) -> Vec<[f32; 3]> {
 
 /// Triangle edges as a line list over the same vertices.
 fn wireframe_indices(indices: &[u32]) -> Vec<u32> {
-    indices.chunks_exact(3).flat_map(|t| [t[0], t[1], t[1], t[2], t[2], t[0]]).collect()
+    indices
+        .chunks_exact(3)
+        .flat_map(|t| [t[0], t[1], t[1], t[2], t[2], t[0]])
+        .collect()
 }
 
-/// Draws the mesh and overlays with `frame` and reads the image back.
-fn draw(context: &GpuContext, mesh: &GpuMesh, frame: &Frame, net: &[[f32; 3]], options: &RenderOptions) -> Result<image::RgbaImage> {
-    let device = context.device();
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some("knotwork render.wgsl"), source: wgpu::ShaderSource::Wgsl(RENDER_WGSL.into()) });
-    let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("knotwork frame"), contents: bytemuck::bytes_of(frame), usage: wgpu::BufferUsages::UNIFORM });
-    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("knotwork frame"),
-        entries: &[wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
-            count: None,
-        }],
-    });
-    let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &[wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }] });
-    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: None, bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
-    let surface_layout = wgpu::VertexBufferLayout { array_stride: VERTEX_BYTES, step_mode: wgpu::VertexStepMode::Vertex, attributes: &GpuMesh::VERTEX_ATTRIBUTES };
-    let line_attributes = wgpu::vertex_attr_array![0 => Float32x3];
-    let mesh_line_layout = wgpu::VertexBufferLayout { array_stride: VERTEX_BYTES, step_mode: wgpu::VertexStepMode::Vertex, attributes: &line_attributes };
-    let net_layout = wgpu::VertexBufferLayout { array_stride: 12, step_mode: wgpu::VertexStepMode::Vertex, attributes: &line_attributes };
-    let pipeline = |vs: &str, fs: &str, buffer: wgpu::VertexBufferLayout, topology, depth: wgpu::DepthStencilState| {
-        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some(vs),
-            layout: Some(&pipeline_layout),
-            vertex: wgpu::VertexState { module: &module, entry_point: Some(vs), compilation_options: Default::default(), buffers: &[Some(buffer)] },
-            primitive: wgpu::PrimitiveState { topology, ..Default::default() },
-            depth_stencil: Some(depth),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState { module: &module, entry_point: Some(fs), compilation_options: Default::default(), targets: &[Some(COLOUR_FORMAT.into())] }),
-            multiview_mask: None,
-            cache: None,
-        })
-    };
-    let depth = |write: bool, compare, bias| wgpu::DepthStencilState {
-        format: DEPTH_FORMAT,
-        depth_write_enabled: Some(write),
-        depth_compare: Some(compare),
-        stencil: Default::default(),
-        bias,
-    };
-    // With a wireframe, the surfaces are pushed back a little so their edges win the depth test.
-    let surface_bias = if options.wireframe { wgpu::DepthBiasState { constant: 2, slope_scale: 1.5, clamp: 0.0 } } else { Default::default() };
-    let (width, height) = (options.width, options.height);
-    let (readback, row_bytes) = {
-        let memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let surfaces = pipeline("vs_surface", "fs_surface", surface_layout, wgpu::PrimitiveTopology::TriangleList, depth(true, wgpu::CompareFunction::Less, surface_bias));
-        let edges = pipeline("vs_line", "fs_line", mesh_line_layout, wgpu::PrimitiveTopology::LineList, depth(false, wgpu::CompareFunction::LessEqual, Default::default()));
-        let nets = pipeline("vs_line", "fs_net", net_layout, wgpu::PrimitiveTopology::LineList, depth(false, wgpu::CompareFunction::Always, Default::default()));
-        let texture = |format, usage| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: None,
-                size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
-        let colour = texture(COLOUR_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC);
-        let depth_texture = texture(DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT);
-        let (colour_view, depth_view) = (colour.create_view(&Default::default()), depth_texture.create_view(&Default::default()));
-        let wire = options.wireframe.then(|| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("knotwork wireframe"),
-                contents: bytemuck::cast_slice(&wireframe_indices(&read_indices(context, mesh))),
-                usage: wgpu::BufferUsages::INDEX,
-            })
-        });
-        let net_buffer = (options.control_net && !net.is_empty())
-            .then(|| device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("knotwork control net"), contents: bytemuck::cast_slice(net), usage: wgpu::BufferUsages::VERTEX }));
-        let row_bytes = (width * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("knotwork image readback"),
-            size: u64::from(row_bytes) * u64::from(height),
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut encoder = device.create_command_encoder(&Default::default());
-        {
-            let [r, g, b] = BACKGROUND;
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("knotwork preview"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &colour_view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 }), store: wgpu::StoreOp::Store },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &depth_view,
-                    depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Discard }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
+/// A preview renderer: shaders, pipelines and targets created once, then [`Preview::render`]
+/// for every frame.
+pub struct Preview {
+    options: RenderOptions,
+    uniform: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    surfaces: wgpu::RenderPipeline,
+    edges: wgpu::RenderPipeline,
+    nets: wgpu::RenderPipeline,
+    colour: wgpu::Texture,
+    colour_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+    readback: wgpu::Buffer,
+    row_bytes: u32,
+}
+
+impl Preview {
+    /// Compiles the preview shaders and allocates targets of the requested size (each side
+    /// 1..=8192).
+    pub fn new(context: &GpuContext, options: &RenderOptions) -> Result<Self> {
+        let (width, height) = (options.width, options.height);
+        if !(1..=8192).contains(&width) || !(1..=8192).contains(&height) {
+            return Err(Error::InvalidParameter {
+                name: "image size (1..=8192 per side)",
+                value: f64::from(width.min(height)),
             });
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.set_pipeline(&surfaces);
-            pass.set_vertex_buffer(0, mesh.vertices.slice(..));
-            pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
-            pass.draw_indexed(0..mesh.index_count, 0, 0..1);
-            if let Some(wire) = &wire {
-                pass.set_pipeline(&edges);
-                pass.set_index_buffer(wire.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..2 * mesh.index_count, 0, 0..1);
+        }
+        let device = context.device();
+        scoped(device, || {
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("knotwork render.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(RENDER_WGSL.into()),
+            });
+            let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("knotwork frame"),
+                size: size_of::<Frame>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("knotwork frame"),
+                entries: &[wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                }],
+            });
+            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout: &layout,
+                entries: &[wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: uniform.as_entire_binding(),
+                }],
+            });
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: None,
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let surface_layout = wgpu::VertexBufferLayout {
+                array_stride: VERTEX_BYTES,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &GpuMesh::VERTEX_ATTRIBUTES,
+            };
+            let line_attributes = wgpu::vertex_attr_array![0 => Float32x3];
+            let mesh_line_layout = wgpu::VertexBufferLayout {
+                array_stride: VERTEX_BYTES,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &line_attributes,
+            };
+            let net_layout = wgpu::VertexBufferLayout {
+                array_stride: 12,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &line_attributes,
+            };
+            let pipeline = |vs: &str,
+                            fs: &str,
+                            buffer: wgpu::VertexBufferLayout,
+                            topology,
+                            depth: wgpu::DepthStencilState| {
+                device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some(fs),
+                    layout: Some(&pipeline_layout),
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some(vs),
+                        compilation_options: Default::default(),
+                        buffers: &[Some(buffer)],
+                    },
+                    primitive: wgpu::PrimitiveState {
+                        topology,
+                        ..Default::default()
+                    },
+                    depth_stencil: Some(depth),
+                    multisample: Default::default(),
+                    fragment: Some(wgpu::FragmentState {
+                        module: &module,
+                        entry_point: Some(fs),
+                        compilation_options: Default::default(),
+                        targets: &[Some(COLOUR_FORMAT.into())],
+                    }),
+                    multiview_mask: None,
+                    cache: None,
+                })
+            };
+            let depth = |write: bool, compare, bias| wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(write),
+                depth_compare: Some(compare),
+                stencil: Default::default(),
+                bias,
+            };
+            // With a wireframe, the surfaces are pushed back a little so their edges win the depth test.
+            let surface_bias = if options.wireframe {
+                wgpu::DepthBiasState {
+                    constant: 2,
+                    slope_scale: 1.5,
+                    clamp: 0.0,
+                }
+            } else {
+                Default::default()
+            };
+            let surfaces = pipeline(
+                "vs_surface",
+                "fs_surface",
+                surface_layout,
+                wgpu::PrimitiveTopology::TriangleList,
+                depth(true, wgpu::CompareFunction::Less, surface_bias),
+            );
+            let edges = pipeline(
+                "vs_line",
+                "fs_line",
+                mesh_line_layout,
+                wgpu::PrimitiveTopology::LineList,
+                depth(false, wgpu::CompareFunction::LessEqual, Default::default()),
+            );
+            let nets = pipeline(
+                "vs_line",
+                "fs_net",
+                net_layout,
+                wgpu::PrimitiveTopology::LineList,
+                depth(false, wgpu::CompareFunction::Always, Default::default()),
+            );
+            let texture = |format, usage| {
+                device.create_texture(&wgpu::TextureDescriptor {
+                    label: None,
+                    size: wgpu::Extent3d {
+                        width,
+                        height,
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format,
+                    usage,
+                    view_formats: &[],
+                })
+            };
+            let colour = texture(
+                COLOUR_FORMAT,
+                wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            );
+            let depth_texture = texture(DEPTH_FORMAT, wgpu::TextureUsages::RENDER_ATTACHMENT);
+            let (colour_view, depth_view) = (
+                colour.create_view(&Default::default()),
+                depth_texture.create_view(&Default::default()),
+            );
+            let row_bytes = (width * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
+                * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+            let readback = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("knotwork image readback"),
+                size: u64::from(row_bytes) * u64::from(height),
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            Preview {
+                options: *options,
+                uniform,
+                bind_group,
+                surfaces,
+                edges,
+                nets,
+                colour,
+                colour_view,
+                depth_view,
+                readback,
+                row_bytes,
             }
-            if let Some(net_buffer) = &net_buffer {
-                pass.set_pipeline(&nets);
-                pass.set_vertex_buffer(0, net_buffer.slice(..));
-                pass.draw(0..net.len() as u32, 0..1);
-            }
-        }
-        encoder.copy_texture_to_buffer(
-            colour.as_image_copy(),
-            wgpu::TexelCopyBufferInfo { buffer: &readback, layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row_bytes), rows_per_image: Some(height) } },
-            wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
-        );
-        context.queue().submit([encoder.finish()]);
-        let errors = [pollster::block_on(validation.pop()), pollster::block_on(memory.pop())];
-        if let Some(error) = errors.into_iter().flatten().next() {
-            return Err(Error::Gpu { message: error.to_string() });
-        }
-        (readback, row_bytes)
-    };
-    let bytes = map_read(context, &readback)?;
-    let mut image = image::RgbaImage::new(width, height);
-    for (y, row) in bytes.chunks_exact(row_bytes as usize).enumerate() {
-        for x in 0..width as usize {
-            image.put_pixel(x as u32, y as u32, image::Rgba(row[4 * x..4 * x + 4].try_into().expect("four bytes")));
-        }
+        })
     }
-    Ok(image)
+
+    /// Draws `batch` (already dispatched) with the control nets of `surfaces`, framed on
+    /// them, and reads the image back.
+    pub fn render(
+        &self,
+        context: &GpuContext,
+        batch: &GpuBatch,
+        surfaces: &[BSplineSurface],
+    ) -> Result<image::RgbaImage> {
+        let (device, mesh) = (context.device(), batch.mesh());
+        let (width, height) = (self.options.width, self.options.height);
+        scoped(device, || {
+            context.queue().write_buffer(
+                &self.uniform,
+                0,
+                bytemuck::bytes_of(&frame_for(surfaces, width, height)),
+            );
+            let wire = self.options.wireframe.then(|| {
+                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("knotwork wireframe"),
+                    contents: bytemuck::cast_slice(&wireframe_indices(&read_indices(
+                        context, mesh,
+                    ))),
+                    usage: wgpu::BufferUsages::INDEX,
+                })
+            });
+            let net = if self.options.control_net {
+                control_net_lines(surfaces)
+            } else {
+                Vec::new()
+            };
+            let net_buffer = (!net.is_empty()).then(|| {
+                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("knotwork control net"),
+                    contents: bytemuck::cast_slice(&net),
+                    usage: wgpu::BufferUsages::VERTEX,
+                })
+            });
+            let mut encoder = device.create_command_encoder(&Default::default());
+            {
+                let [r, g, b] = BACKGROUND;
+                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("knotwork preview"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &self.colour_view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 }),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &self.depth_view,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(1.0),
+                            store: wgpu::StoreOp::Discard,
+                        }),
+                        stencil_ops: None,
+                    }),
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                pass.set_bind_group(0, &self.bind_group, &[]);
+                pass.set_pipeline(&self.surfaces);
+                pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+                pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+                if let Some(wire) = &wire {
+                    pass.set_pipeline(&self.edges);
+                    pass.set_index_buffer(wire.slice(..), wgpu::IndexFormat::Uint32);
+                    pass.draw_indexed(0..2 * mesh.index_count, 0, 0..1);
+                }
+                if let Some(net_buffer) = &net_buffer {
+                    pass.set_pipeline(&self.nets);
+                    pass.set_vertex_buffer(0, net_buffer.slice(..));
+                    pass.draw(0..net.len() as u32, 0..1);
+                }
+            }
+            encoder.copy_texture_to_buffer(
+                self.colour.as_image_copy(),
+                wgpu::TexelCopyBufferInfo {
+                    buffer: &self.readback,
+                    layout: wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(self.row_bytes),
+                        rows_per_image: Some(height),
+                    },
+                },
+                wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+            );
+            context.queue().submit([encoder.finish()]);
+        })?;
+        let bytes = map_read(context, &self.readback)?;
+        let mut image = image::RgbaImage::new(width, height);
+        for (y, row) in bytes.chunks_exact(self.row_bytes as usize).enumerate() {
+            for x in 0..width as usize {
+                image.put_pixel(
+                    x as u32,
+                    y as u32,
+                    image::Rgba(row[4 * x..4 * x + 4].try_into().expect("four bytes")),
+                );
+            }
+        }
+        Ok(image)
+    }
 }
 
 /// The index buffer's contents (for the wireframe, which needs each triangle's three edges).
@@ -287,7 +483,9 @@ fn read_indices(context: &GpuContext, mesh: &GpuMesh) -> Vec<u32> {
     let mut encoder = context.device().create_command_encoder(&Default::default());
     encoder.copy_buffer_to_buffer(&mesh.indices, 0, &staging, 0, bytes);
     context.queue().submit([encoder.finish()]);
-    map_read(context, &staging).map(|b| bytemuck::cast_slice(&b[..bytes as usize]).to_vec()).unwrap_or_default()
+    map_read(context, &staging)
+        .map(|b| bytemuck::cast_slice(&b[..bytes as usize]).to_vec())
+        .unwrap_or_default()
 }
 
 /// Maps `buffer` (MAP_READ), waits, and copies its bytes out.
@@ -296,9 +494,26 @@ fn map_read(context: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>> {
     buffer.map_async(wgpu::MapMode::Read, .., move |result| {
         let _ = sender.send(result);
     });
-    context.device().poll(wgpu::PollType::wait_indefinitely()).map_err(|e| Error::Gpu { message: e.to_string() })?;
-    receiver.recv().map_err(|_| Error::Gpu { message: "mapping never completed".into() })?.map_err(|e| Error::Gpu { message: e.to_string() })?;
-    let bytes = buffer.get_mapped_range(..).map_err(|e| Error::Gpu { message: e.to_string() })?.to_vec();
+    context
+        .device()
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| Error::Gpu {
+            message: e.to_string(),
+        })?;
+    receiver
+        .recv()
+        .map_err(|_| Error::Gpu {
+            message: "mapping never completed".into(),
+        })?
+        .map_err(|e| Error::Gpu {
+            message: e.to_string(),
+        })?;
+    let bytes = buffer
+        .get_mapped_range(..)
+        .map_err(|e| Error::Gpu {
+            message: e.to_string(),
+        })?
+        .to_vec();
     buffer.unmap();
     Ok(bytes)
 }
@@ -307,7 +522,12 @@ fn map_read(context: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>> {
 pub fn save_png(path: &std::path::Path, image: &image::RgbaImage) -> Result<()> {
     crate::io::write_atomic(path, |w| {
         image::codecs::png::PngEncoder::new(w)
-            .write_image(image.as_raw(), image.width(), image.height(), image::ExtendedColorType::Rgba8)
+            .write_image(
+                image.as_raw(),
+                image.width(),
+                image.height(),
+                image::ExtendedColorType::Rgba8,
+            )
             .map_err(std::io::Error::other)
     })
 }

@@ -7,7 +7,10 @@ mod common;
 use common::*;
 use glam::{DMat3, DVec3};
 use knotwork::geom::{bezier_curve, bezier_surface, piecewise_bezier_surface};
-use knotwork::{BSplineCurve, BSplineSurface, CpuTessellator, Error, Interval, KnotVector, TessOptions, Tessellator};
+use knotwork::{
+    BSplineCurve, BSplineSurface, CpuTessellator, Error, Interval, KnotVector, TessOptions,
+    Tessellator,
+};
 use proptest::prelude::*;
 
 /// Central finite differences of a smooth surface: O(h²) truncation plus rounding/h.
@@ -17,10 +20,18 @@ const FD_REL: f64 = 1e-6;
 
 #[test]
 fn cubic_bezier_at_quarter_is_exact() {
-    let points = [DVec3::new(1.0, 1.0, 0.0), DVec3::new(2.0, 3.0, 0.0), DVec3::new(4.0, 3.0, 0.0), DVec3::new(6.0, 4.0, 0.0)];
+    let points = [
+        DVec3::new(1.0, 1.0, 0.0),
+        DVec3::new(2.0, 3.0, 0.0),
+        DVec3::new(4.0, 3.0, 0.0),
+        DVec3::new(6.0, 4.0, 0.0),
+    ];
     let curve = bezier_curve(3, &points, None).unwrap();
     let p = curve.point(0.25);
-    assert!((p - DVec3::new(123.0 / 64.0, 139.0 / 64.0, 0.0)).length() < 1e-15, "{p}");
+    assert!(
+        (p - DVec3::new(123.0 / 64.0, 139.0 / 64.0, 0.0)).length() < 1e-15,
+        "{p}"
+    );
 }
 
 #[test]
@@ -40,10 +51,16 @@ fn quadratic_basis_on_bezier_knots_is_bernstein() {
 #[test]
 fn standard_knot_vector_for_8_points_order_4() {
     let knots = KnotVector::clamped_uniform(3, 8).unwrap();
-    assert_eq!(knots.knots(), &[0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 5.0, 5.0, 5.0]);
+    assert_eq!(
+        knots.knots(),
+        &[0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 5.0, 5.0, 5.0]
+    );
     assert!(knots.is_clamped());
     let uniform = KnotVector::uniform(3, 8).unwrap();
-    assert_eq!(uniform.knots(), &(0..12).map(f64::from).collect::<Vec<_>>()[..]);
+    assert_eq!(
+        uniform.knots(),
+        &(0..12).map(f64::from).collect::<Vec<_>>()[..]
+    );
     assert_eq!(uniform.domain(), (3.0, 8.0));
     assert!(!uniform.is_clamped());
 }
@@ -60,19 +77,30 @@ fn find_span_handles_ends_and_repeated_knots() {
 
 // ---------------------------------------------------------------- exact conics
 
-fn check_on_surface(surface: &BSplineSurface, samples: usize, distance: impl Fn(DVec3) -> f64, normal: impl Fn(DVec3) -> DVec3) {
+fn check_on_surface(
+    surface: &BSplineSurface,
+    samples: usize,
+    distance: impl Fn(DVec3) -> f64,
+    normal: impl Fn(DVec3) -> DVec3,
+) {
     let size = surface.control_box_diagonal();
     let (ru, rv) = (surface.range_u(), surface.range_v());
     let (mut worst_distance, mut worst_angle) = (0.0f64, 0.0f64);
     for j in 0..=samples {
         for i in 0..=samples {
-            let (u, v) = (ru.lerp(i as f64 / samples as f64), rv.lerp(j as f64 / samples as f64));
+            let (u, v) = (
+                ru.lerp(i as f64 / samples as f64),
+                rv.lerp(j as f64 / samples as f64),
+            );
             let s = surface.evaluate(u, v);
             worst_distance = worst_distance.max(distance(s.position).abs());
             worst_angle = worst_angle.max(angle(s.normal, normal(s.position)));
         }
     }
-    assert!(worst_distance <= EXACT_REL * size, "off the surface by {worst_distance:e} (size {size})");
+    assert!(
+        worst_distance <= EXACT_REL * size,
+        "off the surface by {worst_distance:e} (size {size})"
+    );
     assert!(worst_angle <= 1e-7, "normal off by {worst_angle:e} rad");
 }
 
@@ -87,8 +115,16 @@ fn nurbs_sphere_is_exact_with_analytic_normals_at_the_poles() {
         let north = sphere.evaluate(u, 1.0);
         assert!((south.position - DVec3::new(0.0, 0.0, -r)).length() < 1e-15);
         assert!(south.du.length() < 1e-12, "the pole is a collapsed edge");
-        assert!(angle(south.normal, -DVec3::Z) < 1e-12, "south pole normal {}", south.normal);
-        assert!(angle(north.normal, DVec3::Z) < 1e-12, "north pole normal {}", north.normal);
+        assert!(
+            angle(south.normal, -DVec3::Z) < 1e-12,
+            "south pole normal {}",
+            south.normal
+        );
+        assert!(
+            angle(north.normal, DVec3::Z) < 1e-12,
+            "north pole normal {}",
+            north.normal
+        );
     }
 }
 
@@ -97,13 +133,23 @@ fn nurbs_torus_is_exact_with_analytic_normals() {
     let (big, small) = (3.0, 1.25);
     let torus = torus(big, small);
     let tube_centre = |p: DVec3| DVec3::new(p.x, p.y, 0.0).normalize() * big;
-    check_on_surface(&torus, 40, |p| (p - tube_centre(p)).length() - small, |p| (p - tube_centre(p)).normalize());
+    check_on_surface(
+        &torus,
+        40,
+        |p| (p - tube_centre(p)).length() - small,
+        |p| (p - tube_centre(p)).normalize(),
+    );
 }
 
 #[test]
 fn rational_quarter_cylinder_is_exact() {
     let cylinder = quarter_cylinder();
-    check_on_surface(&cylinder, 24, |p| p.truncate().length() - 1.0, |p| DVec3::new(p.x, p.y, 0.0));
+    check_on_surface(
+        &cylinder,
+        24,
+        |p| p.truncate().length() - 1.0,
+        |p| DVec3::new(p.x, p.y, 0.0),
+    );
     // verb's published value: (0, 0.6, 0.8) at (0.5, 0.5) of its patch is the same arc at
     // mid-parameter; here the arc's midpoint sits on the diagonal.
     let mid = cylinder.point(0.5, 0.5);
@@ -115,27 +161,44 @@ fn rational_quarter_cylinder_is_exact() {
 /// Knots for `count` points of `degree`: clamped or unclamped, with repeated interior knots.
 fn knots_strategy(degree: usize, count: usize) -> impl Strategy<Value = KnotVector> {
     let len = count + degree + 1;
-    (prop::collection::vec(0.0f64..1.0, len), any::<bool>(), -5.0f64..5.0, 0.1f64..10.0).prop_map(move |(r, clamped, offset, scale)| {
-        let mut knots = Vec::with_capacity(len);
-        let mut value = 0.0;
-        let mut run = 1;
-        for (index, &x) in r.iter().enumerate() {
-            let clamp_run = clamped && (index <= degree || index >= len - degree);
-            let repeat = index > 0 && (clamp_run || (x < 0.25 && run < degree && index > degree && index < len - degree - 1));
-            if index > 0 && !repeat {
-                value += 0.05 + x;
-                run = 1;
-            } else if index > 0 {
-                run += 1;
+    (
+        prop::collection::vec(0.0f64..1.0, len),
+        any::<bool>(),
+        -5.0f64..5.0,
+        0.1f64..10.0,
+    )
+        .prop_map(move |(r, clamped, offset, scale)| {
+            let mut knots = Vec::with_capacity(len);
+            let mut value = 0.0;
+            let mut run = 1;
+            for (index, &x) in r.iter().enumerate() {
+                let clamp_run = clamped && (index <= degree || index >= len - degree);
+                let repeat = index > 0
+                    && (clamp_run
+                        || (x < 0.25
+                            && run < degree
+                            && index > degree
+                            && index < len - degree - 1));
+                if index > 0 && !repeat {
+                    value += 0.05 + x;
+                    run = 1;
+                } else if index > 0 {
+                    run += 1;
+                }
+                knots.push(offset + scale * value);
             }
-            knots.push(offset + scale * value);
-        }
-        KnotVector::try_new(degree, knots).expect("generated knots are valid")
-    })
+            KnotVector::try_new(degree, knots).expect("generated knots are valid")
+        })
 }
 
 fn surface_strategy(max_degree: usize) -> impl Strategy<Value = BSplineSurface> {
-    (1..=max_degree, 1..=max_degree, 0usize..5, 0usize..5, any::<bool>())
+    (
+        1..=max_degree,
+        1..=max_degree,
+        0usize..5,
+        0usize..5,
+        any::<bool>(),
+    )
         .prop_flat_map(|(p, q, extra_u, extra_v, rational)| {
             let (nu, nv) = (p + 1 + extra_u, q + 1 + extra_v);
             (
@@ -147,7 +210,10 @@ fn surface_strategy(max_degree: usize) -> impl Strategy<Value = BSplineSurface> 
             )
         })
         .prop_map(|(ku, kv, points, weights, rational)| {
-            let points: Vec<DVec3> = points.into_iter().map(|(x, y, z)| DVec3::new(x, y, z)).collect();
+            let points: Vec<DVec3> = points
+                .into_iter()
+                .map(|(x, y, z)| DVec3::new(x, y, z))
+                .collect();
             BSplineSurface::try_new(ku, kv, &points, rational.then_some(&weights[..])).unwrap()
         })
 }
@@ -261,13 +327,32 @@ proptest! {
 fn high_degrees_up_to_twenty_match_the_naive_sum() {
     for (p, q) in [(20, 1), (1, 20), (20, 20), (7, 13)] {
         let (nu, nv) = (p + 3, q + 2);
-        let points: Vec<DVec3> = (0..nu * nv).map(|k| DVec3::new((k % nu) as f64, (k / nu) as f64, ((k * 7919) % 13) as f64 / 13.0)).collect();
-        let weights: Vec<f64> = (0..nu * nv).map(|k| 0.5 + ((k * 31) % 7) as f64 / 7.0).collect();
-        let surface = BSplineSurface::try_new(KnotVector::clamped_uniform(p, nu).unwrap(), KnotVector::uniform(q, nv).unwrap(), &points, Some(&weights)).unwrap();
+        let points: Vec<DVec3> = (0..nu * nv)
+            .map(|k| {
+                DVec3::new(
+                    (k % nu) as f64,
+                    (k / nu) as f64,
+                    ((k * 7919) % 13) as f64 / 13.0,
+                )
+            })
+            .collect();
+        let weights: Vec<f64> = (0..nu * nv)
+            .map(|k| 0.5 + ((k * 31) % 7) as f64 / 7.0)
+            .collect();
+        let surface = BSplineSurface::try_new(
+            KnotVector::clamped_uniform(p, nu).unwrap(),
+            KnotVector::uniform(q, nv).unwrap(),
+            &points,
+            Some(&weights),
+        )
+        .unwrap();
         for (a, b) in [(0.0, 0.0), (0.3, 0.7), (1.0, 1.0), (0.5, 0.25)] {
             let (u, v) = params(&surface, a, b);
             let d = (surface.point(u, v) - naive_point(&surface, u, v)).length();
-            assert!(d <= 1e-12 * surface.control_box_diagonal(), "degree ({p},{q}) at ({a},{b}): {d:e}");
+            assert!(
+                d <= 1e-12 * surface.control_box_diagonal(),
+                "degree ({p},{q}) at ({a},{b}): {d:e}"
+            );
         }
     }
 }
@@ -277,13 +362,23 @@ fn high_degrees_up_to_twenty_match_the_naive_sum() {
 #[test]
 fn grid_layout_winding_and_normals() {
     let sphere = sphere(1.0);
-    let mesh = CpuTessellator.tessellate(std::slice::from_ref(&sphere), &TessOptions::DEFAULT.with_grid(17, 9)).unwrap();
+    let mesh = CpuTessellator
+        .tessellate(
+            std::slice::from_ref(&sphere),
+            &TessOptions::DEFAULT.with_grid(17, 9),
+        )
+        .unwrap();
     assert_eq!(mesh.vertex_count(), 17 * 9);
     assert_eq!(mesh.triangle_count(), 2 * 16 * 8);
     // u fastest: vertex 1 is one step along u on the south pole row.
     assert_eq!(mesh.uvs[1], glam::DVec2::new(1.0 / 16.0, 0.0));
     assert_eq!(mesh.uvs[17], glam::DVec2::new(0.0, 1.0 / 8.0));
-    assert!(mesh.normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-12), "every normal is a unit vector");
+    assert!(
+        mesh.normals
+            .iter()
+            .all(|n| (n.length() - 1.0).abs() < 1e-12),
+        "every normal is a unit vector"
+    );
     let mut checked = 0;
     for t in mesh.indices.chunks_exact(3) {
         let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
@@ -301,19 +396,31 @@ fn grid_layout_winding_and_normals() {
 fn teapot_normals_point_out_and_are_never_degenerate() {
     let scene = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt")).unwrap();
     assert_eq!(scene.surfaces.len(), 32);
-    let mesh = CpuTessellator.tessellate(&scene.surfaces, &TessOptions::DEFAULT.with_grid(9, 9)).unwrap();
-    assert!(mesh.normals.iter().all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-12));
+    let mesh = CpuTessellator
+        .tessellate(&scene.surfaces, &TessOptions::DEFAULT.with_grid(9, 9))
+        .unwrap();
+    assert!(
+        mesh.normals
+            .iter()
+            .all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-12)
+    );
     // Body patches 5–12: normals point away from the z axis.
     for part in &mesh.parts[4..12] {
         for k in part.first_vertex..part.first_vertex + part.vertex_count {
             let (p, n) = (mesh.positions[k as usize], mesh.normals[k as usize]);
-            assert!(n.dot(DVec3::new(p.x, p.y, 0.0)) > 0.0, "body normal {n} at {p}");
+            assert!(
+                n.dot(DVec3::new(p.x, p.y, 0.0)) > 0.0,
+                "body normal {n} at {p}"
+            );
         }
     }
     // The lid's knob top (patches 21–24) collapses to the point (0, 0, 3.15): its limit
     // normal is straight up.
     let top = DVec3::new(0.0, 0.0, 3.15);
-    let at_top: Vec<DVec3> = (0..mesh.vertex_count()).filter(|&k| (mesh.positions[k] - top).length() < 1e-12).map(|k| mesh.normals[k]).collect();
+    let at_top: Vec<DVec3> = (0..mesh.vertex_count())
+        .filter(|&k| (mesh.positions[k] - top).length() < 1e-12)
+        .map(|k| mesh.normals[k])
+        .collect();
     assert!(!at_top.is_empty());
     for n in at_top {
         assert!(angle(n, DVec3::Z) < 1e-9, "knob top normal {n}");
@@ -324,23 +431,38 @@ fn teapot_normals_point_out_and_are_never_degenerate() {
 fn unclamped_uniform_surface_from_the_obj_spec_faces_up() {
     // The spec's uniform bicubic B-spline example: knots -3..4, surf 0 1 0 1, a flat 4×4 net.
     let knots = KnotVector::try_new(3, (-3..=4).map(f64::from).collect()).unwrap();
-    let points: Vec<DVec3> = (0..16).map(|k| DVec3::new((k % 4) as f64, (k / 4) as f64, 0.0)).collect();
-    let surface = BSplineSurface::try_new(knots.clone(), knots, &points, None).unwrap().with_range(Interval::new(0.0, 1.0), Interval::new(0.0, 1.0)).unwrap();
+    let points: Vec<DVec3> = (0..16)
+        .map(|k| DVec3::new((k % 4) as f64, (k / 4) as f64, 0.0))
+        .collect();
+    let surface = BSplineSurface::try_new(knots.clone(), knots, &points, None)
+        .unwrap()
+        .with_range(Interval::new(0.0, 1.0), Interval::new(0.0, 1.0))
+        .unwrap();
     let s = surface.evaluate(0.5, 0.5);
     assert!(angle(s.normal, DVec3::Z) < 1e-15);
     // The uniform cubic B-spline at u = 0 of a uniform knot vector: (P0 + 4P1 + P2)/6.
-    assert!((s.position - DVec3::new(1.5, 1.5, 0.0)).length() < 1e-14, "{}", s.position);
+    assert!(
+        (s.position - DVec3::new(1.5, 1.5, 0.0)).length() < 1e-14,
+        "{}",
+        s.position
+    );
 }
 
 #[test]
 fn piecewise_bezier_joins_segments_at_breakpoints() {
     // Two quadratic segments in u on breakpoints 0, 2, 5; one linear segment in v.
-    let row: Vec<DVec3> = (0..5).map(|i| DVec3::new(i as f64, (i * i) as f64, 0.0)).collect();
+    let row: Vec<DVec3> = (0..5)
+        .map(|i| DVec3::new(i as f64, (i * i) as f64, 0.0))
+        .collect();
     let mut points = row.clone();
     points.extend(row.iter().map(|p| *p + DVec3::Z));
-    let surface = piecewise_bezier_surface(2, 1, &[0.0, 2.0, 5.0], &[0.0, 1.0], &points, None).unwrap();
+    let surface =
+        piecewise_bezier_surface(2, 1, &[0.0, 2.0, 5.0], &[0.0, 1.0], &points, None).unwrap();
     assert_eq!(surface.count_u(), 5);
-    assert_eq!(surface.knots_u().knots(), &[0.0, 0.0, 0.0, 2.0, 2.0, 5.0, 5.0, 5.0]);
+    assert_eq!(
+        surface.knots_u().knots(),
+        &[0.0, 0.0, 0.0, 2.0, 2.0, 5.0, 5.0, 5.0]
+    );
     // At the breakpoint the surface passes through the shared control point.
     assert!((surface.point(2.0, 0.0) - row[2]).length() < 1e-15);
     // Segment 2 at global 3.5 is its local 0.5: the Bernstein mid-point of points 2, 3, 4.
@@ -362,16 +484,26 @@ fn curves_evaluate_with_tangents() {
         assert!(p.dot(t).abs() < 1e-14 * t.length());
     }
     let knots = KnotVector::clamped_uniform(2, 3).unwrap();
-    let curve = BSplineCurve::try_new(knots, &points, None).unwrap().with_range(Interval::new(0.25, 0.75)).unwrap();
+    let curve = BSplineCurve::try_new(knots, &points, None)
+        .unwrap()
+        .with_range(Interval::new(0.25, 0.75))
+        .unwrap();
     assert_eq!(curve.range(), Interval::new(0.25, 0.75));
 }
 
 #[test]
 fn bezier_surface_matches_tensor_bernstein() {
-    let points: Vec<DVec3> = (0..12).map(|k| DVec3::new((k % 4) as f64, (k / 4) as f64, ((k * 5) % 3) as f64)).collect();
+    let points: Vec<DVec3> = (0..12)
+        .map(|k| DVec3::new((k % 4) as f64, (k / 4) as f64, ((k * 5) % 3) as f64))
+        .collect();
     let surface = bezier_surface(3, 2, &points, None).unwrap();
     let (u, v) = (0.3f64, 0.6f64);
-    let bu = [(1.0 - u).powi(3), 3.0 * u * (1.0 - u).powi(2), 3.0 * u * u * (1.0 - u), u.powi(3)];
+    let bu = [
+        (1.0 - u).powi(3),
+        3.0 * u * (1.0 - u).powi(2),
+        3.0 * u * u * (1.0 - u),
+        u.powi(3),
+    ];
     let bv = [(1.0 - v).powi(2), 2.0 * v * (1.0 - v), v * v];
     let expected: DVec3 = (0..12).map(|k| bu[k % 4] * bv[k / 4] * points[k]).sum();
     assert!((surface.point(u, v) - expected).length() < 1e-14);
@@ -379,15 +511,26 @@ fn bezier_surface_matches_tensor_bernstein() {
 
 #[test]
 fn evaluate_grid_and_reused_meshes_match_fresh_tessellation() {
-    let teapot = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt")).unwrap().surfaces;
+    let teapot = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt"))
+        .unwrap()
+        .surfaces;
     let options = TessOptions::DEFAULT.with_grid(7, 5);
     let fresh = CpuTessellator.tessellate(&teapot, &options).unwrap();
     // A mesh that held something else (bigger, other layout) is overwritten completely.
-    let mut reused = CpuTessellator.tessellate(&[sphere(3.0), torus(2.0, 0.5)], &TessOptions::DEFAULT.with_grid(40, 40)).unwrap();
-    CpuTessellator.tessellate_into(&teapot, &options, &mut reused).unwrap();
+    let mut reused = CpuTessellator
+        .tessellate(
+            &[sphere(3.0), torus(2.0, 0.5)],
+            &TessOptions::DEFAULT.with_grid(40, 40),
+        )
+        .unwrap();
+    CpuTessellator
+        .tessellate_into(&teapot, &options, &mut reused)
+        .unwrap();
     assert_eq!(reused, fresh);
     // On error the mesh is left as it was.
-    let err = CpuTessellator.tessellate_into(&teapot, &TessOptions::DEFAULT.with_grid(1, 1), &mut reused).unwrap_err();
+    let err = CpuTessellator
+        .tessellate_into(&teapot, &TessOptions::DEFAULT.with_grid(1, 1), &mut reused)
+        .unwrap_err();
     assert!(matches!(err, Error::GridTooSmall { .. }));
     assert_eq!(reused, fresh);
     // The attribute-only layer gives the same positions and normals as the mesh.
@@ -397,9 +540,18 @@ fn evaluate_grid_and_reused_meshes_match_fresh_tessellation() {
     knotwork::cpu::evaluate_grid_into(&teapot[3], 7, 5, &mut positions, &mut normals).unwrap();
     assert_eq!(positions, fresh.positions[range.clone()]);
     assert_eq!(normals, fresh.normals[range]);
-    let short = knotwork::cpu::evaluate_grid_into(&teapot[3], 7, 5, &mut positions[..34], &mut normals).unwrap_err();
-    assert!(matches!(short, Error::BufferLength { expected: 35, found: 34 }));
-    let tiny = knotwork::cpu::evaluate_grid_into(&teapot[3], 1, 35, &mut positions, &mut normals).unwrap_err();
+    let short =
+        knotwork::cpu::evaluate_grid_into(&teapot[3], 7, 5, &mut positions[..34], &mut normals)
+            .unwrap_err();
+    assert!(matches!(
+        short,
+        Error::BufferLength {
+            expected: 35,
+            found: 34
+        }
+    ));
+    let tiny = knotwork::cpu::evaluate_grid_into(&teapot[3], 1, 35, &mut positions, &mut normals)
+        .unwrap_err();
     assert!(matches!(tiny, Error::GridTooSmall { nu: 1, nv: 35 }));
 }
 
@@ -412,36 +564,151 @@ fn unit_points(n: usize) -> Vec<DVec3> {
 #[test]
 fn every_geometry_error_is_reported() {
     let root = |r: Result<KnotVector, Error>| r.unwrap_err();
-    assert!(matches!(root(KnotVector::try_new(0, vec![0.0, 1.0])), Error::DegreeOutOfRange { degree: 0, max: 20 }));
-    assert!(matches!(root(KnotVector::try_new(21, vec![0.0; 44])), Error::DegreeOutOfRange { degree: 21, .. }));
-    assert!(matches!(root(KnotVector::try_new(1, vec![0.0, f64::NAN, 1.0, 1.0])), Error::KnotNotFinite { index: 1, .. }));
-    assert!(matches!(root(KnotVector::try_new(1, vec![0.0, 0.0, 2.0, 1.0, 3.0, 3.0])), Error::KnotsDecreasing { index: 3, .. }));
-    assert!(matches!(root(KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 1.0, 1.0])), Error::TooFewKnots { found: 5, min: 6, .. }));
-    assert!(matches!(root(KnotVector::try_new(1, vec![0.0, 0.0, 0.0, 1.0, 1.0])), Error::KnotMultiplicity { index: 0, multiplicity: 3, max: 2, .. }));
-    assert!(matches!(root(KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 0.5, 0.5, 0.5, 1.0, 1.0, 1.0])), Error::KnotMultiplicity { index: 3, multiplicity: 3, max: 2, .. }));
-    assert!(matches!(root(KnotVector::try_new(2, vec![0.0, 1.0, 2.0, 2.0, 3.0, 4.0])), Error::EmptyDomain { start: 2.0, end: 2.0 }));
-    assert!(matches!(root(KnotVector::try_new(2, vec![0.0, 1.0, 1.0, 1.0, 1.0, 2.0])), Error::KnotMultiplicity { .. }));
-    assert!(matches!(root(KnotVector::try_new(1, vec![1.0, 1.0, 1.0, 1.0])), Error::KnotMultiplicity { .. }));
-    assert!(matches!(root(KnotVector::from_breakpoints(2, &[0.0, 1.0, 1.0])), Error::BreakpointsNotIncreasing { index: 2, .. }));
-    assert!(matches!(root(KnotVector::clamped_uniform(3, 2)), Error::ControlPointCount { expected: 4, found: 2, .. }));
+    assert!(matches!(
+        root(KnotVector::try_new(0, vec![0.0, 1.0])),
+        Error::DegreeOutOfRange { degree: 0, max: 20 }
+    ));
+    assert!(matches!(
+        root(KnotVector::try_new(21, vec![0.0; 44])),
+        Error::DegreeOutOfRange { degree: 21, .. }
+    ));
+    assert!(matches!(
+        root(KnotVector::try_new(1, vec![0.0, f64::NAN, 1.0, 1.0])),
+        Error::KnotNotFinite { index: 1, .. }
+    ));
+    assert!(matches!(
+        root(KnotVector::try_new(1, vec![0.0, 0.0, 2.0, 1.0, 3.0, 3.0])),
+        Error::KnotsDecreasing { index: 3, .. }
+    ));
+    assert!(matches!(
+        root(KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 1.0, 1.0])),
+        Error::TooFewKnots {
+            found: 5,
+            min: 6,
+            ..
+        }
+    ));
+    assert!(matches!(
+        root(KnotVector::try_new(1, vec![0.0, 0.0, 0.0, 1.0, 1.0])),
+        Error::KnotMultiplicity {
+            index: 0,
+            multiplicity: 3,
+            max: 2,
+            ..
+        }
+    ));
+    assert!(matches!(
+        root(KnotVector::try_new(
+            2,
+            vec![0.0, 0.0, 0.0, 0.5, 0.5, 0.5, 1.0, 1.0, 1.0]
+        )),
+        Error::KnotMultiplicity {
+            index: 3,
+            multiplicity: 3,
+            max: 2,
+            ..
+        }
+    ));
+    assert!(matches!(
+        root(KnotVector::try_new(2, vec![0.0, 1.0, 2.0, 2.0, 3.0, 4.0])),
+        Error::EmptyDomain {
+            start: 2.0,
+            end: 2.0
+        }
+    ));
+    assert!(matches!(
+        root(KnotVector::try_new(2, vec![0.0, 1.0, 1.0, 1.0, 1.0, 2.0])),
+        Error::KnotMultiplicity { .. }
+    ));
+    assert!(matches!(
+        root(KnotVector::try_new(1, vec![1.0, 1.0, 1.0, 1.0])),
+        Error::KnotMultiplicity { .. }
+    ));
+    assert!(matches!(
+        root(KnotVector::from_breakpoints(2, &[0.0, 1.0, 1.0])),
+        Error::BreakpointsNotIncreasing { index: 2, .. }
+    ));
+    assert!(matches!(
+        root(KnotVector::clamped_uniform(3, 2)),
+        Error::ControlPointCount {
+            expected: 4,
+            found: 2,
+            ..
+        }
+    ));
 
     let k = || KnotVector::clamped_uniform(1, 2).unwrap();
-    let surface = |points: &[DVec3], weights: Option<&[f64]>| BSplineSurface::try_new(k(), k(), points, weights).unwrap_err();
-    assert!(matches!(surface(&unit_points(3), None), Error::ControlPointCount { expected: 4, found: 3, .. }));
+    let surface = |points: &[DVec3], weights: Option<&[f64]>| {
+        BSplineSurface::try_new(k(), k(), points, weights).unwrap_err()
+    };
+    assert!(matches!(
+        surface(&unit_points(3), None),
+        Error::ControlPointCount {
+            expected: 4,
+            found: 3,
+            ..
+        }
+    ));
     let mut points = unit_points(4);
     points[2].y = f64::INFINITY;
-    assert!(matches!(surface(&points, None), Error::ControlPointNotFinite { index: 2 }));
+    assert!(matches!(
+        surface(&points, None),
+        Error::ControlPointNotFinite { index: 2 }
+    ));
     for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
-        assert!(matches!(surface(&unit_points(4), Some(&[1.0, 1.0, 1.0, bad])), Error::InvalidWeight { index: 3, .. }), "weight {bad}");
+        assert!(
+            matches!(
+                surface(&unit_points(4), Some(&[1.0, 1.0, 1.0, bad])),
+                Error::InvalidWeight { index: 3, .. }
+            ),
+            "weight {bad}"
+        );
     }
-    assert!(matches!(surface(&unit_points(4), Some(&[1.0, 1.0])), Error::ControlPointCount { expected: 4, found: 2, .. }));
+    assert!(matches!(
+        surface(&unit_points(4), Some(&[1.0, 1.0])),
+        Error::ControlPointCount {
+            expected: 4,
+            found: 2,
+            ..
+        }
+    ));
     let ok = BSplineSurface::try_new(k(), k(), &unit_points(4), None).unwrap();
-    for (a, b) in [(-0.1, 0.5), (0.2, 1.1), (0.5, 0.5), (0.6, 0.4), (f64::NAN, 1.0)] {
-        assert!(matches!(ok.clone().with_range(Interval::new(a, b), Interval::new(0.0, 1.0)), Err(Error::RangeOutsideDomain { .. })), "[{a}, {b}]");
+    for (a, b) in [
+        (-0.1, 0.5),
+        (0.2, 1.1),
+        (0.5, 0.5),
+        (0.6, 0.4),
+        (f64::NAN, 1.0),
+    ] {
+        assert!(
+            matches!(
+                ok.clone()
+                    .with_range(Interval::new(a, b), Interval::new(0.0, 1.0)),
+                Err(Error::RangeOutsideDomain { .. })
+            ),
+            "[{a}, {b}]"
+        );
     }
-    let tess = |nu, nv, count| CpuTessellator.tessellate(&vec![ok.clone(); count], &TessOptions::DEFAULT.with_grid(nu, nv)).unwrap_err();
-    assert!(matches!(tess(1, 5, 1), Error::GridTooSmall { nu: 1, nv: 5 }));
+    let tess = |nu, nv, count| {
+        CpuTessellator
+            .tessellate(
+                &vec![ok.clone(); count],
+                &TessOptions::DEFAULT.with_grid(nu, nv),
+            )
+            .unwrap_err()
+    };
+    assert!(matches!(
+        tess(1, 5, 1),
+        Error::GridTooSmall { nu: 1, nv: 5 }
+    ));
     assert!(matches!(tess(65536, 65536, 2), Error::MeshTooLarge { .. }));
     let curve = BSplineCurve::try_new(k(), &unit_points(3), None).unwrap_err();
-    assert!(matches!(curve, Error::ControlPointCount { expected: 2, found: 3, .. }));
+    assert!(matches!(
+        curve,
+        Error::ControlPointCount {
+            expected: 2,
+            found: 3,
+            ..
+        }
+    ));
 }

@@ -8,7 +8,10 @@
 use glam::DVec3;
 use knotwork::conformance::{self, NORMAL_BAR, POSITION_REL_BAR};
 use knotwork::gpu::Limits;
-use knotwork::{BSplineSurface, Error, GpuBatch, GpuContext, GpuTessellator, KnotVector, TessOptions, Tessellator};
+use knotwork::{
+    BSplineSurface, Error, GpuBatch, GpuContext, GpuTessellator, KnotVector, TessOptions,
+    Tessellator,
+};
 use std::sync::OnceLock;
 
 /// The shared context, or `None` (skip) when no adapter exists and none is required.
@@ -21,7 +24,9 @@ fn gpu() -> Option<&'static GpuContext> {
             panic!("KNOTWORK_REQUIRE_GPU=1 but no GPU adapter: {reason}")
         }
         Err(reason) => {
-            eprintln!("skipped: no GPU adapter ({reason}); set KNOTWORK_REQUIRE_GPU=1 to make this a failure");
+            eprintln!(
+                "skipped: no GPU adapter ({reason}); set KNOTWORK_REQUIRE_GPU=1 to make this a failure"
+            );
             None
         }
     }
@@ -37,11 +42,15 @@ fn every_shader_parses_and_validates_with_naga() {
             continue;
         }
         let source = std::fs::read_to_string(&path).unwrap();
-        let module = naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{}: {}", path.display(), e.emit_to_string(&source)));
-        // Core WGSL only: no f64, no subgroups — what WebGPU and every native adapter accept.
-        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty())
-            .validate(&module)
+        let module = naga::front::wgsl::parse_str(&source)
             .unwrap_or_else(|e| panic!("{}: {}", path.display(), e.emit_to_string(&source)));
+        // Core WGSL only: no f64, no subgroups — what WebGPU and every native adapter accept.
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::empty(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{}: {}", path.display(), e.emit_to_string(&source)));
         checked += 1;
     }
     assert!(checked > 0, "no shaders found in {}", dir.display());
@@ -50,39 +59,75 @@ fn every_shader_parses_and_validates_with_naga() {
 #[test]
 fn adapter_is_reported() {
     let Some(context) = gpu() else { return };
-    let info = context.adapter_info().expect("the context opened its own adapter");
+    let info = context
+        .adapter_info()
+        .expect("the context opened its own adapter");
     println!("adapter: {}", context.adapter_summary());
     assert!(!info.name.is_empty());
     let limits = context.limits();
-    assert!(limits.binding_bytes >= 128 << 20 && limits.buffer_bytes >= limits.binding_bytes, "{limits:?}");
+    assert!(
+        limits.binding_bytes >= 128 << 20 && limits.buffer_bytes >= limits.binding_bytes,
+        "{limits:?}"
+    );
 }
 
 #[test]
 fn conformance_suite_passes_on_this_adapter() {
     let Some(context) = gpu() else { return };
-    let tessellator = GpuTessellator::from_context(GpuContext::from_device(context.device().clone(), context.queue().clone()).unwrap());
+    let tessellator = GpuTessellator::from_context(
+        GpuContext::from_device(context.device().clone(), context.queue().clone()).unwrap(),
+    );
     let mut failures = Vec::new();
-    println!("{:<48} {:>14} {:>14} {:>14}", "case", "position/diag", "normal (rad)", "degen. (rad)");
+    println!(
+        "{:<48} {:>14} {:>14} {:>14}",
+        "case", "position/diag", "normal (rad)", "degen. (rad)"
+    );
     for case in conformance::suite() {
-        let mesh = tessellator.tessellate(&case.surfaces, &case.options).unwrap();
+        let mesh = tessellator
+            .tessellate(&case.surfaces, &case.options)
+            .unwrap();
         let report = conformance::compare(&case.surfaces, &case.options, &mesh).unwrap();
         println!(
             "{:<48} {:>14.3e} {:>14.3e} {:>14.3e}  ({} vertices, {} near degenerate points)",
-            case.name, report.worst_position, report.worst_normal, report.worst_degenerate_normal, report.vertices, report.degenerate_vertices
+            case.name,
+            report.worst_position,
+            report.worst_normal,
+            report.worst_degenerate_normal,
+            report.vertices,
+            report.degenerate_vertices
         );
         if !report.passes() {
             failures.push((case.name, report));
         }
     }
-    let teapot = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt")).unwrap().surfaces;
+    let teapot = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt"))
+        .unwrap()
+        .surfaces;
     let options = TessOptions::DEFAULT.with_grid(33, 33);
-    let report = conformance::compare(&teapot, &options, &tessellator.tessellate(&teapot, &options).unwrap()).unwrap();
-    println!("{:<48} {:>14.3e} {:>14.3e} {:>14.3e}", "teapot (32 patches, collapsed edges)", report.worst_position, report.worst_normal, report.worst_degenerate_normal);
-    assert!(report.degenerate_vertices > 0, "the teapot's collapsed edges are exercised");
+    let report = conformance::compare(
+        &teapot,
+        &options,
+        &tessellator.tessellate(&teapot, &options).unwrap(),
+    )
+    .unwrap();
+    println!(
+        "{:<48} {:>14.3e} {:>14.3e} {:>14.3e}",
+        "teapot (32 patches, collapsed edges)",
+        report.worst_position,
+        report.worst_normal,
+        report.worst_degenerate_normal
+    );
+    assert!(
+        report.degenerate_vertices > 0,
+        "the teapot's collapsed edges are exercised"
+    );
     if !report.passes() {
         failures.push(("teapot".into(), report));
     }
-    assert!(failures.is_empty(), "bars: position {POSITION_REL_BAR:e}, normal {NORMAL_BAR:e}; failed: {failures:#?}");
+    assert!(
+        failures.is_empty(),
+        "bars: position {POSITION_REL_BAR:e}, normal {NORMAL_BAR:e}; failed: {failures:#?}"
+    );
 }
 
 /// Perturbing one weight of the GPU input by 2% must make the comparison fail.
@@ -90,23 +135,48 @@ fn conformance_suite_passes_on_this_adapter() {
 fn negative_control_one_perturbed_weight_fails() {
     let Some(context) = gpu() else { return };
     let (nu, nv) = (6, 5);
-    let points: Vec<DVec3> = (0..nu * nv).map(|k| DVec3::new((k % nu) as f64, (k / nu) as f64, ((k * 5) % 3) as f64)).collect();
+    let points: Vec<DVec3> = (0..nu * nv)
+        .map(|k| DVec3::new((k % nu) as f64, (k / nu) as f64, ((k * 5) % 3) as f64))
+        .collect();
     let mut weights = vec![1.0; nu * nv];
     let knots = |n| KnotVector::clamped_uniform(3, n).unwrap();
     let original = BSplineSurface::try_new(knots(nu), knots(nv), &points, Some(&weights)).unwrap();
     weights[14] = 1.02;
     let perturbed = BSplineSurface::try_new(knots(nu), knots(nv), &points, Some(&weights)).unwrap();
     let options = TessOptions::DEFAULT.with_grid(20, 20);
-    let tessellator = GpuTessellator::from_context(GpuContext::from_device(context.device().clone(), context.queue().clone()).unwrap());
-    let honest = conformance::compare(std::slice::from_ref(&original), &options, &tessellator.tessellate(std::slice::from_ref(&original), &options).unwrap()).unwrap();
-    let wrong = conformance::compare(std::slice::from_ref(&original), &options, &tessellator.tessellate(std::slice::from_ref(&perturbed), &options).unwrap()).unwrap();
-    println!("negative control: honest {:.3e}, perturbed {:.3e} (bar {POSITION_REL_BAR:e})", honest.worst_position, wrong.worst_position);
+    let tessellator = GpuTessellator::from_context(
+        GpuContext::from_device(context.device().clone(), context.queue().clone()).unwrap(),
+    );
+    let honest = conformance::compare(
+        std::slice::from_ref(&original),
+        &options,
+        &tessellator
+            .tessellate(std::slice::from_ref(&original), &options)
+            .unwrap(),
+    )
+    .unwrap();
+    let wrong = conformance::compare(
+        std::slice::from_ref(&original),
+        &options,
+        &tessellator
+            .tessellate(std::slice::from_ref(&perturbed), &options)
+            .unwrap(),
+    )
+    .unwrap();
+    println!(
+        "negative control: honest {:.3e}, perturbed {:.3e} (bar {POSITION_REL_BAR:e})",
+        honest.worst_position, wrong.worst_position
+    );
     assert!(honest.passes());
     assert!(!wrong.passes() && wrong.worst_position > 10.0 * POSITION_REL_BAR);
 }
 
 fn peer_and_teapot() -> Vec<BSplineSurface> {
-    let read = |p: &str| knotwork::io::read_scene(std::path::Path::new(p)).unwrap().surfaces;
+    let read = |p: &str| {
+        knotwork::io::read_scene(std::path::Path::new(p))
+            .unwrap()
+            .surfaces
+    };
     let mut surfaces = read("data/peer_bicubic_32x32.obj");
     surfaces.extend(read("data/teapot.bpt"));
     surfaces
@@ -122,12 +192,18 @@ fn chunked_batches_match_a_single_dispatch() {
     let whole = GpuBatch::new(context, &surfaces, &options).unwrap();
     whole.dispatch(context).unwrap();
     let expected = whole.read_mesh(context).unwrap();
-    let small = Limits { binding_bytes: 32 << 10, ..context.limits() };
+    let small = Limits {
+        binding_bytes: 32 << 10,
+        ..context.limits()
+    };
     let chunked = GpuBatch::with_limits(context, &surfaces, &options, small).unwrap();
     assert_eq!(whole.chunk_and_piece_counts(), (1, surfaces.len()));
     let (chunks, pieces) = chunked.chunk_and_piece_counts();
     println!("{chunks} chunks, {pieces} pieces");
-    assert!(chunks > 5 && pieces > surfaces.len(), "the small limits split both the batch and the big surface");
+    assert!(
+        chunks > 5 && pieces > surfaces.len(),
+        "the small limits split both the batch and the big surface"
+    );
     chunked.dispatch(context).unwrap();
     let got = chunked.read_mesh(context).unwrap();
     assert_eq!(got, expected);
@@ -140,14 +216,39 @@ fn jobs_that_cannot_fit_are_refused() {
     let Some(context) = gpu() else { return };
     let surfaces = peer_and_teapot();
     let options = TessOptions::DEFAULT.with_grid(100, 100);
-    let tiny_buffers = Limits { buffer_bytes: 1 << 20, ..context.limits() };
-    let err = GpuBatch::with_limits(context, &surfaces, &options, tiny_buffers).err().expect("refused");
-    assert!(matches!(err, Error::GpuJobTooLarge { what: "the vertex buffer", .. }), "{err}");
-    let tiny_binding = Limits { binding_bytes: 2 << 10, ..context.limits() };
-    let err = GpuBatch::with_limits(context, &surfaces, &options, tiny_binding).err().expect("refused");
+    let tiny_buffers = Limits {
+        buffer_bytes: 1 << 20,
+        ..context.limits()
+    };
+    let err = GpuBatch::with_limits(context, &surfaces, &options, tiny_buffers)
+        .err()
+        .expect("refused");
+    assert!(
+        matches!(
+            err,
+            Error::GpuJobTooLarge {
+                what: "the vertex buffer",
+                ..
+            }
+        ),
+        "{err}"
+    );
+    let tiny_binding = Limits {
+        binding_bytes: 2 << 10,
+        ..context.limits()
+    };
+    let err = GpuBatch::with_limits(context, &surfaces, &options, tiny_binding)
+        .err()
+        .expect("refused");
     assert!(matches!(err, Error::GpuJobTooLarge { .. }), "{err}");
     // The device's own limit: 2 GiB of vertices is more than lavapipe's largest buffer.
-    let err = GpuBatch::new(context, &surfaces[..1], &TessOptions::DEFAULT.with_grid(9000, 9000)).err().expect("refused");
+    let err = GpuBatch::new(
+        context,
+        &surfaces[..1],
+        &TessOptions::DEFAULT.with_grid(9000, 9000),
+    )
+    .err()
+    .expect("refused");
     assert!(matches!(err, Error::GpuJobTooLarge { .. }), "{err}");
 }
 
@@ -160,16 +261,37 @@ fn moving_control_points_reuploads_one_surface() {
     batch.dispatch(context).unwrap();
     // Lift the teapot's lid patch 21 (index 21 here: the peer surface comes first).
     let lid = &surfaces[21];
-    let moved: Vec<DVec3> = (0..lid.count_v()).flat_map(|j| (0..lid.count_u()).map(move |i| (i, j))).map(|(i, j)| lid.control_point(i, j) + DVec3::new(0.0, 0.0, 0.5)).collect();
-    let lifted = BSplineSurface::try_new(lid.knots_u().clone(), lid.knots_v().clone(), &moved, None).unwrap();
+    let moved: Vec<DVec3> = (0..lid.count_v())
+        .flat_map(|j| (0..lid.count_u()).map(move |i| (i, j)))
+        .map(|(i, j)| lid.control_point(i, j) + DVec3::new(0.0, 0.0, 0.5))
+        .collect();
+    let lifted =
+        BSplineSurface::try_new(lid.knots_u().clone(), lid.knots_v().clone(), &moved, None)
+            .unwrap();
     batch.update_surface(context, 21, &lifted).unwrap();
     batch.dispatch(context).unwrap();
     surfaces[21] = lifted;
-    let report = conformance::compare(&surfaces, &options, &batch.read_mesh(context).unwrap()).unwrap();
+    let report =
+        conformance::compare(&surfaces, &options, &batch.read_mesh(context).unwrap()).unwrap();
     assert!(report.passes(), "{report:?}");
-    let other_shape = BSplineSurface::try_new(KnotVector::clamped_uniform(2, 4).unwrap(), KnotVector::clamped_uniform(3, 4).unwrap(), &moved, None).unwrap();
-    assert!(matches!(batch.update_surface(context, 21, &other_shape), Err(Error::SurfaceShapeChanged { index: 21 })));
-    assert!(matches!(batch.update_surface(context, 99, &other_shape), Err(Error::SurfaceIndex { index: 99, count: 33 })));
+    let other_shape = BSplineSurface::try_new(
+        KnotVector::clamped_uniform(2, 4).unwrap(),
+        KnotVector::clamped_uniform(3, 4).unwrap(),
+        &moved,
+        None,
+    )
+    .unwrap();
+    assert!(matches!(
+        batch.update_surface(context, 21, &other_shape),
+        Err(Error::SurfaceShapeChanged { index: 21 })
+    ));
+    assert!(matches!(
+        batch.update_surface(context, 99, &other_shape),
+        Err(Error::SurfaceIndex {
+            index: 99,
+            count: 33
+        })
+    ));
 }
 
 #[test]
@@ -177,21 +299,77 @@ fn cli_gpu_backend_and_info() {
     let Some(_) = gpu() else { return };
     let dir = std::env::temp_dir().join(format!("knotwork-gpu-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let run = |args: &[&str]| std::process::Command::new(env!("CARGO_BIN_EXE_knotwork")).args(args).output().unwrap();
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_knotwork"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
     let (gpu_out, cpu_out) = (dir.join("gpu.obj"), dir.join("cpu.obj"));
-    let gpu_run = run(&["tessellate", "data/teapot.bpt", "-o", gpu_out.to_str().unwrap(), "--grid", "9x9", "--backend", "gpu"]);
-    assert!(gpu_run.status.success(), "{}", String::from_utf8_lossy(&gpu_run.stderr));
+    let gpu_run = run(&[
+        "tessellate",
+        "data/teapot.bpt",
+        "-o",
+        gpu_out.to_str().unwrap(),
+        "--grid",
+        "9x9",
+        "--backend",
+        "gpu",
+    ]);
+    assert!(
+        gpu_run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&gpu_run.stderr)
+    );
     let summary = String::from_utf8_lossy(&gpu_run.stdout);
-    assert!(summary.contains("gpu: ") && summary.contains("32 surfaces"), "{summary}");
-    let auto = run(&["tessellate", "data/teapot.bpt", "-o", cpu_out.to_str().unwrap(), "--grid", "9x9"]);
-    assert!(String::from_utf8_lossy(&auto.stdout).contains("gpu: "), "auto picks the adapter");
-    let cpu_run = run(&["tessellate", "data/teapot.bpt", "-o", cpu_out.to_str().unwrap(), "--grid", "9x9", "--backend", "cpu"]);
+    assert!(
+        summary.contains("gpu: ") && summary.contains("32 surfaces"),
+        "{summary}"
+    );
+    let auto = run(&[
+        "tessellate",
+        "data/teapot.bpt",
+        "-o",
+        cpu_out.to_str().unwrap(),
+        "--grid",
+        "9x9",
+    ]);
+    assert!(
+        String::from_utf8_lossy(&auto.stdout).contains("gpu: "),
+        "auto picks the adapter"
+    );
+    let cpu_run = run(&[
+        "tessellate",
+        "data/teapot.bpt",
+        "-o",
+        cpu_out.to_str().unwrap(),
+        "--grid",
+        "9x9",
+        "--backend",
+        "cpu",
+    ]);
     assert!(cpu_run.status.success());
-    let lines = |p: &std::path::Path| std::fs::read_to_string(p).unwrap().lines().filter(|l| l.starts_with("f ")).map(String::from).collect::<Vec<_>>();
-    assert_eq!(lines(&gpu_out), lines(&cpu_out), "same topology from both backends");
+    let lines = |p: &std::path::Path| {
+        std::fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .filter(|l| l.starts_with("f "))
+            .map(String::from)
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(
+        lines(&gpu_out),
+        lines(&cpu_out),
+        "same topology from both backends"
+    );
     let info = run(&["info"]);
     let text = String::from_utf8_lossy(&info.stdout);
-    assert!(info.status.success() && text.contains("max_storage_buffer_binding_size") && text.contains("default adapter"), "{text}");
+    assert!(
+        info.status.success()
+            && text.contains("max_storage_buffer_binding_size")
+            && text.contains("default adapter"),
+        "{text}"
+    );
 }
 
 /// Without any adapter (a backend this machine does not have), `--backend gpu` fails with a
@@ -203,14 +381,27 @@ fn missing_adapter_is_an_error_for_gpu_and_a_fallback_for_auto() {
     let out = dir.join("out.obj");
     let run = |backend: &str| {
         std::process::Command::new(env!("CARGO_BIN_EXE_knotwork"))
-            .args(["tessellate", "data/teapot.bpt", "-o", out.to_str().unwrap(), "--grid", "5x5", "--backend", backend])
+            .args([
+                "tessellate",
+                "data/teapot.bpt",
+                "-o",
+                out.to_str().unwrap(),
+                "--grid",
+                "5x5",
+                "--backend",
+                backend,
+            ])
             .env("WGPU_BACKEND", "metal")
             .output()
             .unwrap()
     };
     let gpu_run = run("gpu");
     assert!(!gpu_run.status.success() && !out.exists());
-    assert!(String::from_utf8_lossy(&gpu_run.stderr).contains("no GPU adapter"), "{}", String::from_utf8_lossy(&gpu_run.stderr));
+    assert!(
+        String::from_utf8_lossy(&gpu_run.stderr).contains("no GPU adapter"),
+        "{}",
+        String::from_utf8_lossy(&gpu_run.stderr)
+    );
     let auto = run("auto");
     assert!(auto.status.success() && String::from_utf8_lossy(&auto.stdout).contains("cpu (f64)"));
 }
@@ -218,7 +409,10 @@ fn missing_adapter_is_an_error_for_gpu_and_a_fallback_for_auto() {
 #[test]
 fn cli_conformance_prints_a_table_and_a_verdict() {
     let Some(_) = gpu() else { return };
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_knotwork")).arg("conformance").output().unwrap();
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_knotwork"))
+        .arg("conformance")
+        .output()
+        .unwrap();
     let text = String::from_utf8_lossy(&run.stdout);
     assert!(run.status.success(), "{text}");
     let rows = text.lines().filter(|l| l.ends_with(" pass")).count();
@@ -233,11 +427,18 @@ fn per_surface_grids_conform() {
     let Some(context) = gpu() else { return };
     let scene = knotwork::io::read_scene(std::path::Path::new("data/scene.json")).unwrap();
     let options = scene.options_or(TessOptions::DEFAULT.with_grid(13, 7));
-    let tessellator = GpuTessellator::from_context(GpuContext::from_device(context.device().clone(), context.queue().clone()).unwrap());
+    let tessellator = GpuTessellator::from_context(
+        GpuContext::from_device(context.device().clone(), context.queue().clone()).unwrap(),
+    );
     let mut mesh = knotwork::Mesh::default();
-    tessellator.tessellate_each_into(&scene.surfaces, &options, &mut mesh).unwrap();
+    tessellator
+        .tessellate_each_into(&scene.surfaces, &options, &mut mesh)
+        .unwrap();
     let report = conformance::compare_each(&scene.surfaces, &options, &mesh).unwrap();
-    assert!(report.passes() && report.vertices == 24 * 24 + 3 * 13 * 7, "{report:?}");
+    assert!(
+        report.passes() && report.vertices == 24 * 24 + 3 * 13 * 7,
+        "{report:?}"
+    );
 }
 
 /// The teapot's render is not blank: in the middle of the image, where the model is, most
@@ -245,30 +446,72 @@ fn per_surface_grids_conform() {
 #[test]
 fn teapot_render_is_not_blank() {
     let Some(context) = gpu() else { return };
-    let surfaces = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt")).unwrap().surfaces;
+    let surfaces = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt"))
+        .unwrap()
+        .surfaces;
     let batch = GpuBatch::new(context, &surfaces, &TessOptions::DEFAULT.with_grid(17, 17)).unwrap();
     batch.dispatch(context).unwrap();
     for (wireframe, control_net) in [(false, false), (true, true)] {
-        let options = knotwork::render::RenderOptions { width: 160, height: 120, wireframe, control_net };
+        let options = knotwork::render::RenderOptions {
+            width: 160,
+            height: 120,
+            wireframe,
+            control_net,
+        };
         let image = knotwork::render::render(context, &batch, &surfaces, &options).unwrap();
         assert_eq!(image.dimensions(), (160, 120));
         // The background in sRGB bytes, as the clear colour is written to an sRGB target.
-        let srgb = |c: f64| (if c <= 0.0031308 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 } * 255.0).round();
+        let srgb = |c: f64| {
+            (if c <= 0.0031308 {
+                12.92 * c
+            } else {
+                1.055 * c.powf(1.0 / 2.4) - 0.055
+            } * 255.0)
+                .round()
+        };
         let background = knotwork::render::BACKGROUND.map(srgb);
         let differs = |x: u32, y: u32| {
             let p = image.get_pixel(x, y);
             (0..3).any(|c| (f64::from(p[c]) - background[c]).abs() > 2.0)
         };
-        let centre: Vec<bool> = (50..110).flat_map(|x| (40..80).map(move |y| (x, y))).map(|(x, y)| differs(x, y)).collect();
+        let centre: Vec<bool> = (50..110)
+            .flat_map(|x| (40..80).map(move |y| (x, y)))
+            .map(|(x, y)| differs(x, y))
+            .collect();
         let covered = centre.iter().filter(|&&d| d).count() as f64 / centre.len() as f64;
-        assert!(covered > 0.6, "only {covered:.2} of the centre shows the model");
-        assert!(![(0, 0), (159, 0), (0, 119), (159, 119)].iter().any(|&(x, y)| differs(x, y)), "corners show the background");
+        assert!(
+            covered > 0.6,
+            "only {covered:.2} of the centre shows the model"
+        );
+        assert!(
+            ![(0, 0), (159, 0), (0, 119), (159, 119)]
+                .iter()
+                .any(|&(x, y)| differs(x, y)),
+            "corners show the background"
+        );
     }
     let dir = std::env::temp_dir().join(format!("knotwork-render-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let png = dir.join("teapot.png");
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_knotwork")).args(["render", "data/teapot.bpt", "-o", png.to_str().unwrap(), "--size", "64x48", "--wireframe"]).output().unwrap();
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
-    let decoded = image::open(&png).expect("a PNG the image crate reads").to_rgba8();
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_knotwork"))
+        .args([
+            "render",
+            "data/teapot.bpt",
+            "-o",
+            png.to_str().unwrap(),
+            "--size",
+            "64x48",
+            "--wireframe",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let decoded = image::open(&png)
+        .expect("a PNG the image crate reads")
+        .to_rgba8();
     assert_eq!(decoded.dimensions(), (64, 48));
 }

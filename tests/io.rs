@@ -3,7 +3,9 @@
 mod common;
 
 use glam::DVec3;
-use knotwork::io::{Scene, format_f64, read_bpt, read_obj_freeform, read_scene, write_atomic, write_mesh};
+use knotwork::io::{
+    Scene, format_f64, read_bpt, read_obj_freeform, read_scene, write_atomic, write_mesh,
+};
 use knotwork::{CpuTessellator, Error, Interval, TessOptions, Tessellator};
 use proptest::prelude::*;
 use std::path::{Path, PathBuf};
@@ -98,7 +100,9 @@ end
     assert_eq!(second.range_u(), Interval::new(0.25, 0.75));
     assert_eq!(second.point(0.5, 0.5), DVec3::new(1.0, 1.0, 5.0));
     // A sub-range is what the grid covers: the first column of vertices sits at u = 0.25.
-    let mesh = CpuTessellator.tessellate(&scene.surfaces[1..], &TessOptions::DEFAULT.with_grid(3, 2)).unwrap();
+    let mesh = CpuTessellator
+        .tessellate(&scene.surfaces[1..], &TessOptions::DEFAULT.with_grid(3, 2))
+        .unwrap();
     assert_eq!(mesh.positions[0], DVec3::new(0.5, 0.0, 5.0));
     assert_eq!(mesh.positions[2], DVec3::new(1.5, 0.0, 5.0));
 }
@@ -117,9 +121,22 @@ fn weights_are_separate_from_cartesian_coordinates() {
         assert!(d < 1e-15, "{d:e}");
     }
     // An unequal weight pulls the surface towards its point (which stays where x y z says).
-    let heavy = obj(&format!("{}cstype rat bspline\n{body}", net.replacen("v 1 1 0 7.3", "v 1 1 0 70", 1)));
-    assert_eq!(heavy.surfaces[0].control_point(1, 1), DVec3::new(1.0, 1.0, 0.0));
-    assert!(heavy.surfaces[0].point(0.5, 0.5).distance(DVec3::new(1.0, 1.0, 0.0)) < plain.surfaces[0].point(0.5, 0.5).distance(DVec3::new(1.0, 1.0, 0.0)));
+    let heavy = obj(&format!(
+        "{}cstype rat bspline\n{body}",
+        net.replacen("v 1 1 0 7.3", "v 1 1 0 70", 1)
+    ));
+    assert_eq!(
+        heavy.surfaces[0].control_point(1, 1),
+        DVec3::new(1.0, 1.0, 0.0)
+    );
+    assert!(
+        heavy.surfaces[0]
+            .point(0.5, 0.5)
+            .distance(DVec3::new(1.0, 1.0, 0.0))
+            < plain.surfaces[0]
+                .point(0.5, 0.5)
+                .distance(DVec3::new(1.0, 1.0, 0.0))
+    );
 }
 
 #[test]
@@ -137,7 +154,9 @@ end
     let c = &scene.curves[0];
     assert_eq!(c.range(), Interval::new(0.0, 2.0));
     // Uniform cubic at a knot: (P0 + 4 P1 + P2) / 6.
-    let expected = (DVec3::new(0.0, 0.0, 0.0) + 4.0 * DVec3::new(1.0, 1.0, 0.0) + DVec3::new(2.0, 0.0, 0.0)) / 6.0;
+    let expected =
+        (DVec3::new(0.0, 0.0, 0.0) + 4.0 * DVec3::new(1.0, 1.0, 0.0) + DVec3::new(2.0, 0.0, 0.0))
+            / 6.0;
     assert!((c.point(0.0) - expected).length() < 1e-15);
 }
 
@@ -150,13 +169,25 @@ fn real_files_load() {
     assert_eq!((body.count_u(), body.count_v()), (13, 14));
     let peer = read_scene(Path::new("data/peer_bicubic_32x32.obj")).unwrap();
     let s = &peer.surfaces[0];
-    assert_eq!((s.count_u(), s.count_v(), s.degree_u(), s.degree_v()), (32, 32, 3, 3));
+    assert_eq!(
+        (s.count_u(), s.count_v(), s.degree_u(), s.degree_v()),
+        (32, 32, 3, 3)
+    );
     let teapot = read_scene(Path::new("data/teapot.bpt")).unwrap();
     assert_eq!(teapot.surfaces.len(), 32);
     // The rim's first control point and its corner on the surface (Bezier end interpolation).
-    assert_eq!(teapot.surfaces[0].point(0.0, 0.0), DVec3::new(1.4, 0.0, 2.4));
-    let mesh = CpuTessellator.tessellate(&ducky.surfaces, &TessOptions::DEFAULT).unwrap();
-    assert!(mesh.normals.iter().all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-12));
+    assert_eq!(
+        teapot.surfaces[0].point(0.0, 0.0),
+        DVec3::new(1.4, 0.0, 2.4)
+    );
+    let mesh = CpuTessellator
+        .tessellate(&ducky.surfaces, &TessOptions::DEFAULT)
+        .unwrap();
+    assert!(
+        mesh.normals
+            .iter()
+            .all(|n| n.is_finite() && (n.length() - 1.0).abs() < 1e-12)
+    );
 }
 
 #[test]
@@ -170,60 +201,147 @@ fn bpt_reads_patches_and_rejects_bad_ones() {
     };
     let scene = read_bpt(&format!("2\n{}{}", patch(3, 3), patch(1, 2))).unwrap();
     assert_eq!(scene.surfaces.len(), 2);
-    assert_eq!((scene.surfaces[1].degree_u(), scene.surfaces[1].degree_v()), (2, 1));
+    assert_eq!(
+        (scene.surfaces[1].degree_u(), scene.surfaces[1].degree_v()),
+        (2, 1)
+    );
     let err = read_bpt(&format!("3\n{}", patch(1, 1))).unwrap_err();
     assert!(matches!(err.root(), Error::UnexpectedEnd { .. }), "{err}");
     let err = read_bpt(&format!("1\n{}7\n", patch(1, 1))).unwrap_err();
-    assert!(matches!(err.root(), Error::Syntax { .. }) && err.line() == Some(7), "{err}");
+    assert!(
+        matches!(err.root(), Error::Syntax { .. }) && err.line() == Some(7),
+        "{err}"
+    );
     let err = read_bpt("1\n0 3\n").unwrap_err();
-    assert!(matches!(err.root(), Error::DegreeOutOfRange { degree: 0, .. }) && err.line() == Some(2), "{err}");
+    assert!(
+        matches!(err.root(), Error::DegreeOutOfRange { degree: 0, .. }) && err.line() == Some(2),
+        "{err}"
+    );
     // An absurd declared count is not allocated: the file simply ends.
     let err = read_bpt("18446744073709551615\n1 1\n").unwrap_err();
     assert!(matches!(err.root(), Error::UnexpectedEnd { .. }), "{err}");
     let err = read_bpt("1\n4000000000 4000000000\n").unwrap_err();
-    assert!(matches!(err.root(), Error::DegreeOutOfRange { .. }), "{err}");
+    assert!(
+        matches!(err.root(), Error::DegreeOutOfRange { .. }),
+        "{err}"
+    );
     let err = read_bpt("").unwrap_err();
     assert!(matches!(err.root(), Error::UnexpectedEnd { .. }), "{err}");
     let err = read_bpt("1\n1 1\n0 0 0\n1 0 0\n0 1 0\n1 x 0\n").unwrap_err();
-    assert!(err.to_string().contains("line 6") && err.to_string().contains("`x`"), "{err}");
+    assert!(
+        err.to_string().contains("line 6") && err.to_string().contains("`x`"),
+        "{err}"
+    );
 }
 
 const NET: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n";
 
 #[test]
 fn malformed_obj_gives_errors_with_lines() {
-    let surf = |header: &str, refs: &str, parm_u: &str| format!("{NET}{header}surf 0 1 0 1 {refs}\nparm u {parm_u}\nparm v 0 0 1 1\nend\n");
+    let surf = |header: &str, refs: &str, parm_u: &str| {
+        format!("{NET}{header}surf 0 1 0 1 {refs}\nparm u {parm_u}\nparm v 0 0 1 1\nend\n")
+    };
     let bspline = "cstype bspline\ndeg 1 1\n";
     let cases: Vec<(String, usize, fn(&Error) -> bool)> = vec![
-        ("v 0 zero 0\n".into(), 1, |e| matches!(e, Error::Syntax { .. })),
+        ("v 0 zero 0\n".into(), 1, |e| {
+            matches!(e, Error::Syntax { .. })
+        }),
         ("v 0 0\n".into(), 1, |e| matches!(e, Error::Syntax { .. })),
-        (surf(bspline, "1 2 3", "0 0 1 1"), 7, |e| matches!(e, Error::ControlPointCount { expected: 4, found: 3, .. })),
-        (surf(bspline, "1 2 3 4", "0 1 0 1"), 8, |e| matches!(e, Error::KnotsDecreasing { index: 2, .. })),
-        (surf(bspline, "1 2 3 5", "0 0 1 1"), 7, |e| matches!(e, Error::VertexReference { reference: 5, available: 4 })),
-        (surf(bspline, "1 2 3 -5", "0 0 1 1"), 7, |e| matches!(e, Error::VertexReference { reference: -5, .. })),
-        (surf(bspline, "1 2 3 0", "0 0 1 1"), 7, |e| matches!(e, Error::VertexReference { reference: 0, .. })),
-        (surf("cstype bspline\ndeg 0 1\n", "1 2 3 4", "0 1"), 6, |e| matches!(e, Error::DegreeOutOfRange { degree: 0, .. })),
-        (surf("cstype bspline\ndeg 99999999999 1\n", "1 2 3 4", "0 1"), 6, |e| matches!(e, Error::DegreeOutOfRange { .. })),
-        (surf("cstype taylor\ndeg 1 1\n", "1 2 3 4", "0 1"), 5, |e| matches!(e, Error::Syntax { .. })),
-        (surf("deg 1 1\n", "1 2 3 4", "0 0 1 1"), 6, |e| matches!(e, Error::Syntax { .. })),
-        (surf(bspline, "1 2 3 4", "0 0 nan 1"), 8, |e| matches!(e, Error::KnotNotFinite { .. })),
-        (format!("{NET}{bspline}surf 0 1 0 1 1 2 3 4\nparm u 0 0 1 1\n"), 7, |e| matches!(e, Error::Syntax { .. })),
-        (format!("{NET}{bspline}surf 0 1 0 2 1 2 3 4\nparm u 0 0 1 1\nparm v 0 0 1 1\nend\n"), 7, |e| matches!(e, Error::RangeOutsideDomain { .. })),
-        (format!("{NET}{bspline}surf 0 1 0 1 1 2 3 4\nparm v 0 0 1 1\nend\n"), 7, |e| matches!(e, Error::Syntax { .. })),
-        (format!("{NET}end\n"), 5, |e| matches!(e, Error::Syntax { .. })),
-        (format!("{NET}{bspline}surf 0 1 0 1 1 2 3 4\nparm u 0 0 1 1\nparm v 0 0 1 1\nv 0 0 0\nend\n"), 10, |e| matches!(e, Error::Syntax { .. })),
+        (surf(bspline, "1 2 3", "0 0 1 1"), 7, |e| {
+            matches!(
+                e,
+                Error::ControlPointCount {
+                    expected: 4,
+                    found: 3,
+                    ..
+                }
+            )
+        }),
+        (surf(bspline, "1 2 3 4", "0 1 0 1"), 8, |e| {
+            matches!(e, Error::KnotsDecreasing { index: 2, .. })
+        }),
+        (surf(bspline, "1 2 3 5", "0 0 1 1"), 7, |e| {
+            matches!(
+                e,
+                Error::VertexReference {
+                    reference: 5,
+                    available: 4
+                }
+            )
+        }),
+        (surf(bspline, "1 2 3 -5", "0 0 1 1"), 7, |e| {
+            matches!(e, Error::VertexReference { reference: -5, .. })
+        }),
+        (surf(bspline, "1 2 3 0", "0 0 1 1"), 7, |e| {
+            matches!(e, Error::VertexReference { reference: 0, .. })
+        }),
+        (
+            surf("cstype bspline\ndeg 0 1\n", "1 2 3 4", "0 1"),
+            6,
+            |e| matches!(e, Error::DegreeOutOfRange { degree: 0, .. }),
+        ),
+        (
+            surf("cstype bspline\ndeg 99999999999 1\n", "1 2 3 4", "0 1"),
+            6,
+            |e| matches!(e, Error::DegreeOutOfRange { .. }),
+        ),
+        (surf("cstype taylor\ndeg 1 1\n", "1 2 3 4", "0 1"), 5, |e| {
+            matches!(e, Error::Syntax { .. })
+        }),
+        (surf("deg 1 1\n", "1 2 3 4", "0 0 1 1"), 6, |e| {
+            matches!(e, Error::Syntax { .. })
+        }),
+        (surf(bspline, "1 2 3 4", "0 0 nan 1"), 8, |e| {
+            matches!(e, Error::KnotNotFinite { .. })
+        }),
+        (
+            format!("{NET}{bspline}surf 0 1 0 1 1 2 3 4\nparm u 0 0 1 1\n"),
+            7,
+            |e| matches!(e, Error::Syntax { .. }),
+        ),
+        (
+            format!("{NET}{bspline}surf 0 1 0 2 1 2 3 4\nparm u 0 0 1 1\nparm v 0 0 1 1\nend\n"),
+            7,
+            |e| matches!(e, Error::RangeOutsideDomain { .. }),
+        ),
+        (
+            format!("{NET}{bspline}surf 0 1 0 1 1 2 3 4\nparm v 0 0 1 1\nend\n"),
+            7,
+            |e| matches!(e, Error::Syntax { .. }),
+        ),
+        (format!("{NET}end\n"), 5, |e| {
+            matches!(e, Error::Syntax { .. })
+        }),
+        (
+            format!(
+                "{NET}{bspline}surf 0 1 0 1 1 2 3 4\nparm u 0 0 1 1\nparm v 0 0 1 1\nv 0 0 0\nend\n"
+            ),
+            10,
+            |e| matches!(e, Error::Syntax { .. }),
+        ),
         ("".into(), 0, |e| matches!(e, Error::Syntax { .. })),
-        ("# only a comment\nv 1 2 3\n".into(), 0, |e| matches!(e, Error::Syntax { .. })),
+        ("# only a comment\nv 1 2 3\n".into(), 0, |e| {
+            matches!(e, Error::Syntax { .. })
+        }),
     ];
     for (text, line, expected) in cases {
         let err = obj_error(&text);
         assert!(expected(err.root()), "wrong error {err:?} for\n{text}");
-        assert_eq!(err.line(), (line > 0).then_some(line), "line of {err} for\n{text}");
+        assert_eq!(
+            err.line(),
+            (line > 0).then_some(line),
+            "line of {err} for\n{text}"
+        );
     }
     for weight in ["0", "-1", "nan", "inf"] {
-        let text = format!("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0 {weight}\ncstype rat bspline\ndeg 1 1\nsurf 0 1 0 1 1 2 3 4\nparm u 0 0 1 1\nparm v 0 0 1 1\nend\n");
+        let text = format!(
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0 {weight}\ncstype rat bspline\ndeg 1 1\nsurf 0 1 0 1 1 2 3 4\nparm u 0 0 1 1\nparm v 0 0 1 1\nend\n"
+        );
         let err = obj_error(&text);
-        assert!(matches!(err.root(), Error::InvalidWeight { index: 3, .. }) && err.line() == Some(7), "weight {weight}: {err}");
+        assert!(
+            matches!(err.root(), Error::InvalidWeight { index: 3, .. }) && err.line() == Some(7),
+            "weight {weight}: {err}"
+        );
     }
 }
 
@@ -235,9 +353,18 @@ fn file_errors_name_the_file_and_line() {
     let err = read_scene(&path).unwrap_err();
     assert!(matches!(err, Error::InFile { .. }));
     let message = err.to_string();
-    assert!(message.contains("broken.obj") && message.contains("line 7") && message.contains('9'), "{message}");
-    assert!(matches!(read_scene(&dir.join("missing.obj")).unwrap_err(), Error::Io { .. }));
-    assert!(matches!(read_scene(&dir.join("model.stp")).unwrap_err(), Error::UnknownFormat { .. }));
+    assert!(
+        message.contains("broken.obj") && message.contains("line 7") && message.contains('9'),
+        "{message}"
+    );
+    assert!(matches!(
+        read_scene(&dir.join("missing.obj")).unwrap_err(),
+        Error::Io { .. }
+    ));
+    assert!(matches!(
+        read_scene(&dir.join("model.stp")).unwrap_err(),
+        Error::UnknownFormat { .. }
+    ));
 }
 
 // ---------------------------------------------------------------- writers
@@ -254,7 +381,9 @@ proptest! {
 #[test]
 fn obj_mesh_round_trips_every_double() {
     let scene = read_scene(Path::new("data/ducky.obj")).unwrap();
-    let mesh = CpuTessellator.tessellate(&scene.surfaces, &TessOptions::DEFAULT.with_grid(9, 7)).unwrap();
+    let mesh = CpuTessellator
+        .tessellate(&scene.surfaces, &TessOptions::DEFAULT.with_grid(9, 7))
+        .unwrap();
     let dir = scratch_dir("round-trip");
     let path = dir.join("duck.obj");
     write_mesh(&path, &mesh).unwrap();
@@ -265,12 +394,24 @@ fn obj_mesh_round_trips_every_double() {
         let mut tokens = line.split_whitespace();
         let keyword = tokens.next();
         let rest: Vec<&str> = tokens.collect();
-        let floats = || rest.iter().map(|t| t.parse::<f64>().unwrap()).collect::<Vec<_>>();
+        let floats = || {
+            rest.iter()
+                .map(|t| t.parse::<f64>().unwrap())
+                .collect::<Vec<_>>()
+        };
         match keyword {
             Some("v") => v.push(floats()),
             Some("vt") => vt.push(floats()),
             Some("vn") => vn.push(floats()),
-            Some("f") => faces.push(rest.iter().map(|t| t.split('/').map(|i| i.parse::<u32>().unwrap()).collect::<Vec<_>>()).collect::<Vec<_>>()),
+            Some("f") => faces.push(
+                rest.iter()
+                    .map(|t| {
+                        t.split('/')
+                            .map(|i| i.parse::<u32>().unwrap())
+                            .collect::<Vec<_>>()
+                    })
+                    .collect::<Vec<_>>(),
+            ),
             _ => {}
         }
     }
@@ -300,29 +441,63 @@ fn failed_writes_leave_nothing_behind() {
     .unwrap_err();
     assert!(matches!(err, Error::Io { .. }));
     assert_eq!(std::fs::read_to_string(&path).unwrap(), "previous contents");
-    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "no temporary file left");
+    assert_eq!(
+        std::fs::read_dir(&dir).unwrap().count(),
+        1,
+        "no temporary file left"
+    );
     let mesh = knotwork::Mesh::default();
-    assert!(matches!(write_mesh(&dir.join("no-such-dir/out.obj"), &mesh), Err(Error::Io { .. })));
-    assert!(matches!(write_mesh(&dir.join("out.fbx"), &mesh), Err(Error::UnknownFormat { .. })));
+    assert!(matches!(
+        write_mesh(&dir.join("no-such-dir/out.obj"), &mesh),
+        Err(Error::Io { .. })
+    ));
+    assert!(matches!(
+        write_mesh(&dir.join("out.fbx"), &mesh),
+        Err(Error::UnknownFormat { .. })
+    ));
 }
 
 // ---------------------------------------------------------------- command line
 
 fn knotwork(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_knotwork")).args(args).output().unwrap()
+    Command::new(env!("CARGO_BIN_EXE_knotwork"))
+        .args(args)
+        .output()
+        .unwrap()
 }
 
 #[test]
 fn cli_tessellates_the_teapot() {
     let dir = scratch_dir("cli-ok");
     let out = dir.join("teapot.obj");
-    let run = knotwork(&["tessellate", "data/teapot.bpt", "-o", out.to_str().unwrap(), "--grid", "9x5", "--backend", "cpu"]);
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let run = knotwork(&[
+        "tessellate",
+        "data/teapot.bpt",
+        "-o",
+        out.to_str().unwrap(),
+        "--grid",
+        "9x5",
+        "--backend",
+        "cpu",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
     let summary = String::from_utf8_lossy(&run.stdout);
     assert_eq!(summary.lines().count(), 1);
-    assert!(summary.contains("32 surfaces") && summary.contains(&format!("{} vertices", 32 * 45)) && summary.contains(&format!("{} triangles", 32 * 64)), "{summary}");
+    assert!(
+        summary.contains("32 surfaces")
+            && summary.contains(&format!("{} vertices", 32 * 45))
+            && summary.contains(&format!("{} triangles", 32 * 64)),
+        "{summary}"
+    );
     let text = std::fs::read_to_string(&out).unwrap();
-    assert_eq!(text.lines().filter(|l| l.starts_with("v ")).count(), 32 * 45);
+    assert_eq!(
+        text.lines().filter(|l| l.starts_with("v ")).count(),
+        32 * 45
+    );
 }
 
 #[test]
@@ -331,14 +506,37 @@ fn cli_reports_bad_input_in_one_line_and_writes_nothing() {
     let input = dir.join("bad.obj");
     std::fs::write(&input, format!("{NET}cstype rat bspline\ndeg 1 1\nsurf 0 1 0 1 1 2 3 4\nparm u 0 0 1 0.5\nparm v 0 0 1 1\nend\n")).unwrap();
     let out = dir.join("out.obj");
-    let run = knotwork(&["tessellate", input.to_str().unwrap(), "-o", out.to_str().unwrap(), "--backend", "cpu"]);
+    let run = knotwork(&[
+        "tessellate",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
     assert!(!run.status.success());
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
-    assert!(stderr.contains("bad.obj") && stderr.contains("line 8") && stderr.contains("decrease"), "{stderr}");
+    assert!(
+        stderr.contains("bad.obj") && stderr.contains("line 8") && stderr.contains("decrease"),
+        "{stderr}"
+    );
     assert!(!out.exists());
-    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "only the input is there");
-    let run = knotwork(&["tessellate", "data/teapot.bpt", "-o", out.to_str().unwrap(), "--grid", "1x9", "--backend", "cpu"]);
+    assert_eq!(
+        std::fs::read_dir(&dir).unwrap().count(),
+        1,
+        "only the input is there"
+    );
+    let run = knotwork(&[
+        "tessellate",
+        "data/teapot.bpt",
+        "-o",
+        out.to_str().unwrap(),
+        "--grid",
+        "1x9",
+        "--backend",
+        "cpu",
+    ]);
     assert!(!run.status.success() && !out.exists());
 }
 
@@ -346,7 +544,9 @@ fn cli_reports_bad_input_in_one_line_and_writes_nothing() {
 
 fn teapot_mesh(n: u32) -> knotwork::Mesh {
     let scene = read_scene(Path::new("data/teapot.bpt")).unwrap();
-    CpuTessellator.tessellate(&scene.surfaces, &TessOptions::DEFAULT.with_grid(n, n)).unwrap()
+    CpuTessellator
+        .tessellate(&scene.surfaces, &TessOptions::DEFAULT.with_grid(n, n))
+        .unwrap()
 }
 
 fn as_f32(v: glam::DVec3) -> [f32; 3] {
@@ -361,7 +561,9 @@ fn ply_round_trips_through_an_independent_reader() {
     let dir = scratch_dir("ply");
     let path = dir.join("teapot.ply");
     write_mesh(&path, &mesh).unwrap();
-    let ply = Parser::<DefaultElement>::new().read_ply(&mut std::fs::File::open(&path).unwrap()).unwrap();
+    let ply = Parser::<DefaultElement>::new()
+        .read_ply(&mut std::fs::File::open(&path).unwrap())
+        .unwrap();
     let float = |e: &DefaultElement, k: &str| match e[k] {
         Property::Float(x) => x,
         ref other => panic!("{k}: {other:?}"),
@@ -369,9 +571,18 @@ fn ply_round_trips_through_an_independent_reader() {
     let vertices = &ply.payload["vertex"];
     assert_eq!(vertices.len(), mesh.vertex_count());
     for (k, v) in vertices.iter().enumerate() {
-        assert_eq!([float(v, "x"), float(v, "y"), float(v, "z")], as_f32(mesh.positions[k]));
-        assert_eq!([float(v, "nx"), float(v, "ny"), float(v, "nz")], as_f32(mesh.normals[k]));
-        assert_eq!([float(v, "s"), float(v, "t")], mesh.uvs[k].as_vec2().to_array());
+        assert_eq!(
+            [float(v, "x"), float(v, "y"), float(v, "z")],
+            as_f32(mesh.positions[k])
+        );
+        assert_eq!(
+            [float(v, "nx"), float(v, "ny"), float(v, "nz")],
+            as_f32(mesh.normals[k])
+        );
+        assert_eq!(
+            [float(v, "s"), float(v, "t")],
+            mesh.uvs[k].as_vec2().to_array()
+        );
     }
     let faces = &ply.payload["face"];
     assert_eq!(faces.len(), mesh.triangle_count());
@@ -395,11 +606,18 @@ fn stl_round_trips_through_an_independent_reader() {
         for c in 0..3 {
             let expected = as_f32(mesh.positions[mesh.indices[3 * t + c] as usize]);
             let got = stl.vertices[face.vertices[c]];
-            assert_eq!([got[0], got[1], got[2]], expected, "triangle {t} corner {c}");
+            assert_eq!(
+                [got[0], got[1], got[2]],
+                expected,
+                "triangle {t} corner {c}"
+            );
         }
         let n = face.normal;
         let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-        assert!(length == 0.0 || (length - 1.0).abs() < 1e-5, "unit face normal (zero only for collapsed triangles)");
+        assert!(
+            length == 0.0 || (length - 1.0).abs() < 1e-5,
+            "unit face normal (zero only for collapsed triangles)"
+        );
     }
 }
 
@@ -412,12 +630,19 @@ fn glb_round_trips_and_validates() {
     let bytes = std::fs::read(&path).unwrap();
     let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
     let blob = gltf.blob.as_deref().unwrap();
-    assert_eq!(gltf.meshes().count(), mesh.parts.len(), "one mesh per surface");
+    assert_eq!(
+        gltf.meshes().count(),
+        mesh.parts.len(),
+        "one mesh per surface"
+    );
     let mut triangles = 0;
     for (part, gltf_mesh) in mesh.parts.iter().zip(gltf.meshes()) {
         let primitive = gltf_mesh.primitives().next().unwrap();
         let bounds = primitive.bounding_box();
-        assert!(bounds.min[2] <= 0.0 && bounds.max[2] >= 3.15 - 1e-6, "POSITION bounds: {bounds:?}");
+        assert!(
+            bounds.min[2] <= 0.0 && bounds.max[2] >= 3.15 - 1e-6,
+            "POSITION bounds: {bounds:?}"
+        );
         let reader = primitive.reader(|_| Some(blob));
         let positions: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
         let normals: Vec<[f32; 3]> = reader.read_normals().unwrap().collect();
@@ -429,19 +654,33 @@ fn glb_round_trips_and_validates() {
             assert_eq!(uvs[k], mesh.uvs[k].as_vec2().to_array());
         }
         let indices: Vec<u32> = reader.read_indices().unwrap().into_u32().collect();
-        assert_eq!(indices[..], mesh.indices[part.first_index as usize..(part.first_index + part.index_count) as usize]);
+        assert_eq!(
+            indices[..],
+            mesh.indices[part.first_index as usize..(part.first_index + part.index_count) as usize]
+        );
         triangles += indices.len() / 3;
     }
     assert_eq!(triangles, mesh.triangle_count());
     // The Khronos validator, where `.ci/run` (or the user) installed it.
     match std::env::var("KNOTWORK_GLTF_VALIDATOR") {
         Ok(folder) => {
-            let run = Command::new("node").arg("tools/validate_gltf.js").arg(&path).env("KNOTWORK_GLTF_VALIDATOR", folder).output().expect("node runs");
+            let run = Command::new("node")
+                .arg("tools/validate_gltf.js")
+                .arg(&path)
+                .env("KNOTWORK_GLTF_VALIDATOR", folder)
+                .output()
+                .expect("node runs");
             let report = String::from_utf8_lossy(&run.stdout);
             println!("Khronos glTF validator: errors, warnings = {report}");
-            assert!(run.status.success() && report.starts_with("0 "), "{report}{}", String::from_utf8_lossy(&run.stderr));
+            assert!(
+                run.status.success() && report.starts_with("0 "),
+                "{report}{}",
+                String::from_utf8_lossy(&run.stderr)
+            );
         }
-        Err(_) => eprintln!("skipped the Khronos validator: set KNOTWORK_GLTF_VALIDATOR to a folder with node_modules/gltf-validator"),
+        Err(_) => eprintln!(
+            "skipped the Khronos validator: set KNOTWORK_GLTF_VALIDATOR to a folder with node_modules/gltf-validator"
+        ),
     }
 }
 
@@ -469,7 +708,8 @@ fn open_edges_and_pieces(mesh: &knotwork::Mesh) -> (usize, usize) {
             parent[ra] = rb;
         }
     }
-    let roots: std::collections::HashSet<usize> = (0..triangles.len()).map(|t| find(&mut parent, t)).collect();
+    let roots: std::collections::HashSet<usize> =
+        (0..triangles.len()).map(|t| find(&mut parent, t)).collect();
     (edges.values().filter(|e| e.1 == 1).count(), roots.len())
 }
 
@@ -480,16 +720,36 @@ fn welded_teapot_is_four_pieces_with_sixteen_open_patch_edges() {
     let (unwelded_open, unwelded_pieces) = open_edges_and_pieces(&mesh);
     assert_eq!(unwelded_pieces, 32, "every patch apart before welding");
     assert!(unwelded_open > 0);
-    let (welded, report) = mesh.weld(knotwork::mesh::WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
+    let (welded, report) =
+        mesh.weld(knotwork::mesh::WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
     let (open, pieces) = open_edges_and_pieces(&welded);
     assert_eq!(pieces, 4, "body (with rim and bottom), lid, handle, spout");
-    assert_eq!(open, 16 * (n as usize - 1), "16 patch edges stay open: rim, lid edge, handle ends, spout ends");
+    assert_eq!(
+        open,
+        16 * (n as usize - 1),
+        "16 patch edges stay open: rim, lid edge, handle ends, spout ends"
+    );
     // The 8 collapsed patch edges lose one triangle per cell along them.
     assert_eq!(report.dropped_triangles, 8 * (n as usize - 1));
-    assert_eq!(report.merged_vertices, mesh.vertex_count() - welded.vertex_count());
-    assert!(welded.indices.chunks_exact(3).all(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]));
+    assert_eq!(
+        report.merged_vertices,
+        mesh.vertex_count() - welded.vertex_count()
+    );
+    assert!(
+        welded
+            .indices
+            .chunks_exact(3)
+            .all(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
+    );
     // Part ranges still cover every triangle.
-    assert_eq!(welded.parts.iter().map(|p| p.index_count as usize).sum::<usize>(), welded.indices.len());
+    assert_eq!(
+        welded
+            .parts
+            .iter()
+            .map(|p| p.index_count as usize)
+            .sum::<usize>(),
+        welded.indices.len()
+    );
 }
 
 #[test]
@@ -504,20 +764,62 @@ fn batch_cli_processes_a_folder_and_reports_bad_files() {
     std::fs::write(inputs.join("truncated.bpt"), truncated).unwrap();
     std::fs::write(inputs.join("notes.txt"), "not a surface file").unwrap();
     let out = dir.join("out");
-    let run = knotwork(&["tessellate", inputs.to_str().unwrap(), "-o", out.to_str().unwrap(), "--format", "glb", "--weld", "--backend", "cpu", "--grid", "5x5"]);
-    assert!(!run.status.success(), "a failed file makes the exit status non-zero");
+    let run = knotwork(&[
+        "tessellate",
+        inputs.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--format",
+        "glb",
+        "--weld",
+        "--backend",
+        "cpu",
+        "--grid",
+        "5x5",
+    ]);
+    assert!(
+        !run.status.success(),
+        "a failed file makes the exit status non-zero"
+    );
     let stderr = String::from_utf8_lossy(&run.stderr);
-    assert!(stderr.contains("truncated.bpt") && stderr.contains("line 40"), "{stderr}");
+    assert!(
+        stderr.contains("truncated.bpt") && stderr.contains("line 40"),
+        "{stderr}"
+    );
     let summary = String::from_utf8_lossy(&run.stdout);
-    assert!(summary.contains("3 files (1 failed)") && summary.contains("35 surfaces") && summary.contains("vertices merged"), "{summary}");
-    let mut written: Vec<String> = std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert!(
+        summary.contains("3 files (1 failed)")
+            && summary.contains("35 surfaces")
+            && summary.contains("vertices merged"),
+        "{summary}"
+    );
+    let mut written: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
     written.sort();
-    assert_eq!(written, ["ducky.glb", "teapot.glb"], "good files written, nothing for the bad one, no temporaries");
+    assert_eq!(
+        written,
+        ["ducky.glb", "teapot.glb"],
+        "good files written, nothing for the bad one, no temporaries"
+    );
     // Several files named explicitly, with the input format forced.
     let renamed = dir.join("teapot.txt");
     std::fs::copy("data/teapot.bpt", &renamed).unwrap();
     let out2 = dir.join("out2");
-    let run = knotwork(&["tessellate", renamed.to_str().unwrap(), "data/ducky.obj", "-o", out2.to_str().unwrap(), "--input-format", "bpt", "--backend", "cpu", "--grid", "3x3"]);
+    let run = knotwork(&[
+        "tessellate",
+        renamed.to_str().unwrap(),
+        "data/ducky.obj",
+        "-o",
+        out2.to_str().unwrap(),
+        "--input-format",
+        "bpt",
+        "--backend",
+        "cpu",
+        "--grid",
+        "3x3",
+    ]);
     assert!(!run.status.success(), "ducky.obj is not BPT");
     assert!(out2.join("teapot.obj").exists() && !out2.join("ducky.obj").exists());
 }
@@ -533,31 +835,68 @@ fn json_scene_reads_every_kind_with_its_own_grid() {
     assert_eq!((options[1].grid_u, options[1].grid_v), (9, 9));
     assert!(scene.surfaces[0].is_rational() && !scene.surfaces[1].is_rational());
     assert_eq!(scene.surfaces[1].range_v(), Interval::new(0.0, 0.5));
-    assert_eq!(scene.surfaces[1].knots_u().knots(), &[0.0, 0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 2.0]);
+    assert_eq!(
+        scene.surfaces[1].knots_u().knots(),
+        &[0.0, 0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 2.0]
+    );
     let ball = &scene.surfaces[2];
     for (u, v) in [(0.1, 0.2), (0.7, 0.9), (0.5, 0.0)] {
         let d = (ball.point(u, v) - DVec3::new(1.5, 6.0, 1.0)).length();
         assert!((d - 1.0).abs() < 1e-14, "sphere point at distance {d}");
     }
     let mut mesh = knotwork::Mesh::default();
-    CpuTessellator.tessellate_each_into(&scene.surfaces, &options, &mut mesh).unwrap();
+    CpuTessellator
+        .tessellate_each_into(&scene.surfaces, &options, &mut mesh)
+        .unwrap();
     assert_eq!(mesh.vertex_count(), 24 * 24 + 3 * 81);
 }
 
 #[test]
 fn json_errors_name_the_line_or_the_surface() {
-    let err = knotwork::io::read_json_scene("{ \"surfaces\": [\n  { \"kind\": \"sphere\", \"centre\": [0, 0], \"radius\": 1 }\n] }").unwrap_err();
-    assert!(matches!(err.root(), Error::Syntax { .. }) && err.line() == Some(2), "{err}");
-    let err = knotwork::io::read_json_scene("{ \"surfaces\": [ { \"kind\": \"cone\" } ] }").unwrap_err();
+    let err = knotwork::io::read_json_scene(
+        "{ \"surfaces\": [\n  { \"kind\": \"sphere\", \"centre\": [0, 0], \"radius\": 1 }\n] }",
+    )
+    .unwrap_err();
+    assert!(
+        matches!(err.root(), Error::Syntax { .. }) && err.line() == Some(2),
+        "{err}"
+    );
+    let err =
+        knotwork::io::read_json_scene("{ \"surfaces\": [ { \"kind\": \"cone\" } ] }").unwrap_err();
     assert!(err.to_string().contains("cone"), "{err}");
-    let sphere = |radius: &str| format!("{{ \"surfaces\": [ {{ \"kind\": \"torus\", \"centre\": [0, 0, 0], \"major_radius\": 2, \"minor_radius\": 1 }}, {{ \"kind\": \"sphere\", \"centre\": [0, 0, 0], \"radius\": {radius} }} ] }}");
+    let sphere = |radius: &str| {
+        format!(
+            "{{ \"surfaces\": [ {{ \"kind\": \"torus\", \"centre\": [0, 0, 0], \"major_radius\": 2, \"minor_radius\": 1 }}, {{ \"kind\": \"sphere\", \"centre\": [0, 0, 0], \"radius\": {radius} }} ] }}"
+        )
+    };
     let err = knotwork::io::read_json_scene(&sphere("0")).unwrap_err();
-    assert!(matches!(err, Error::InSurface { index: 1, .. }) && matches!(err.root(), Error::InvalidParameter { name: "radius", .. }), "{err}");
+    assert!(
+        matches!(err, Error::InSurface { index: 1, .. })
+            && matches!(err.root(), Error::InvalidParameter { name: "radius", .. }),
+        "{err}"
+    );
     let bad_knots = r#"{ "surfaces": [ { "kind": "bspline", "degree": [1, 1], "knots_u": [0, 0, 2, 1], "knots_v": [0, 0, 1, 1], "points": [[0,0,0],[1,0,0],[0,1,0],[1,1,0]] } ] }"#;
     let err = knotwork::io::read_json_scene(bad_knots).unwrap_err();
-    assert!(matches!(err, Error::InSurface { index: 0, .. }) && matches!(err.root(), Error::KnotsDecreasing { index: 3, .. }), "{err}");
+    assert!(
+        matches!(err, Error::InSurface { index: 0, .. })
+            && matches!(err.root(), Error::KnotsDecreasing { index: 3, .. }),
+        "{err}"
+    );
     let bad_grid = r#"{ "surfaces": [ { "kind": "sphere", "centre": [0, 0, 0], "radius": 1, "grid": [1, 5] } ] }"#;
-    assert!(matches!(knotwork::io::read_json_scene(bad_grid).unwrap_err().root(), Error::GridTooSmall { nu: 1, nv: 5 }));
-    let few_options = CpuTessellator.tessellate_each_into(&read_scene(Path::new("data/scene.json")).unwrap().surfaces, &[TessOptions::DEFAULT], &mut knotwork::Mesh::default());
-    assert!(matches!(few_options, Err(Error::OptionsCount { expected: 4, found: 1 })));
+    assert!(matches!(
+        knotwork::io::read_json_scene(bad_grid).unwrap_err().root(),
+        Error::GridTooSmall { nu: 1, nv: 5 }
+    ));
+    let few_options = CpuTessellator.tessellate_each_into(
+        &read_scene(Path::new("data/scene.json")).unwrap().surfaces,
+        &[TessOptions::DEFAULT],
+        &mut knotwork::Mesh::default(),
+    );
+    assert!(matches!(
+        few_options,
+        Err(Error::OptionsCount {
+            expected: 4,
+            found: 1
+        })
+    ));
 }

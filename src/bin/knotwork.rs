@@ -11,7 +11,11 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 #[derive(Parser)]
-#[command(name = "knotwork", version, about = "Tessellates Bezier, B-spline and NURBS surfaces into triangle meshes")]
+#[command(
+    name = "knotwork",
+    version,
+    about = "Tessellates Bezier, B-spline and NURBS surfaces into triangle meshes"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -99,8 +103,14 @@ enum InputFormat {
 }
 
 fn parse_grid(text: &str) -> Result<(u32, u32), String> {
-    let (u, v) = text.split_once(['x', 'X']).ok_or("expected NUxNV, e.g. 33x33")?;
-    let parse = |s: &str| s.trim().parse::<u32>().map_err(|_| format!("`{s}` is not a vertex count"));
+    let (u, v) = text
+        .split_once(['x', 'X'])
+        .ok_or("expected NUxNV, e.g. 33x33")?;
+    let parse = |s: &str| {
+        s.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("`{s}` is not a vertex count"))
+    };
     let (u, v) = (parse(u)?, parse(v)?);
     if u < 2 || v < 2 {
         return Err("each side of the grid needs at least 2 vertices".into());
@@ -109,17 +119,34 @@ fn parse_grid(text: &str) -> Result<(u32, u32), String> {
 }
 
 fn parse_size(text: &str) -> Result<(u32, u32), String> {
-    let (w, h) = text.split_once(['x', 'X']).ok_or("expected WxH, e.g. 800x600")?;
-    let parse = |s: &str| s.trim().parse::<u32>().ok().filter(|n| (1..=8192).contains(n)).ok_or(format!("`{s}` is not a size in 1..=8192"));
+    let (w, h) = text
+        .split_once(['x', 'X'])
+        .ok_or("expected WxH, e.g. 800x600")?;
+    let parse = |s: &str| {
+        s.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|n| (1..=8192).contains(n))
+            .ok_or(format!("`{s}` is not a size in 1..=8192"))
+    };
     Ok((parse(w)?, parse(h)?))
 }
 
 /// Tessellates on the GPU and renders the batch's own buffers to a PNG.
-fn render(input: &Path, output: &Path, grid: (u32, u32), options: &knotwork::render::RenderOptions) -> knotwork::Result<()> {
+fn render(
+    input: &Path,
+    output: &Path,
+    grid: (u32, u32),
+    options: &knotwork::render::RenderOptions,
+) -> knotwork::Result<()> {
     let start = Instant::now();
     let scene = knotwork::io::read_scene(input)?;
     let context = GpuContext::new()?;
-    let batch = knotwork::GpuBatch::new_each(&context, &scene.surfaces, &scene.options_or(TessOptions::DEFAULT.with_grid(grid.0, grid.1)))?;
+    let batch = knotwork::GpuBatch::new_each(
+        &context,
+        &scene.surfaces,
+        &scene.options_or(TessOptions::DEFAULT.with_grid(grid.0, grid.1)),
+    )?;
     batch.dispatch(&context)?;
     let image = knotwork::render::render(&context, &batch, &scene.surfaces, options)?;
     knotwork::render::save_png(output, &image)?;
@@ -140,7 +167,15 @@ fn render(input: &Path, output: &Path, grid: (u32, u32), options: &knotwork::ren
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Tessellate { inputs, output, grid, backend, format, input_format, weld } => {
+        Command::Tessellate {
+            inputs,
+            output,
+            grid,
+            backend,
+            format,
+            input_format,
+            weld,
+        } => {
             let job = Job {
                 options: TessOptions::DEFAULT.with_grid(grid.0, grid.1),
                 format: format.map(|f| match f {
@@ -158,8 +193,20 @@ fn main() -> ExitCode {
             };
             tessellate(&inputs, &output, backend, &job)
         }
-        Command::Render { input, output, size, grid, wireframe, control_net } => {
-            let options = knotwork::render::RenderOptions { width: size.0, height: size.1, wireframe, control_net };
+        Command::Render {
+            input,
+            output,
+            size,
+            grid,
+            wireframe,
+            control_net,
+        } => {
+            let options = knotwork::render::RenderOptions {
+                width: size.0,
+                height: size.1,
+                wireframe,
+                control_net,
+            };
             render(&input, &output, grid, &options).map(|()| true)
         }
         Command::Info => {
@@ -207,7 +254,12 @@ struct Tally {
     merged: usize,
 }
 
-fn process(input: &Path, output: &Path, tessellator: &dyn Tessellator, job: &Job) -> knotwork::Result<Tally> {
+fn process(
+    input: &Path,
+    output: &Path,
+    tessellator: &dyn Tessellator,
+    job: &Job,
+) -> knotwork::Result<Tally> {
     let scene = knotwork::io::read_scene_as(input, job.input_format)?;
     let mut mesh = knotwork::Mesh::default();
     tessellator.tessellate_each_into(&scene.surfaces, &scene.options_or(job.options), &mut mesh)?;
@@ -217,7 +269,12 @@ fn process(input: &Path, output: &Path, tessellator: &dyn Tessellator, job: &Job
         (mesh, merged) = (welded, report.merged_vertices);
     }
     knotwork::io::write_mesh_as(output, &mesh, job.format)?;
-    Ok(Tally { surfaces: scene.surfaces.len(), vertices: mesh.vertex_count(), triangles: mesh.triangle_count(), merged })
+    Ok(Tally {
+        surfaces: scene.surfaces.len(),
+        vertices: mesh.vertex_count(),
+        triangles: mesh.triangle_count(),
+        merged,
+    })
 }
 
 /// Expands directories into the surface files they hold (sorted), keeps files as given.
@@ -225,10 +282,19 @@ fn expand_inputs(inputs: &[PathBuf]) -> knotwork::Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     for input in inputs {
         if input.is_dir() {
-            let entries = std::fs::read_dir(input).map_err(|source| knotwork::Error::Io { path: input.clone(), source })?;
+            let entries = std::fs::read_dir(input).map_err(|source| knotwork::Error::Io {
+                path: input.clone(),
+                source,
+            })?;
             let mut found: Vec<PathBuf> = entries
                 .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.is_file() && p.extension().and_then(|e| e.to_str()).and_then(SceneFormat::from_extension).is_some())
+                .filter(|p| {
+                    p.is_file()
+                        && p.extension()
+                            .and_then(|e| e.to_str())
+                            .and_then(SceneFormat::from_extension)
+                            .is_some()
+                })
                 .collect();
             found.sort();
             files.extend(found);
@@ -240,13 +306,22 @@ fn expand_inputs(inputs: &[PathBuf]) -> knotwork::Result<Vec<PathBuf>> {
 }
 
 /// Tessellates every input; returns whether all succeeded.
-fn tessellate(inputs: &[PathBuf], output: &Path, backend: Backend, job: &Job) -> knotwork::Result<bool> {
+fn tessellate(
+    inputs: &[PathBuf],
+    output: &Path,
+    backend: Backend,
+    job: &Job,
+) -> knotwork::Result<bool> {
     let start = Instant::now();
     let batch = inputs.len() > 1 || inputs.iter().any(|p| p.is_dir()) || output.is_dir();
     let tessellator = tessellator(backend)?;
     if !batch {
         let tally = process(&inputs[0], output, tessellator.as_ref(), job)?;
-        let weld = if job.weld { format!(", {} vertices merged", tally.merged) } else { String::new() };
+        let weld = if job.weld {
+            format!(", {} vertices merged", tally.merged)
+        } else {
+            String::new()
+        };
         println!(
             "{}: {} surfaces, {} vertices, {} triangles{weld} in {:.3} s ({}) -> {}",
             inputs[0].display(),
@@ -260,13 +335,22 @@ fn tessellate(inputs: &[PathBuf], output: &Path, backend: Backend, job: &Job) ->
         return Ok(true);
     }
     let files = expand_inputs(inputs)?;
-    std::fs::create_dir_all(output).map_err(|source| knotwork::Error::Io { path: output.to_path_buf(), source })?;
+    std::fs::create_dir_all(output).map_err(|source| knotwork::Error::Io {
+        path: output.to_path_buf(),
+        source,
+    })?;
     let extension = job.format.unwrap_or(MeshFormat::Obj).extension();
-    let progress = if std::io::stderr().is_terminal() { indicatif::ProgressBar::new(files.len() as u64) } else { indicatif::ProgressBar::hidden() };
+    let progress = if std::io::stderr().is_terminal() {
+        indicatif::ProgressBar::new(files.len() as u64)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
     let results: Vec<(PathBuf, knotwork::Result<Tally>)> = files
         .par_iter()
         .map(|input| {
-            let name = input.file_stem().map_or_else(|| "mesh".into(), |s| s.to_owned());
+            let name = input
+                .file_stem()
+                .map_or_else(|| "mesh".into(), |s| s.to_owned());
             let target = output.join(name).with_extension(extension);
             let result = process(input, &target, tessellator.as_ref(), job);
             progress.inc(1);
@@ -288,12 +372,20 @@ fn tessellate(inputs: &[PathBuf], output: &Path, backend: Backend, job: &Job) ->
                 failed += 1;
                 // The error names the file itself when it came from reading it.
                 let message = error.to_string();
-                if message.contains(&*input.to_string_lossy()) { eprintln!("error: {message}") } else { eprintln!("error: {}: {message}", input.display()) }
+                if message.contains(&*input.to_string_lossy()) {
+                    eprintln!("error: {message}")
+                } else {
+                    eprintln!("error: {}: {message}", input.display())
+                }
             }
         }
     }
     let seconds = start.elapsed().as_secs_f64();
-    let weld = if job.weld { format!(", {} vertices merged", total.merged) } else { String::new() };
+    let weld = if job.weld {
+        format!(", {} vertices merged", total.merged)
+    } else {
+        String::new()
+    };
     println!(
         "{} files ({} failed): {} surfaces, {} vertices, {} triangles{weld} in {seconds:.3} s, {:.1} M vertices/s ({}) -> {}",
         results.len(),
@@ -313,8 +405,13 @@ fn conformance() -> knotwork::Result<bool> {
     use knotwork::conformance::{self, DEGENERATE_NORMAL_BAR, NORMAL_BAR, POSITION_REL_BAR};
     let gpu = GpuTessellator::new()?;
     println!("adapter: {}", gpu.context().adapter_summary());
-    println!("bars: position {POSITION_REL_BAR:e} of the diagonal (+ f32 rounding), normal {NORMAL_BAR:e} rad ({DEGENERATE_NORMAL_BAR:e} near degenerate points)");
-    println!("{:<48} {:>14} {:>14} {:>14}  result", "case", "position/diag", "normal (rad)", "degen. (rad)");
+    println!(
+        "bars: position {POSITION_REL_BAR:e} of the diagonal (+ f32 rounding), normal {NORMAL_BAR:e} rad ({DEGENERATE_NORMAL_BAR:e} near degenerate points)"
+    );
+    println!(
+        "{:<48} {:>14} {:>14} {:>14}  result",
+        "case", "position/diag", "normal (rad)", "degen. (rad)"
+    );
     let mut all_pass = true;
     for case in conformance::suite() {
         let mesh = gpu.tessellate(&case.surfaces, &case.options)?;
@@ -329,7 +426,14 @@ fn conformance() -> knotwork::Result<bool> {
             if report.passes() { "pass" } else { "FAIL" }
         );
     }
-    println!("verdict: {}", if all_pass { "this adapter conforms" } else { "this adapter does NOT conform" });
+    println!(
+        "verdict: {}",
+        if all_pass {
+            "this adapter conforms"
+        } else {
+            "this adapter does NOT conform"
+        }
+    );
     Ok(all_pass)
 }
 
@@ -362,7 +466,10 @@ fn info() -> String {
         ));
     }
     match GpuContext::new() {
-        Ok(context) => out.push_str(&format!("default adapter (used by --backend gpu|auto): {}", context.adapter_summary())),
+        Ok(context) => out.push_str(&format!(
+            "default adapter (used by --backend gpu|auto): {}",
+            context.adapter_summary()
+        )),
         Err(error) => out.push_str(&format!("default adapter: none ({error})")),
     }
     out

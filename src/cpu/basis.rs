@@ -12,7 +12,13 @@ pub(crate) type BasisDers = [[f64; MAX_ORDER]; 3];
 
 /// Fills `ders` with the values and first `order` (0..=2) derivatives of the non-zero basis
 /// functions at `u` in span `span` (from [`KnotVector::find_span`]).
-pub(crate) fn basis_ders(knots: &KnotVector, span: usize, u: f64, order: usize, ders: &mut BasisDers) {
+pub(crate) fn basis_ders(
+    knots: &KnotVector,
+    span: usize,
+    u: f64,
+    order: usize,
+    ders: &mut BasisDers,
+) {
     debug_assert!(order <= 2);
     let p = knots.degree();
     let k = knots.knots();

@@ -46,7 +46,15 @@ impl BSplineSurface {
         let duu = (huu.truncate() - 2.0 * hu.w * du - huu.w * position) / w;
         let duv = (huv.truncate() - hu.w * dv - hv.w * du - huv.w * position) / w;
         let dvv = (hvv.truncate() - 2.0 * hv.w * dv - hvv.w * position) / w;
-        let mut sample = SurfaceSample { position, du, dv, duu, duv, dvv, normal: DVec3::ZERO };
+        let mut sample = SurfaceSample {
+            position,
+            du,
+            dv,
+            duu,
+            duv,
+            dvv,
+            normal: DVec3::ZERO,
+        };
         sample.normal = self.normal_of(&sample, u, v);
         sample
     }
@@ -72,9 +80,18 @@ impl BSplineSurface {
             return n.normalize();
         }
         let (ru, rv) = (self.range_u(), self.range_v());
-        let step_u = if u > 0.5 * (ru.start + ru.end) { -ru.width() } else { ru.width() };
-        let step_v = if v > 0.5 * (rv.start + rv.end) { -rv.width() } else { rv.width() };
-        let first_order = step_u * (s.du.cross(s.duv) + s.duu.cross(s.dv)) + step_v * (s.du.cross(s.dvv) + s.duv.cross(s.dv));
+        let step_u = if u > 0.5 * (ru.start + ru.end) {
+            -ru.width()
+        } else {
+            ru.width()
+        };
+        let step_v = if v > 0.5 * (rv.start + rv.end) {
+            -rv.width()
+        } else {
+            rv.width()
+        };
+        let first_order = step_u * (s.du.cross(s.duv) + s.duu.cross(s.dv))
+            + step_v * (s.du.cross(s.dvv) + s.duv.cross(s.dv));
         if first_order.length_squared() > threshold {
             return first_order.normalize();
         }
@@ -93,7 +110,13 @@ impl BSplineSurface {
     fn rational_first_derivatives(&self, u: f64, v: f64) -> (DVec3, [DVec3; 2]) {
         let (h, [hu, hv, ..]) = self.homogeneous_derivatives(u, v);
         let position = h.truncate() / h.w;
-        (position, [(hu.truncate() - hu.w * position) / h.w, (hv.truncate() - hv.w * position) / h.w])
+        (
+            position,
+            [
+                (hu.truncate() - hu.w * position) / h.w,
+                (hv.truncate() - hv.w * position) / h.w,
+            ],
+        )
     }
 
     /// Homogeneous point and its derivatives [∂u, ∂v, ∂uu, ∂uv, ∂vv] at (u, v).
@@ -136,9 +159,18 @@ impl BSplineCurve {
         let p = knots.degree();
         let span = knots.find_span(u);
         let mut basis: BasisDers = [[0.0; MAX_ORDER]; 3];
-        basis_ders(knots, span, u.clamp(knots.domain().0, knots.domain().1), 1, &mut basis);
+        basis_ders(
+            knots,
+            span,
+            u.clamp(knots.domain().0, knots.domain().1),
+            1,
+            &mut basis,
+        );
         let (mut h, mut hu) = (DVec4::ZERO, DVec4::ZERO);
-        for (a, &pt) in self.homogeneous_points()[span - p..=span].iter().enumerate() {
+        for (a, &pt) in self.homogeneous_points()[span - p..=span]
+            .iter()
+            .enumerate()
+        {
             h += basis[0][a] * pt;
             hu += basis[1][a] * pt;
         }

@@ -17,13 +17,24 @@ use rayon::prelude::*;
 
 /// Tessellates every surface on its own grid (`options[k]` for surface k) into `mesh`,
 /// replacing its contents but reusing its buffers (see [`Mesh`] for the layout).
-pub fn tessellate_grid_into(surfaces: &[BSplineSurface], options: &[TessOptions], mesh: &mut Mesh) -> Result<()> {
+pub fn tessellate_grid_into(
+    surfaces: &[BSplineSurface],
+    options: &[TessOptions],
+    mesh: &mut Mesh,
+) -> Result<()> {
     if options.len() != surfaces.len() {
-        return Err(Error::OptionsCount { expected: surfaces.len(), found: options.len() });
+        return Err(Error::OptionsCount {
+            expected: surfaces.len(),
+            found: options.len(),
+        });
     }
     let parts = plan_parts(options)?;
-    let total_vertices = parts.last().map_or(0, |p| (p.first_vertex + p.vertex_count) as usize);
-    let total_indices = parts.last().map_or(0, |p| (p.first_index + p.index_count) as usize);
+    let total_vertices = parts
+        .last()
+        .map_or(0, |p| (p.first_vertex + p.vertex_count) as usize);
+    let total_indices = parts
+        .last()
+        .map_or(0, |p| (p.first_index + p.index_count) as usize);
     // Every element is overwritten below; resizing only touches memory when a buffer grows.
     mesh.positions.resize(total_vertices, DVec3::ZERO);
     mesh.normals.resize(total_vertices, DVec3::ZERO);
@@ -32,7 +43,11 @@ pub fn tessellate_grid_into(surfaces: &[BSplineSurface], options: &[TessOptions]
     mesh.parts = parts;
     // Split the outputs into one (positions, normals, uvs) slice triple per surface.
     let mut jobs = Vec::with_capacity(surfaces.len());
-    let (mut pos, mut nrm, mut uv) = (&mut mesh.positions[..], &mut mesh.normals[..], &mut mesh.uvs[..]);
+    let (mut pos, mut nrm, mut uv) = (
+        &mut mesh.positions[..],
+        &mut mesh.normals[..],
+        &mut mesh.uvs[..],
+    );
     for (surface, part) in surfaces.iter().zip(&mesh.parts) {
         let n = part.vertex_count as usize;
         let (p0, p1) = pos.split_at_mut(n);
@@ -41,9 +56,10 @@ pub fn tessellate_grid_into(surfaces: &[BSplineSurface], options: &[TessOptions]
         jobs.push((surface, *part, p0, n0, u0));
         (pos, nrm, uv) = (p1, n1, u1);
     }
-    jobs.into_par_iter().for_each(|(surface, part, positions, normals, uvs)| {
-        tessellate_surface(surface, &part, positions, normals, uvs);
-    });
+    jobs.into_par_iter()
+        .for_each(|(surface, part, positions, normals, uvs)| {
+            tessellate_surface(surface, &part, positions, normals, uvs);
+        });
     fill_grid_indices(&mesh.parts, &mut mesh.indices);
     Ok(())
 }
@@ -110,16 +126,24 @@ struct RowScratch {
 /// Vertices evaluated together, one per lane of [`F64x4`].
 const LANES: usize = 4;
 
-fn tessellate_surface(surface: &BSplineSurface, part: &MeshPart, positions: &mut [DVec3], normals: &mut [DVec3], uvs: &mut [DVec2]) {
+fn tessellate_surface(
+    surface: &BSplineSurface,
+    part: &MeshPart,
+    positions: &mut [DVec3],
+    normals: &mut [DVec3],
+    uvs: &mut [DVec2],
+) {
     let (nu, nv) = (part.grid_u as usize, part.grid_v as usize);
     let columns = AxisTable::new(surface.knots_u(), surface.range_u(), nu);
     let rows = AxisTable::new(surface.knots_v(), surface.range_v(), nv);
     evaluate_tables(surface, &columns, &rows, positions, normals);
-    uvs.par_chunks_mut(nu).zip(&rows.fractions).for_each(|(row_uvs, &v)| {
-        for (uv, &u) in row_uvs.iter_mut().zip(&columns.fractions) {
-            *uv = DVec2::new(u, v);
-        }
-    });
+    uvs.par_chunks_mut(nu)
+        .zip(&rows.fractions)
+        .for_each(|(row_uvs, &v)| {
+            for (uv, &u) in row_uvs.iter_mut().zip(&columns.fractions) {
+                *uv = DVec2::new(u, v);
+            }
+        });
 }
 
 /// Evaluates `surface` on a grid of `grid_u` × `grid_v` vertices — uniform in parameter over
@@ -127,9 +151,18 @@ fn tessellate_surface(surface: &BSplineSurface, part: &MeshPart, positions: &mut
 /// over rows. For callers that keep their own topology and only need the attributes (a
 /// renderer re-evaluating moved control points); [`tessellate_grid_into`] builds on it.
 /// Both slices must hold exactly grid_u·grid_v elements.
-pub fn evaluate_grid_into(surface: &BSplineSurface, grid_u: u32, grid_v: u32, positions: &mut [DVec3], normals: &mut [DVec3]) -> Result<()> {
+pub fn evaluate_grid_into(
+    surface: &BSplineSurface,
+    grid_u: u32,
+    grid_v: u32,
+    positions: &mut [DVec3],
+    normals: &mut [DVec3],
+) -> Result<()> {
     if grid_u < 2 || grid_v < 2 {
-        return Err(Error::GridTooSmall { nu: grid_u, nv: grid_v });
+        return Err(Error::GridTooSmall {
+            nu: grid_u,
+            nv: grid_v,
+        });
     }
     let expected = grid_u as usize * grid_v as usize;
     for found in [positions.len(), normals.len()] {
@@ -143,26 +176,44 @@ pub fn evaluate_grid_into(surface: &BSplineSurface, grid_u: u32, grid_v: u32, po
     Ok(())
 }
 
-fn evaluate_tables(surface: &BSplineSurface, columns: &AxisTable, rows: &AxisTable, positions: &mut [DVec3], normals: &mut [DVec3]) {
+fn evaluate_tables(
+    surface: &BSplineSurface,
+    columns: &AxisTable,
+    rows: &AxisTable,
+    positions: &mut [DVec3],
+    normals: &mut [DVec3],
+) {
     let nu = columns.params.len();
     let count_u = surface.count_u();
     let fma = has_fma();
-    positions.par_chunks_mut(nu).zip(normals.par_chunks_mut(nu)).enumerate().for_each_init(
-        || RowScratch { column_value: vec![DVec4::ZERO; count_u], column_dv: vec![DVec4::ZERO; count_u] },
-        |scratch, (j, (row_positions, row_normals))| {
-            contract_columns(surface, columns, rows, j, scratch);
-            let row = Row { surface, columns, v: rows.params[j], scratch };
-            if fma {
-                // SAFETY: `has_fma` checked at run time that this CPU has AVX2 and FMA.
-                #[cfg(target_arch = "x86_64")]
-                unsafe {
-                    row.evaluate_avx2_fma(row_positions, row_normals)
+    positions
+        .par_chunks_mut(nu)
+        .zip(normals.par_chunks_mut(nu))
+        .enumerate()
+        .for_each_init(
+            || RowScratch {
+                column_value: vec![DVec4::ZERO; count_u],
+                column_dv: vec![DVec4::ZERO; count_u],
+            },
+            |scratch, (j, (row_positions, row_normals))| {
+                contract_columns(surface, columns, rows, j, scratch);
+                let row = Row {
+                    surface,
+                    columns,
+                    v: rows.params[j],
+                    scratch,
                 };
-            } else {
-                row.evaluate::<Portable>(row_positions, row_normals);
-            }
-        },
-    );
+                if fma {
+                    // SAFETY: `has_fma` checked at run time that this CPU has AVX2 and FMA.
+                    #[cfg(target_arch = "x86_64")]
+                    unsafe {
+                        row.evaluate_avx2_fma(row_positions, row_normals)
+                    };
+                } else {
+                    row.evaluate::<Portable>(row_positions, row_normals);
+                }
+            },
+        );
 }
 
 /// True when the row kernel can use fused multiply-add on 4-wide f64 vectors.
@@ -179,12 +230,23 @@ fn has_fma() -> bool {
 
 /// Contracts the control net along v at grid row `j`: for every control column the spans of
 /// this grid touch, the homogeneous value and v-derivative of that column at v_j.
-fn contract_columns(surface: &BSplineSurface, columns: &AxisTable, rows: &AxisTable, j: usize, scratch: &mut RowScratch) {
+fn contract_columns(
+    surface: &BSplineSurface,
+    columns: &AxisTable,
+    rows: &AxisTable,
+    j: usize,
+    scratch: &mut RowScratch,
+) {
     let (p, q) = (surface.degree_u(), surface.degree_v());
     let count_u = surface.count_u();
     let points = surface.homogeneous_points();
     let stride = rows.stride();
-    let span_v = rows.runs.iter().find(|r| r.1 <= j && j < r.2).expect("every row lies in a run").0;
+    let span_v = rows
+        .runs
+        .iter()
+        .find(|r| r.1 <= j && j < r.2)
+        .expect("every row lies in a run")
+        .0;
     let first_column = columns.runs.first().map_or(0, |r| r.0 - p);
     let last_column = columns.runs.last().map_or(0, |r| r.0);
     for c in first_column..=last_column {
@@ -244,8 +306,16 @@ impl Row<'_> {
                 // the target features.)
                 let inv_w = V::splat(1.0).div(acc[3]);
                 let (x, y, z) = (acc[0].mul(inv_w), acc[1].mul(inv_w), acc[2].mul(inv_w));
-                let su = [acc[4].sub(acc[7].mul(x)), acc[5].sub(acc[7].mul(y)), acc[6].sub(acc[7].mul(z))];
-                let sv = [acc[8].sub(acc[11].mul(x)), acc[9].sub(acc[11].mul(y)), acc[10].sub(acc[11].mul(z))];
+                let su = [
+                    acc[4].sub(acc[7].mul(x)),
+                    acc[5].sub(acc[7].mul(y)),
+                    acc[6].sub(acc[7].mul(z)),
+                ];
+                let sv = [
+                    acc[8].sub(acc[11].mul(x)),
+                    acc[9].sub(acc[11].mul(y)),
+                    acc[10].sub(acc[11].mul(z)),
+                ];
                 let cx = su[1].mul(sv[2]).sub(su[2].mul(sv[1]));
                 let cy = su[2].mul(sv[0]).sub(su[0].mul(sv[2]));
                 let cz = su[0].mul(sv[1]).sub(su[1].mul(sv[0]));
@@ -254,7 +324,11 @@ impl Row<'_> {
                 let w_sq = acc[3].mul(acc[3]);
                 let limit = w_sq.mul(w_sq).mul(V::splat(threshold)).to_array();
                 let (x, y, z) = (x.to_array(), y.to_array(), z.to_array());
-                let (nx, ny, nz) = (cx.mul(inv_len).to_array(), cy.mul(inv_len).to_array(), cz.mul(inv_len).to_array());
+                let (nx, ny, nz) = (
+                    cx.mul(inv_len).to_array(),
+                    cy.mul(inv_len).to_array(),
+                    cz.mul(inv_len).to_array(),
+                );
                 let len_sq = len_sq.to_array();
                 for l in 0..LANES.min(end - i0) {
                     let i = i0 + l;
@@ -284,18 +358,51 @@ mod tests {
             return;
         }
         let (p, q, nu, nv) = (3, 2, 7, 5);
-        let points: Vec<DVec3> = (0..nu * nv).map(|k| DVec3::new((k % nu) as f64, (k / nu) as f64, ((k * 37) % 11) as f64 * 0.3)).collect();
-        let weights: Vec<f64> = (0..nu * nv).map(|k| 0.3 + ((k * 13) % 7) as f64 * 0.5).collect();
-        let knots_u = KnotVector::try_new(p, vec![0.0, 0.0, 0.0, 0.0, 0.2, 0.5, 0.5, 1.0, 1.0, 1.0, 1.0]).unwrap();
-        let surface = BSplineSurface::try_new(knots_u, KnotVector::uniform(q, nv).unwrap(), &points, Some(&weights)).unwrap();
+        let points: Vec<DVec3> = (0..nu * nv)
+            .map(|k| {
+                DVec3::new(
+                    (k % nu) as f64,
+                    (k / nu) as f64,
+                    ((k * 37) % 11) as f64 * 0.3,
+                )
+            })
+            .collect();
+        let weights: Vec<f64> = (0..nu * nv)
+            .map(|k| 0.3 + ((k * 13) % 7) as f64 * 0.5)
+            .collect();
+        let knots_u = KnotVector::try_new(
+            p,
+            vec![0.0, 0.0, 0.0, 0.0, 0.2, 0.5, 0.5, 1.0, 1.0, 1.0, 1.0],
+        )
+        .unwrap();
+        let surface = BSplineSurface::try_new(
+            knots_u,
+            KnotVector::uniform(q, nv).unwrap(),
+            &points,
+            Some(&weights),
+        )
+        .unwrap();
         let columns = AxisTable::new(surface.knots_u(), surface.range_u(), 23);
         let rows = AxisTable::new(surface.knots_v(), surface.range_v(), 6);
-        let mut scratch = RowScratch { column_value: vec![DVec4::ZERO; nu], column_dv: vec![DVec4::ZERO; nu] };
+        let mut scratch = RowScratch {
+            column_value: vec![DVec4::ZERO; nu],
+            column_dv: vec![DVec4::ZERO; nu],
+        };
         let size = surface.control_box_diagonal();
         for j in 0..6 {
             contract_columns(&surface, &columns, &rows, j, &mut scratch);
-            let row = Row { surface: &surface, columns: &columns, v: rows.params[j], scratch: &scratch };
-            let (mut p1, mut n1, mut p2, mut n2) = (vec![DVec3::ZERO; 23], vec![DVec3::ZERO; 23], vec![DVec3::ZERO; 23], vec![DVec3::ZERO; 23]);
+            let row = Row {
+                surface: &surface,
+                columns: &columns,
+                v: rows.params[j],
+                scratch: &scratch,
+            };
+            let (mut p1, mut n1, mut p2, mut n2) = (
+                vec![DVec3::ZERO; 23],
+                vec![DVec3::ZERO; 23],
+                vec![DVec3::ZERO; 23],
+                vec![DVec3::ZERO; 23],
+            );
             row.evaluate::<Portable>(&mut p1, &mut n1);
             // SAFETY: has_fma() was checked above.
             unsafe { row.evaluate_avx2_fma(&mut p2, &mut n2) };

@@ -8,10 +8,10 @@ mod lanes;
 pub use eval::SurfaceSample;
 pub use grid::{evaluate_grid_into, tessellate_grid_into};
 
+use crate::Tessellator;
 use crate::error::Result;
 use crate::geom::BSplineSurface;
 use crate::mesh::{Mesh, TessOptions};
-use crate::Tessellator;
 
 /// The CPU tessellator: f64 throughout, parallel over rows and surfaces on rayon's current
 /// pool (run it inside `ThreadPool::install` to choose the thread count).
@@ -19,7 +19,12 @@ use crate::Tessellator;
 pub struct CpuTessellator;
 
 impl Tessellator for CpuTessellator {
-    fn tessellate_each_into(&self, surfaces: &[BSplineSurface], options: &[TessOptions], mesh: &mut Mesh) -> Result<()> {
+    fn tessellate_each_into(
+        &self,
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        mesh: &mut Mesh,
+    ) -> Result<()> {
         tessellate_grid_into(surfaces, options, mesh)
     }
 

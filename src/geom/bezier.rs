@@ -5,13 +5,33 @@ use crate::error::Result;
 use glam::{DVec3, DVec4};
 
 /// A Bezier curve of `degree` (degree + 1 points) on [0, 1], as a clamped B-spline.
-pub fn bezier_curve(degree: usize, points: &[DVec3], weights: Option<&[f64]>) -> Result<BSplineCurve> {
-    BSplineCurve::try_new(KnotVector::from_breakpoints(degree, &[0.0, 1.0])?, points, weights)
+pub fn bezier_curve(
+    degree: usize,
+    points: &[DVec3],
+    weights: Option<&[f64]>,
+) -> Result<BSplineCurve> {
+    BSplineCurve::try_new(
+        KnotVector::from_breakpoints(degree, &[0.0, 1.0])?,
+        points,
+        weights,
+    )
 }
 
 /// A single Bezier patch of degree (degree_u, degree_v) on [0, 1]², control points u fastest.
-pub fn bezier_surface(degree_u: usize, degree_v: usize, points: &[DVec3], weights: Option<&[f64]>) -> Result<BSplineSurface> {
-    piecewise_bezier_surface(degree_u, degree_v, &[0.0, 1.0], &[0.0, 1.0], points, weights)
+pub fn bezier_surface(
+    degree_u: usize,
+    degree_v: usize,
+    points: &[DVec3],
+    weights: Option<&[f64]>,
+) -> Result<BSplineSurface> {
+    piecewise_bezier_surface(
+        degree_u,
+        degree_v,
+        &[0.0, 1.0],
+        &[0.0, 1.0],
+        points,
+        weights,
+    )
 }
 
 /// A multi-patch Bezier surface: one global control grid (u fastest) in which neighbouring
@@ -52,7 +72,11 @@ impl BezierPatch {
         let s = (u - self.range_u.start) / self.range_u.width();
         let t = (v - self.range_v.start) / self.range_v.width();
         let row_len = self.degree_u + 1;
-        let column: Vec<DVec4> = self.points.chunks_exact(row_len).map(|row| de_casteljau(row, s)).collect();
+        let column: Vec<DVec4> = self
+            .points
+            .chunks_exact(row_len)
+            .map(|row| de_casteljau(row, s))
+            .collect();
         let h = de_casteljau(&column, t);
         h.truncate() / h.w
     }
@@ -79,8 +103,9 @@ impl BSplineSurface {
         let (nu, nv) = (self.count_u(), self.count_v());
         let pts = self.homogeneous_points();
         // Along u, one row (fixed j) at a time.
-        let rows: Vec<(Vec<f64>, Vec<DVec4>)> =
-            (0..nv).map(|j| refine_to_bezier(p, self.knots_u().knots(), &pts[j * nu..(j + 1) * nu])).collect();
+        let rows: Vec<(Vec<f64>, Vec<DVec4>)> = (0..nv)
+            .map(|j| refine_to_bezier(p, self.knots_u().knots(), &pts[j * nu..(j + 1) * nu]))
+            .collect();
         let breaks_u = rows[0].0.clone();
         let nu2 = rows[0].1.len();
         // Along v, one column (fixed i) of the refined rows at a time.
@@ -123,7 +148,11 @@ fn refine_to_bezier(p: usize, knots: &[f64], points: &[DVec4]) -> (Vec<f64>, Vec
     let mut breaks: Vec<f64> = knots[p..=n].to_vec();
     breaks.dedup();
     for (index, &t) in breaks.iter().enumerate() {
-        let target = if index == 0 || index == breaks.len() - 1 { p + 1 } else { p };
+        let target = if index == 0 || index == breaks.len() - 1 {
+            p + 1
+        } else {
+            p
+        };
         let have = knots.iter().filter(|&&k| k == t).count();
         for _ in have..target {
             insert_knot(p, &mut knots, &mut points, t);
@@ -131,7 +160,10 @@ fn refine_to_bezier(p: usize, knots: &[f64], points: &[DVec4]) -> (Vec<f64>, Vec
     }
     // The domain now starts with degree+1 copies of `a`: its first one is the first point of
     // the first segment.
-    let first = knots.iter().position(|&k| k == a).expect("domain start is a knot");
+    let first = knots
+        .iter()
+        .position(|&k| k == a)
+        .expect("domain start is a knot");
     let count = p * (breaks.len() - 1) + 1;
     debug_assert_eq!(knots[first + p], a);
     debug_assert_eq!(knots[first + count], b);

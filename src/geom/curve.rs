@@ -16,11 +16,20 @@ impl BSplineCurve {
     /// Builds a curve from Cartesian control points and optional weights (`None`: non-rational).
     pub fn try_new(knots: KnotVector, points: &[DVec3], weights: Option<&[f64]>) -> Result<Self> {
         if points.len() != knots.control_count() {
-            return Err(Error::ControlPointCount { expected: knots.control_count(), found: points.len(), what: "knots − degree − 1" });
+            return Err(Error::ControlPointCount {
+                expected: knots.control_count(),
+                found: points.len(),
+                what: "knots − degree − 1",
+            });
         }
         let points_h = homogeneous(points, weights)?;
         let (start, end) = knots.domain();
-        Ok(Self { knots, points: points_h, rational: weights.is_some(), range: Interval::new(start, end) })
+        Ok(Self {
+            knots,
+            points: points_h,
+            rational: weights.is_some(),
+            range: Interval::new(start, end),
+        })
     }
 
     /// Restricts evaluation to `range`, which must lie inside the knot domain.

@@ -29,12 +29,20 @@ impl KnotVector {
         }
         for index in 1..knots.len() {
             if knots[index] < knots[index - 1] {
-                return Err(Error::KnotsDecreasing { index, previous: knots[index - 1], value: knots[index] });
+                return Err(Error::KnotsDecreasing {
+                    index,
+                    previous: knots[index - 1],
+                    value: knots[index],
+                });
             }
         }
         let min = 2 * (degree + 1);
         if knots.len() < min {
-            return Err(Error::TooFewKnots { found: knots.len(), degree, min });
+            return Err(Error::TooFewKnots {
+                found: knots.len(),
+                degree,
+                min,
+            });
         }
         let mut start = 0;
         while start < knots.len() {
@@ -46,13 +54,21 @@ impl KnotVector {
             let touches_end = start == 0 || end == knots.len();
             let max = if touches_end { degree + 1 } else { degree };
             if multiplicity > max {
-                return Err(Error::KnotMultiplicity { index: start, value: knots[start], multiplicity, max });
+                return Err(Error::KnotMultiplicity {
+                    index: start,
+                    value: knots[start],
+                    multiplicity,
+                    max,
+                });
             }
             start = end;
         }
         let n = knots.len() - degree - 1;
         if knots[degree] >= knots[n] {
-            return Err(Error::EmptyDomain { start: knots[degree], end: knots[n] });
+            return Err(Error::EmptyDomain {
+                start: knots[degree],
+                end: knots[n],
+            });
         }
         Ok(Self { degree, knots })
     }
@@ -63,7 +79,11 @@ impl KnotVector {
     pub fn clamped_uniform(degree: usize, count: usize) -> Result<Self> {
         check_degree(degree)?;
         if count < degree + 1 {
-            return Err(Error::ControlPointCount { expected: degree + 1, found: count, what: "at least degree + 1" });
+            return Err(Error::ControlPointCount {
+                expected: degree + 1,
+                found: count,
+                what: "at least degree + 1",
+            });
         }
         let last = (count - degree) as f64;
         let knots = (0..count + degree + 1)
@@ -77,7 +97,11 @@ impl KnotVector {
     pub fn uniform(degree: usize, count: usize) -> Result<Self> {
         check_degree(degree)?;
         if count < degree + 1 {
-            return Err(Error::ControlPointCount { expected: degree + 1, found: count, what: "at least degree + 1" });
+            return Err(Error::ControlPointCount {
+                expected: degree + 1,
+                found: count,
+                what: "at least degree + 1",
+            });
         }
         Self::try_new(degree, (0..count + degree + 1).map(|i| i as f64).collect())
     }
@@ -87,7 +111,11 @@ impl KnotVector {
     pub fn from_breakpoints(degree: usize, breakpoints: &[f64]) -> Result<Self> {
         check_degree(degree)?;
         if breakpoints.len() < 2 {
-            return Err(Error::TooFewKnots { found: breakpoints.len(), degree: 1, min: 2 });
+            return Err(Error::TooFewKnots {
+                found: breakpoints.len(),
+                degree: 1,
+                min: 2,
+            });
         }
         for (index, &value) in breakpoints.iter().enumerate() {
             if !value.is_finite() {
@@ -100,7 +128,11 @@ impl KnotVector {
         let last = breakpoints.len() - 1;
         let mut knots = Vec::with_capacity(degree * (last + 1) + 2);
         for (index, &b) in breakpoints.iter().enumerate() {
-            let repeat = if index == 0 || index == last { degree + 1 } else { degree };
+            let repeat = if index == 0 || index == last {
+                degree + 1
+            } else {
+                degree
+            };
             knots.extend(std::iter::repeat_n(b, repeat));
         }
         Self::try_new(degree, knots)
@@ -159,7 +191,10 @@ impl KnotVector {
 
 pub(crate) fn check_degree(degree: usize) -> Result<()> {
     if degree == 0 || degree > MAX_DEGREE {
-        return Err(Error::DegreeOutOfRange { degree, max: MAX_DEGREE });
+        return Err(Error::DegreeOutOfRange {
+            degree,
+            max: MAX_DEGREE,
+        });
     }
     Ok(())
 }

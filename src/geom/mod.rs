@@ -10,8 +10,8 @@ mod surface;
 
 pub use bezier::{BezierPatch, bezier_curve, bezier_surface, piecewise_bezier_surface};
 pub use curve::BSplineCurve;
-pub use knots::{KnotVector, MAX_DEGREE};
 pub(crate) use knots::check_degree;
+pub use knots::{KnotVector, MAX_DEGREE};
 pub use surface::{BSplineSurface, Interval};
 
 use crate::error::{Error, Result};
@@ -23,7 +23,11 @@ pub(crate) fn homogeneous(points: &[DVec3], weights: Option<&[f64]>) -> Result<V
     if let Some(w) = weights
         && w.len() != points.len()
     {
-        return Err(Error::ControlPointCount { expected: points.len(), found: w.len(), what: "one weight per control point" });
+        return Err(Error::ControlPointCount {
+            expected: points.len(),
+            found: w.len(),
+            what: "one weight per control point",
+        });
     }
     points
         .iter()

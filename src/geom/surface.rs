@@ -20,7 +20,11 @@ impl Interval {
 
     /// The parameter at fraction `t` in [0, 1]; t = 1 gives `end` exactly.
     pub fn lerp(&self, t: f64) -> f64 {
-        if t >= 1.0 { self.end } else { self.start + (self.end - self.start) * t }
+        if t >= 1.0 {
+            self.end
+        } else {
+            self.start + (self.end - self.start) * t
+        }
     }
 
     /// Checks that this interval is non-empty and lies inside `domain`.
@@ -33,7 +37,12 @@ impl Interval {
         if ok {
             Ok(())
         } else {
-            Err(Error::RangeOutsideDomain { start: self.start, end: self.end, domain_start: domain.0, domain_end: domain.1 })
+            Err(Error::RangeOutsideDomain {
+                start: self.start,
+                end: self.end,
+                domain_start: domain.0,
+                domain_end: domain.1,
+            })
         }
     }
 }
@@ -58,21 +67,48 @@ impl BSplineSurface {
     /// Builds a surface from Cartesian control points (u fastest) and optional weights
     /// (`None`: non-rational). Checks the point count against both knot vectors, that every
     /// point is finite and that every weight is finite and > 0.
-    pub fn try_new(knots_u: KnotVector, knots_v: KnotVector, points: &[DVec3], weights: Option<&[f64]>) -> Result<Self> {
+    pub fn try_new(
+        knots_u: KnotVector,
+        knots_v: KnotVector,
+        points: &[DVec3],
+        weights: Option<&[f64]>,
+    ) -> Result<Self> {
         let expected = knots_u.control_count() * knots_v.control_count();
         if points.len() != expected {
-            return Err(Error::ControlPointCount { expected, found: points.len(), what: "count_u × count_v from the knot vectors" });
+            return Err(Error::ControlPointCount {
+                expected,
+                found: points.len(),
+                what: "count_u × count_v from the knot vectors",
+            });
         }
         let points_h = homogeneous(points, weights)?;
-        Ok(Self::from_homogeneous(knots_u, knots_v, points_h, weights.is_some()))
+        Ok(Self::from_homogeneous(
+            knots_u,
+            knots_v,
+            points_h,
+            weights.is_some(),
+        ))
     }
 
     /// Builds from already validated homogeneous points; the range is the whole domain.
-    pub(crate) fn from_homogeneous(knots_u: KnotVector, knots_v: KnotVector, points: Vec<DVec4>, rational: bool) -> Self {
+    pub(crate) fn from_homogeneous(
+        knots_u: KnotVector,
+        knots_v: KnotVector,
+        points: Vec<DVec4>,
+        rational: bool,
+    ) -> Self {
         let (u0, u1) = knots_u.domain();
         let (v0, v1) = knots_v.domain();
         let size = box_diagonal(&points);
-        Self { knots_u, knots_v, points, rational, range_u: Interval::new(u0, u1), range_v: Interval::new(v0, v1), size }
+        Self {
+            knots_u,
+            knots_v,
+            points,
+            rational,
+            range_u: Interval::new(u0, u1),
+            range_v: Interval::new(v0, v1),
+            size,
+        }
     }
 
     /// Restricts evaluation to `range_u × range_v`, which must lie inside the knot domain.
@@ -139,9 +175,12 @@ impl BSplineSurface {
 
 /// Diagonal of the bounding box of homogeneous points, taken in Cartesian space.
 pub(crate) fn box_diagonal(points: &[DVec4]) -> f64 {
-    let (lo, hi) = points.iter().fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), p| {
-        let c = p.truncate() / p.w;
-        (lo.min(c), hi.max(c))
-    });
+    let (lo, hi) = points.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), p| {
+            let c = p.truncate() / p.w;
+            (lo.min(c), hi.max(c))
+        },
+    );
     (hi - lo).length()
 }

@@ -26,10 +26,10 @@ mod pack;
 
 pub use pack::{ChunkParams, Limits, Piece, Tile, VERTEX_BYTES};
 
+use crate::Tessellator;
 use crate::error::{Error, Result};
 use crate::geom::BSplineSurface;
 use crate::mesh::{Mesh, MeshPart, TessOptions};
-use crate::Tessellator;
 use glam::{DVec2, DVec3};
 use pack::{PASSES, Packed};
 use std::num::NonZeroU64;
@@ -68,14 +68,27 @@ impl GpuContext {
     /// full buffer limits.
     pub fn new() -> Result<Self> {
         let instance = headless_instance();
-        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions::default()))
-            .map_err(|e| Error::NoAdapter { reason: e.to_string() })?;
+        let adapter =
+            pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions::default()))
+                .map_err(|e| Error::NoAdapter {
+                reason: e.to_string(),
+            })?;
         let info = adapter.get_info();
         // Mappable storage buffers (unified-memory adapters) let headless readback skip the
         // staging copy.
         let required_features = adapter.features() & wgpu::Features::MAPPABLE_PRIMARY_BUFFERS;
-        let descriptor = wgpu::DeviceDescriptor { label: Some("knotwork"), required_features, required_limits: adapter.limits(), ..Default::default() };
-        let (device, queue) = pollster::block_on(adapter.request_device(&descriptor)).map_err(|e| Error::NoAdapter { reason: e.to_string() })?;
+        let descriptor = wgpu::DeviceDescriptor {
+            label: Some("knotwork"),
+            required_features,
+            required_limits: adapter.limits(),
+            ..Default::default()
+        };
+        let (device, queue) =
+            pollster::block_on(adapter.request_device(&descriptor)).map_err(|e| {
+                Error::NoAdapter {
+                    reason: e.to_string(),
+                }
+            })?;
         let mut context = Self::from_device(device, queue)?;
         context.adapter = Some(info);
         Ok(context)
@@ -91,7 +104,11 @@ impl GpuContext {
             let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
                 binding,
                 visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Storage { read_only },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
                 count: None,
             };
             let mut entries = vec![wgpu::BindGroupLayoutEntry {
@@ -106,7 +123,10 @@ impl GpuContext {
             }];
             entries.extend((1..=4).map(|b| storage(b, true)));
             entries.extend((5..=7).map(|b| storage(b, false)));
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("knotwork"), entries: &entries });
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("knotwork"),
+                entries: &entries,
+            });
             let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some("knotwork"),
                 bind_group_layouts: &[Some(&layout)],
@@ -127,7 +147,13 @@ impl GpuContext {
                 .collect::<Vec<_>>();
             (layout, pipelines)
         })?;
-        Ok(Self { device, queue, adapter: None, layout, pipelines })
+        Ok(Self {
+            device,
+            queue,
+            adapter: None,
+            layout,
+            pipelines,
+        })
     }
 
     pub fn device(&self) -> &wgpu::Device {
@@ -146,7 +172,10 @@ impl GpuContext {
     /// "name (backend, device type, driver)" of the adapter, for summaries.
     pub fn adapter_summary(&self) -> String {
         match &self.adapter {
-            Some(a) => format!("{} ({:?}, {:?}, {} {})", a.name, a.backend, a.device_type, a.driver, a.driver_info),
+            Some(a) => format!(
+                "{} ({:?}, {:?}, {} {})",
+                a.name, a.backend, a.device_type, a.driver, a.driver_info
+            ),
             None => "a caller-provided device".to_string(),
         }
     }
@@ -164,13 +193,18 @@ impl GpuContext {
 
 /// Runs `work` inside out-of-memory and validation error scopes and turns what they caught
 /// into [`Error::Gpu`].
-fn scoped<T>(device: &wgpu::Device, work: impl FnOnce() -> T) -> Result<T> {
+pub(crate) fn scoped<T>(device: &wgpu::Device, work: impl FnOnce() -> T) -> Result<T> {
     let memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
     let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
     let value = work();
-    let errors = [pollster::block_on(validation.pop()), pollster::block_on(memory.pop())];
+    let errors = [
+        pollster::block_on(validation.pop()),
+        pollster::block_on(memory.pop()),
+    ];
     match errors.into_iter().flatten().next() {
-        Some(error) => Err(Error::Gpu { message: error.to_string() }),
+        Some(error) => Err(Error::Gpu {
+            message: error.to_string(),
+        }),
         None => Ok(value),
     }
 }
@@ -190,7 +224,8 @@ pub struct GpuMesh {
 
 impl GpuMesh {
     /// The vertex layout of `vertices`, for a render pipeline.
-    pub const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 3] = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2];
+    pub const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 3] =
+        wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2];
 }
 
 /// A batch of surfaces prepared on one device: upload once, dispatch whenever.
@@ -213,11 +248,22 @@ pub struct GpuBatch {
 /// Binds elements `r.origin..r.end` of `buffer` (clipped to the buffer, never empty).
 fn bind_range(buffer: &wgpu::Buffer, r: pack::Range, bytes_each: u64) -> wgpu::BindingResource<'_> {
     let offset = r.origin * bytes_each;
-    let size = ((r.end - r.origin) * bytes_each).max(4).min(buffer.size() - offset);
-    wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer, offset, size: NonZeroU64::new(size) })
+    let size = ((r.end - r.origin) * bytes_each)
+        .max(4)
+        .min(buffer.size() - offset);
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+        buffer,
+        offset,
+        size: NonZeroU64::new(size),
+    })
 }
 
-fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8], extra: wgpu::BufferUsages) -> wgpu::Buffer {
+fn storage_buffer(
+    device: &wgpu::Device,
+    label: &str,
+    bytes: &[u8],
+    extra: wgpu::BufferUsages,
+) -> wgpu::Buffer {
     use wgpu::util::DeviceExt;
     // Zero-sized buffers cannot be bound: keep at least one element.
     let padded;
@@ -227,46 +273,106 @@ fn storage_buffer(device: &wgpu::Device, label: &str, bytes: &[u8], extra: wgpu:
     } else {
         bytes
     };
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage: wgpu::BufferUsages::STORAGE | extra })
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents,
+        usage: wgpu::BufferUsages::STORAGE | extra,
+    })
 }
 
 impl GpuBatch {
     /// Packs and uploads `surfaces` for the grid of `options`, and allocates the output
     /// buffers. Fails with [`Error::GpuJobTooLarge`] if the outputs exceed the device's
     /// largest buffer.
-    pub fn new(context: &GpuContext, surfaces: &[BSplineSurface], options: &TessOptions) -> Result<Self> {
+    pub fn new(
+        context: &GpuContext,
+        surfaces: &[BSplineSurface],
+        options: &TessOptions,
+    ) -> Result<Self> {
         Self::with_limits(context, surfaces, options, context.limits())
     }
 
     /// As [`GpuBatch::new`], with options (a grid) of its own for every surface.
-    pub fn new_each(context: &GpuContext, surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Self> {
+    pub fn new_each(
+        context: &GpuContext,
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+    ) -> Result<Self> {
         Self::build(context, surfaces, options, context.limits(), false)
     }
 
     /// As [`GpuBatch::new`], with buffer limits lower than the device's (memory budgets;
     /// tests of the chunking).
-    pub fn with_limits(context: &GpuContext, surfaces: &[BSplineSurface], options: &TessOptions, limits: Limits) -> Result<Self> {
-        Self::build(context, surfaces, &vec![*options; surfaces.len()], limits, false)
+    pub fn with_limits(
+        context: &GpuContext,
+        surfaces: &[BSplineSurface],
+        options: &TessOptions,
+        limits: Limits,
+    ) -> Result<Self> {
+        Self::build(
+            context,
+            surfaces,
+            &vec![*options; surfaces.len()],
+            limits,
+            false,
+        )
     }
 
     /// A batch whose outputs are read back rather than drawn: where the device has
     /// `MAPPABLE_PRIMARY_BUFFERS` (unified memory) they are mapped directly, without a staging
     /// copy. (Not for rendering: on discrete GPUs mappable buffers live in slower memory.)
-    pub fn for_readback(context: &GpuContext, surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Self> {
+    pub fn for_readback(
+        context: &GpuContext,
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+    ) -> Result<Self> {
         Self::build(context, surfaces, options, context.limits(), true)
     }
 
-    fn build(context: &GpuContext, surfaces: &[BSplineSurface], options: &[TessOptions], limits: Limits, readback: bool) -> Result<Self> {
+    fn build(
+        context: &GpuContext,
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        limits: Limits,
+        readback: bool,
+    ) -> Result<Self> {
         let device = &context.device;
-        let mappable = readback && device.features().contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
-        let map_read = if mappable { wgpu::BufferUsages::MAP_READ } else { wgpu::BufferUsages::empty() };
+        let mappable = readback
+            && device
+                .features()
+                .contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
+        let map_read = if mappable {
+            wgpu::BufferUsages::MAP_READ
+        } else {
+            wgpu::BufferUsages::empty()
+        };
         let packed = pack::pack(surfaces, options, &limits)?;
         scoped(device, || {
             let copy = wgpu::BufferUsages::COPY_DST;
-            let pieces = storage_buffer(device, "knotwork pieces", bytemuck::cast_slice(&packed.pieces), copy);
-            let tiles = storage_buffer(device, "knotwork tiles", bytemuck::cast_slice(&packed.tiles), copy);
-            let points = storage_buffer(device, "knotwork control points", bytemuck::cast_slice(&packed.points), copy);
-            let tables = storage_buffer(device, "knotwork basis tables", bytemuck::cast_slice(&packed.tables), copy);
+            let pieces = storage_buffer(
+                device,
+                "knotwork pieces",
+                bytemuck::cast_slice(&packed.pieces),
+                copy,
+            );
+            let tiles = storage_buffer(
+                device,
+                "knotwork tiles",
+                bytemuck::cast_slice(&packed.tiles),
+                copy,
+            );
+            let points = storage_buffer(
+                device,
+                "knotwork control points",
+                bytemuck::cast_slice(&packed.points),
+                copy,
+            );
+            let tables = storage_buffer(
+                device,
+                "knotwork basis tables",
+                bytemuck::cast_slice(&packed.tables),
+                copy,
+            );
             let contracted = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("knotwork contracted rows"),
                 size: (packed.contracted_len * 16).max(16),
@@ -276,13 +382,19 @@ impl GpuBatch {
             let vertices = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("knotwork vertices"),
                 size: (packed.vertex_count * VERTEX_BYTES).max(VERTEX_BYTES),
-                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | map_read,
+                usage: wgpu::BufferUsages::VERTEX
+                    | wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | map_read,
                 mapped_at_creation: false,
             });
             let indices = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("knotwork indices"),
                 size: (packed.index_count * 4).max(16),
-                usage: wgpu::BufferUsages::INDEX | wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | map_read,
+                usage: wgpu::BufferUsages::INDEX
+                    | wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | map_read,
                 mapped_at_creation: false,
             });
             let uniforms: Vec<u8> = packed
@@ -310,7 +422,11 @@ impl GpuBatch {
                 use wgpu::util::DeviceExt;
                 device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("knotwork chunk parameters"),
-                    contents: if uniforms.is_empty() { &[0; UNIFORM_STRIDE as usize] } else { &uniforms },
+                    contents: if uniforms.is_empty() {
+                        &[0; UNIFORM_STRIDE as usize]
+                    } else {
+                        &uniforms
+                    },
                     usage: wgpu::BufferUsages::UNIFORM,
                 })
             };
@@ -319,7 +435,11 @@ impl GpuBatch {
                 .iter()
                 .map(|chunk| {
                     let resources = [
-                        wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer: &uniform, offset: 0, size: NonZeroU64::new(size_of::<ChunkParams>() as u64) }),
+                        wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &uniform,
+                            offset: 0,
+                            size: NonZeroU64::new(size_of::<ChunkParams>() as u64),
+                        }),
                         bind_range(&pieces, chunk.pieces, size_of::<Piece>() as u64),
                         bind_range(&tiles, chunk.tiles, size_of::<Tile>() as u64),
                         bind_range(&points, chunk.points, 16),
@@ -328,9 +448,19 @@ impl GpuBatch {
                         bind_range(&vertices, chunk.vertices, VERTEX_BYTES),
                         bind_range(&indices, chunk.indices, 4),
                     ];
-                    let entries: Vec<wgpu::BindGroupEntry> =
-                        resources.into_iter().enumerate().map(|(binding, resource)| wgpu::BindGroupEntry { binding: binding as u32, resource }).collect();
-                    device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("knotwork chunk"), layout: &context.layout, entries: &entries })
+                    let entries: Vec<wgpu::BindGroupEntry> = resources
+                        .into_iter()
+                        .enumerate()
+                        .map(|(binding, resource)| wgpu::BindGroupEntry {
+                            binding: binding as u32,
+                            resource,
+                        })
+                        .collect();
+                    device.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("knotwork chunk"),
+                        layout: &context.layout,
+                        entries: &entries,
+                    })
                 })
                 .collect();
             let mesh = GpuMesh {
@@ -340,7 +470,16 @@ impl GpuBatch {
                 index_count: packed.index_count as u32,
                 parts: packed.parts.clone(),
             };
-            GpuBatch { packed, shapes: surfaces.to_vec(), points, bind_groups, connected: false.into(), mappable, _buffers: vec![pieces, tiles, tables, contracted, uniform], mesh }
+            GpuBatch {
+                packed,
+                shapes: surfaces.to_vec(),
+                points,
+                bind_groups,
+                connected: false.into(),
+                mappable,
+                _buffers: vec![pieces, tiles, tables, contracted, uniform],
+                mesh,
+            }
         })
     }
 
@@ -358,9 +497,16 @@ impl GpuBatch {
     /// Records the kernels of every chunk into `encoder` (for callers who submit themselves).
     /// The triangles are recorded the first time only; the vertices every time.
     pub fn encode(&self, context: &GpuContext, encoder: &mut wgpu::CommandEncoder) {
-        let connect = !self.connected.swap(true, std::sync::atomic::Ordering::Relaxed);
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("knotwork tessellate"), timestamp_writes: None });
-        for (chunk_index, (chunk, bind_group)) in self.packed.chunks.iter().zip(&self.bind_groups).enumerate() {
+        let connect = !self
+            .connected
+            .swap(true, std::sync::atomic::Ordering::Relaxed);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("knotwork tessellate"),
+            timestamp_writes: None,
+        });
+        for (chunk_index, (chunk, bind_group)) in
+            self.packed.chunks.iter().zip(&self.bind_groups).enumerate()
+        {
             for (pass_index, pipeline) in context.pipelines.iter().enumerate() {
                 let tile_count = chunk.passes[pass_index].1;
                 if tile_count == 0 || (pass_index == CONNECT_PASS && !connect) {
@@ -379,7 +525,12 @@ impl GpuBatch {
     /// work is submitted; errors the device reports while validating it are returned.
     pub fn dispatch(&self, context: &GpuContext) -> Result<wgpu::SubmissionIndex> {
         scoped(&context.device, || {
-            let mut encoder = context.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("knotwork dispatch") });
+            let mut encoder =
+                context
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("knotwork dispatch"),
+                    });
             self.encode(context, &mut encoder);
             context.queue.submit([encoder.finish()])
         })
@@ -388,9 +539,17 @@ impl GpuBatch {
     /// Replaces the control points (and weights) of surface `index` with those of `surface`,
     /// which must have the same degrees, point counts, knots and range; only that surface's
     /// points are uploaded. Takes effect at the next dispatch.
-    pub fn update_surface(&mut self, context: &GpuContext, index: usize, surface: &BSplineSurface) -> Result<()> {
+    pub fn update_surface(
+        &mut self,
+        context: &GpuContext,
+        index: usize,
+        surface: &BSplineSurface,
+    ) -> Result<()> {
         let count = self.shapes.len();
-        let old = self.shapes.get(index).ok_or(Error::SurfaceIndex { index, count })?;
+        let old = self
+            .shapes
+            .get(index)
+            .ok_or(Error::SurfaceIndex { index, count })?;
         let same_shape = old.knots_u() == surface.knots_u()
             && old.knots_v() == surface.knots_v()
             && old.range_u() == surface.range_u()
@@ -401,8 +560,13 @@ impl GpuBatch {
         let slot = self.packed.surfaces[index];
         let mut local = Vec::with_capacity(slot.point_count);
         pack::local_points(surface, slot.origin, &mut local);
-        self.packed.points[slot.first_point..slot.first_point + slot.point_count].copy_from_slice(&local);
-        context.queue.write_buffer(&self.points, slot.first_point as u64 * 16, bytemuck::cast_slice(&local));
+        self.packed.points[slot.first_point..slot.first_point + slot.point_count]
+            .copy_from_slice(&local);
+        context.queue.write_buffer(
+            &self.points,
+            slot.first_point as u64 * 16,
+            bytemuck::cast_slice(&local),
+        );
         self.shapes[index] = surface.clone();
         Ok(())
     }
@@ -414,7 +578,10 @@ impl GpuBatch {
         let device = &context.device;
         let vertex_bytes = self.packed.vertex_count * VERTEX_BYTES;
         let index_bytes = self.packed.index_count * 4;
-        let mut mesh = Mesh { parts: self.mesh.parts.clone(), ..Mesh::default() };
+        let mut mesh = Mesh {
+            parts: self.mesh.parts.clone(),
+            ..Mesh::default()
+        };
         if vertex_bytes == 0 {
             return Ok(mesh);
         }
@@ -424,10 +591,20 @@ impl GpuBatch {
         } else {
             staged = scoped(device, || {
                 let staging = |label, size| {
-                    device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false })
+                    device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some(label),
+                        size,
+                        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    })
                 };
-                let (vertices, indices) = (staging("knotwork vertex readback", vertex_bytes), staging("knotwork index readback", index_bytes));
-                let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("knotwork readback") });
+                let (vertices, indices) = (
+                    staging("knotwork vertex readback", vertex_bytes),
+                    staging("knotwork index readback", index_bytes),
+                );
+                let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("knotwork readback"),
+                });
                 encoder.copy_buffer_to_buffer(&self.mesh.vertices, 0, &vertices, 0, vertex_bytes);
                 encoder.copy_buffer_to_buffer(&self.mesh.indices, 0, &indices, 0, index_bytes);
                 context.queue.submit([encoder.finish()]);
@@ -443,24 +620,38 @@ impl GpuBatch {
             });
         }
         drop(sender);
-        device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| Error::Gpu { message: e.to_string() })?;
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Gpu {
+                message: e.to_string(),
+            })?;
         for result in receiver.iter() {
-            result.map_err(|e| Error::Gpu { message: e.to_string() })?;
+            result.map_err(|e| Error::Gpu {
+                message: e.to_string(),
+            })?;
         }
-        let gpu_error = |e: wgpu::MapRangeError| Error::Gpu { message: e.to_string() };
+        let gpu_error = |e: wgpu::MapRangeError| Error::Gpu {
+            message: e.to_string(),
+        };
         {
-            let view = vertices.get_mapped_range(..vertex_bytes).map_err(gpu_error)?;
+            let view = vertices
+                .get_mapped_range(..vertex_bytes)
+                .map_err(gpu_error)?;
             let floats: &[f32] = bytemuck::cast_slice(&view);
             let n = self.packed.vertex_count as usize;
             mesh.positions.reserve_exact(n);
             mesh.normals.reserve_exact(n);
             mesh.uvs.reserve_exact(n);
             for v in floats.chunks_exact(8) {
-                mesh.positions.push(DVec3::new(v[0].into(), v[1].into(), v[2].into()));
-                mesh.normals.push(DVec3::new(v[3].into(), v[4].into(), v[5].into()));
+                mesh.positions
+                    .push(DVec3::new(v[0].into(), v[1].into(), v[2].into()));
+                mesh.normals
+                    .push(DVec3::new(v[3].into(), v[4].into(), v[5].into()));
                 mesh.uvs.push(DVec2::new(v[6].into(), v[7].into()));
             }
-            mesh.indices = bytemuck::cast_slice(&indices.get_mapped_range(..index_bytes).map_err(gpu_error)?).to_vec();
+            mesh.indices =
+                bytemuck::cast_slice(&indices.get_mapped_range(..index_bytes).map_err(gpu_error)?)
+                    .to_vec();
         }
         vertices.unmap();
         indices.unmap();
@@ -476,7 +667,9 @@ pub struct GpuTessellator {
 impl GpuTessellator {
     /// Opens the default adapter.
     pub fn new() -> Result<Self> {
-        Ok(Self { context: GpuContext::new()? })
+        Ok(Self {
+            context: GpuContext::new()?,
+        })
     }
 
     pub fn from_context(context: GpuContext) -> Self {
@@ -489,7 +682,12 @@ impl GpuTessellator {
 }
 
 impl Tessellator for GpuTessellator {
-    fn tessellate_each_into(&self, surfaces: &[BSplineSurface], options: &[TessOptions], mesh: &mut Mesh) -> Result<()> {
+    fn tessellate_each_into(
+        &self,
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        mesh: &mut Mesh,
+    ) -> Result<()> {
         let batch = GpuBatch::for_readback(&self.context, surfaces, options)?;
         batch.dispatch(&self.context)?;
         *mesh = batch.read_mesh(&self.context)?;
@@ -510,13 +708,20 @@ mod tests {
     fn validation_errors_become_errors() {
         let context = match GpuContext::new() {
             Ok(context) => context,
-            Err(e) if std::env::var("KNOTWORK_REQUIRE_GPU").is_ok_and(|v| v == "1") => panic!("KNOTWORK_REQUIRE_GPU=1 but {e}"),
+            Err(e) if std::env::var("KNOTWORK_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
+                panic!("KNOTWORK_REQUIRE_GPU=1 but {e}")
+            }
             Err(e) => return eprintln!("skipped: {e}"),
         };
         let result = scoped(&context.device, || {
             // Larger than the device allows: invalid everywhere.
             let size = context.device.limits().max_buffer_size + 256;
-            context.device.create_buffer(&wgpu::BufferDescriptor { label: None, size, usage: wgpu::BufferUsages::STORAGE, mapped_at_creation: false })
+            context.device.create_buffer(&wgpu::BufferDescriptor {
+                label: None,
+                size,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
         });
         assert!(matches!(result, Err(Error::Gpu { .. })));
     }
@@ -526,10 +731,17 @@ mod tests {
     fn host_mirrors_have_the_shader_layout() {
         let module = naga::front::wgsl::parse_str(TESSELLATE_WGSL).expect("tessellate.wgsl parses");
         let layout = |name: &str| {
-            let (handle, _) = module.types.iter().find(|(_, t)| t.name.as_deref() == Some(name)).expect("struct exists");
+            let (handle, _) = module
+                .types
+                .iter()
+                .find(|(_, t)| t.name.as_deref() == Some(name))
+                .expect("struct exists");
             let mut layouter = naga::proc::Layouter::default();
             layouter.update(module.to_ctx()).expect("layout");
-            (layouter[handle].size, layouter[handle].alignment.round_up(1))
+            (
+                layouter[handle].size,
+                layouter[handle].alignment.round_up(1),
+            )
         };
         assert_eq!(layout("Piece"), (size_of::<Piece>() as u32, 4));
         assert_eq!(layout("ChunkParams"), (size_of::<ChunkParams>() as u32, 4));

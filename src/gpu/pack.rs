@@ -143,7 +143,12 @@ pub(crate) fn local_points(surface: &BSplineSurface, origin: DVec3, out: &mut Ve
     let scale = 1.0 / points.iter().fold(0.0f64, |m, p| m.max(p.w));
     out.extend(points.iter().map(|h| {
         let local = (h.truncate() / h.w - origin) * (h.w * scale);
-        [local.x as f32, local.y as f32, local.z as f32, (h.w * scale) as f32]
+        [
+            local.x as f32,
+            local.y as f32,
+            local.z as f32,
+            (h.w * scale) as f32,
+        ]
     }));
 }
 
@@ -169,14 +174,28 @@ fn too_large(what: &'static str, bytes: u64, limit: u64) -> Error {
 }
 
 /// Plans and packs `surfaces`, surface k on the grid of `options[k]`, within `limits`.
-pub(crate) fn pack(surfaces: &[BSplineSurface], options: &[TessOptions], limits: &Limits) -> Result<Packed> {
+pub(crate) fn pack(
+    surfaces: &[BSplineSurface],
+    options: &[TessOptions],
+    limits: &Limits,
+) -> Result<Packed> {
     if options.len() != surfaces.len() {
-        return Err(Error::OptionsCount { expected: surfaces.len(), found: options.len() });
+        return Err(Error::OptionsCount {
+            expected: surfaces.len(),
+            found: options.len(),
+        });
     }
     let parts = plan_parts(options)?;
-    let vertex_count = parts.last().map_or(0, |p| u64::from(p.first_vertex + p.vertex_count));
-    let index_count = parts.last().map_or(0, |p| u64::from(p.first_index + p.index_count));
-    for (what, bytes) in [("the vertex buffer", vertex_count * VERTEX_BYTES), ("the index buffer", index_count * 4)] {
+    let vertex_count = parts
+        .last()
+        .map_or(0, |p| u64::from(p.first_vertex + p.vertex_count));
+    let index_count = parts
+        .last()
+        .map_or(0, |p| u64::from(p.first_index + p.index_count));
+    for (what, bytes) in [
+        ("the vertex buffer", vertex_count * VERTEX_BYTES),
+        ("the index buffer", index_count * 4),
+    ] {
         if bytes > limits.buffer_bytes {
             return Err(too_large(what, bytes, limits.buffer_bytes));
         }
@@ -198,7 +217,11 @@ pub(crate) fn pack(surfaces: &[BSplineSurface], options: &[TessOptions], limits:
     };
     for (surface_index, (surface, part)) in surfaces.iter().zip(&packed.parts).enumerate() {
         let (nu, nv) = (part.grid_u, part.grid_v);
-        let row_bytes = [u64::from(nu) * VERTEX_BYTES, u64::from(nu - 1) * 24, surface.count_u() as u64 * CONTRACTED_BYTES];
+        let row_bytes = [
+            u64::from(nu) * VERTEX_BYTES,
+            u64::from(nu - 1) * 24,
+            surface.count_u() as u64 * CONTRACTED_BYTES,
+        ];
         let widest = row_bytes.into_iter().max().unwrap_or(1);
         if widest > budget {
             return Err(too_large("one grid row", widest, budget));
@@ -206,17 +229,24 @@ pub(crate) fn pack(surfaces: &[BSplineSurface], options: &[TessOptions], limits:
         let rows_per_piece = (budget / widest).min(u64::from(nv)) as u32;
         let origin = {
             let pts = surface.homogeneous_points();
-            let (lo, hi) = pts.iter().fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), h| {
-                let c = h.truncate() / h.w;
-                (lo.min(c), hi.max(c))
-            });
+            let (lo, hi) = pts.iter().fold(
+                (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+                |(lo, hi), h| {
+                    let c = h.truncate() / h.w;
+                    (lo.min(c), hi.max(c))
+                },
+            );
             0.5 * (lo + hi)
         };
         let first_point = packed.points.len();
         local_points(surface, origin, &mut packed.points);
         let point_bytes = (packed.points.len() - first_point) as u64 * 16;
         if point_bytes > budget {
-            return Err(too_large("the control points of one surface", point_bytes, budget));
+            return Err(too_large(
+                "the control points of one surface",
+                point_bytes,
+                budget,
+            ));
         }
         let columns = packed.tables.len() as u32;
         push_table(surface.knots_u(), surface.range_u(), nu, &mut packed.tables);
@@ -224,9 +254,18 @@ pub(crate) fn pack(surfaces: &[BSplineSurface], options: &[TessOptions], limits:
         push_table(surface.knots_v(), surface.range_v(), nv, &mut packed.tables);
         let tables = (columns as usize, packed.tables.len());
         if (tables.1 - tables.0) as u64 * 4 > budget {
-            return Err(too_large("the basis tables of one surface", (tables.1 - tables.0) as u64 * 4, budget));
+            return Err(too_large(
+                "the basis tables of one surface",
+                (tables.1 - tables.0) as u64 * 4,
+                budget,
+            ));
         }
-        packed.surfaces.push(SurfaceSlot { origin, first_point, point_count: packed.points.len() - first_point, tables });
+        packed.surfaces.push(SurfaceSlot {
+            origin,
+            first_point,
+            point_count: packed.points.len() - first_point,
+            tables,
+        });
         let row_stride = 2 + 3 * (surface.degree_v() as u32 + 1);
         let (du, dv) = (surface.knots_u().domain(), surface.knots_v().domain());
         let size = surface.control_box_diagonal();
@@ -266,7 +305,11 @@ pub(crate) fn pack(surfaces: &[BSplineSurface], options: &[TessOptions], limits:
 /// Work items of `piece` in each pass: (row, control column) pairs, runs of `RUN` vertices
 /// along a row, cells.
 fn pass_items(piece: &Piece) -> [u32; PASSES] {
-    [piece.rows * piece.count_u, piece.rows * piece.grid_u.div_ceil(RUN), piece.cell_rows * (piece.grid_u - 1)]
+    [
+        piece.rows * piece.count_u,
+        piece.rows * piece.grid_u.div_ceil(RUN),
+        piece.cell_rows * (piece.grid_u - 1),
+    ]
 }
 
 /// Groups consecutive pieces into chunks whose bound ranges fit `budget` bytes each, sets
@@ -277,7 +320,12 @@ fn plan_chunks(packed: &mut Packed, limits: &Limits, budget: u64) {
         let step = limits.offset_alignment / gcd(bytes_each, limits.offset_alignment);
         elements / step * step
     };
-    let tiles_of = |piece: &Piece| pass_items(piece).iter().map(|&n| u64::from(n.div_ceil(TILE))).sum::<u64>();
+    let tiles_of = |piece: &Piece| {
+        pass_items(piece)
+            .iter()
+            .map(|&n| u64::from(n.div_ceil(TILE)))
+            .sum::<u64>()
+    };
     let mut start = 0;
     while start < packed.pieces.len() {
         // Extend the chunk while every binding still fits.
@@ -290,8 +338,12 @@ fn plan_chunks(packed: &mut Packed, limits: &Limits, budget: u64) {
             let next_contracted = contracted + u64::from(piece.rows) * u64::from(piece.count_u) * 3;
             let next_tiles = tiles + tiles_of(&piece);
             let bytes = [
-                (u64::from(piece.first_vertex + piece.rows * piece.grid_u) - u64::from(first.first_vertex)) * VERTEX_BYTES,
-                (u64::from(piece.first_index + piece.cell_rows * 6 * (piece.grid_u - 1)) - u64::from(first.first_index)) * 4,
+                (u64::from(piece.first_vertex + piece.rows * piece.grid_u)
+                    - u64::from(first.first_vertex))
+                    * VERTEX_BYTES,
+                (u64::from(piece.first_index + piece.cell_rows * 6 * (piece.grid_u - 1))
+                    - u64::from(first.first_index))
+                    * 4,
                 (slot.first_point + slot.point_count - first_slot.first_point) as u64 * 16,
                 (slot.tables.1 - first_slot.tables.0) as u64 * 4,
                 (end + 1 - start) as u64 * size_of::<Piece>() as u64,
@@ -316,18 +368,42 @@ fn plan_chunks(packed: &mut Packed, limits: &Limits, budget: u64) {
             let first_tile = packed.tiles.len() as u32;
             for index in start..end {
                 let items = pass_items(&packed.pieces[index])[pass];
-                packed.tiles.extend((0..items.div_ceil(TILE)).map(|t| Tile { piece: index as u32, first_item: t * TILE }));
+                packed.tiles.extend((0..items.div_ceil(TILE)).map(|t| Tile {
+                    piece: index as u32,
+                    first_item: t * TILE,
+                }));
             }
-            *slot = (first_tile - tiles_origin as u32, packed.tiles.len() as u32 - first_tile);
+            *slot = (
+                first_tile - tiles_origin as u32,
+                packed.tiles.len() as u32 - first_tile,
+            );
         }
         packed.chunks.push(Chunk {
             passes,
-            pieces: Range { origin: align(start as u64, size_of::<Piece>() as u64), end: end as u64 },
-            tiles: Range { origin: tiles_origin, end: packed.tiles.len() as u64 },
-            vertices: Range { origin: align(u64::from(first.first_vertex), VERTEX_BYTES), end: u64::from(last.first_vertex + last.rows * last.grid_u) },
-            indices: Range { origin: align(u64::from(first.first_index), 4), end: u64::from(last.first_index + last.cell_rows * 6 * (last.grid_u - 1)) },
-            points: Range { origin: align(first_slot.first_point as u64, 16), end: (last_slot.first_point + last_slot.point_count) as u64 },
-            tables: Range { origin: align(first_slot.tables.0 as u64, 4), end: last_slot.tables.1 as u64 },
+            pieces: Range {
+                origin: align(start as u64, size_of::<Piece>() as u64),
+                end: end as u64,
+            },
+            tiles: Range {
+                origin: tiles_origin,
+                end: packed.tiles.len() as u64,
+            },
+            vertices: Range {
+                origin: align(u64::from(first.first_vertex), VERTEX_BYTES),
+                end: u64::from(last.first_vertex + last.rows * last.grid_u),
+            },
+            indices: Range {
+                origin: align(u64::from(first.first_index), 4),
+                end: u64::from(last.first_index + last.cell_rows * 6 * (last.grid_u - 1)),
+            },
+            points: Range {
+                origin: align(first_slot.first_point as u64, 16),
+                end: (last_slot.first_point + last_slot.point_count) as u64,
+            },
+            tables: Range {
+                origin: align(first_slot.tables.0 as u64, 4),
+                end: last_slot.tables.1 as u64,
+            },
             contracted_len: contracted,
         });
         packed.contracted_len = packed.contracted_len.max(contracted);
@@ -350,11 +426,19 @@ mod tests {
     #[test]
     fn chunk_ranges_are_aligned_and_cover_everything() {
         let knots = KnotVector::clamped_uniform(3, 6).unwrap();
-        let points: Vec<glam::DVec3> = (0..36).map(|k| glam::DVec3::new((k % 6) as f64, (k / 6) as f64, 0.0)).collect();
+        let points: Vec<glam::DVec3> = (0..36)
+            .map(|k| glam::DVec3::new((k % 6) as f64, (k / 6) as f64, 0.0))
+            .collect();
         let surface = BSplineSurface::try_new(knots.clone(), knots, &points, None).unwrap();
         let surfaces = vec![surface; 23];
-        let options: Vec<TessOptions> = (0..23).map(|k| TessOptions::DEFAULT.with_grid(5 + k % 7, 9 + k % 5)).collect();
-        let limits = Limits { binding_bytes: 4096, buffer_bytes: 1 << 30, offset_alignment: 256 };
+        let options: Vec<TessOptions> = (0..23)
+            .map(|k| TessOptions::DEFAULT.with_grid(5 + k % 7, 9 + k % 5))
+            .collect();
+        let limits = Limits {
+            binding_bytes: 4096,
+            buffer_bytes: 1 << 30,
+            offset_alignment: 256,
+        };
         let packed = pack(&surfaces, &options, &limits).unwrap();
         assert!(packed.chunks.len() > 5);
         let (mut next_piece, mut next_vertex, mut next_index) = (0u64, 0u64, 0u64);
@@ -367,14 +451,33 @@ mod tests {
                 (chunk.points, 16),
                 (chunk.tables, 4),
             ] {
-                assert_eq!(range.origin * size % 256, 0, "{range:?} of {size}-byte elements");
+                assert_eq!(
+                    range.origin * size % 256,
+                    0,
+                    "{range:?} of {size}-byte elements"
+                );
                 assert!((range.end - range.origin) * size <= limits.binding_bytes);
             }
-            assert!(chunk.pieces.origin <= next_piece && chunk.vertices.origin <= next_vertex && chunk.indices.origin <= next_index);
+            assert!(
+                chunk.pieces.origin <= next_piece
+                    && chunk.vertices.origin <= next_vertex
+                    && chunk.indices.origin <= next_index
+            );
             let first = packed.pieces[next_piece as usize];
-            assert_eq!((u64::from(first.first_vertex), u64::from(first.first_index)), (next_vertex, next_index));
-            (next_piece, next_vertex, next_index) = (chunk.pieces.end, chunk.vertices.end, chunk.indices.end);
+            assert_eq!(
+                (u64::from(first.first_vertex), u64::from(first.first_index)),
+                (next_vertex, next_index)
+            );
+            (next_piece, next_vertex, next_index) =
+                (chunk.pieces.end, chunk.vertices.end, chunk.indices.end);
         }
-        assert_eq!((next_piece, next_vertex, next_index), (packed.pieces.len() as u64, packed.vertex_count, packed.index_count));
+        assert_eq!(
+            (next_piece, next_vertex, next_index),
+            (
+                packed.pieces.len() as u64,
+                packed.vertex_count,
+                packed.index_count
+            )
+        );
     }
 }

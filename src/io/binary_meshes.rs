@@ -40,7 +40,8 @@ pub fn write_stl(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
     let title = b"knotwork mesh (binary STL)";
     header[..title.len()].copy_from_slice(title);
     w.write_all(&header)?;
-    let count = u32::try_from(mesh.triangle_count()).map_err(|_| std::io::Error::other("more triangles than binary STL can count"))?;
+    let count = u32::try_from(mesh.triangle_count())
+        .map_err(|_| std::io::Error::other("more triangles than binary STL can count"))?;
     w.write_all(&count.to_le_bytes())?;
     for triangle in mesh.indices.chunks_exact(3) {
         let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[triangle[k] as usize]);
@@ -58,21 +59,51 @@ pub fn write_stl(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
 pub fn write_glb(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
     let n = mesh.vertex_count();
     let mut bin: Vec<u8> = Vec::with_capacity(n * 32 + mesh.indices.len() * 4);
-    let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.as_vec3().to_array()).collect();
-    let (lo, hi) = positions.iter().fold(([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]), |(lo, hi), p| {
-        (std::array::from_fn(|k| lo[k].min(p[k])), std::array::from_fn(|k| hi[k].max(p[k])))
-    });
+    let positions: Vec<[f32; 3]> = mesh
+        .positions
+        .iter()
+        .map(|p| p.as_vec3().to_array())
+        .collect();
+    let (lo, hi) = positions.iter().fold(
+        ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+        |(lo, hi), p| {
+            (
+                std::array::from_fn(|k| lo[k].min(p[k])),
+                std::array::from_fn(|k| hi[k].max(p[k])),
+            )
+        },
+    );
     bin.extend_from_slice(bytemuck::cast_slice(&positions));
-    let normals: Vec<[f32; 3]> = mesh.normals.iter().map(|v| v.as_vec3().to_array()).collect();
+    let normals: Vec<[f32; 3]> = mesh
+        .normals
+        .iter()
+        .map(|v| v.as_vec3().to_array())
+        .collect();
     bin.extend_from_slice(bytemuck::cast_slice(&normals));
     let uvs: Vec<[f32; 2]> = mesh.uvs.iter().map(|v| v.as_vec2().to_array()).collect();
     bin.extend_from_slice(bytemuck::cast_slice(&uvs));
     let index_offset = bin.len();
     bin.extend_from_slice(bytemuck::cast_slice(&mesh.indices));
 
-    let mut root = json::Root { asset: json::Asset { generator: Some("knotwork".into()), ..Default::default() }, ..Default::default() };
-    let buffer = root.push(json::Buffer { byte_length: USize64::from(bin.len()), name: None, uri: None, extensions: None, extras: Default::default() });
-    let view = |root: &mut json::Root, offset: usize, length: usize, stride: Option<usize>, target: json::buffer::Target| {
+    let mut root = json::Root {
+        asset: json::Asset {
+            generator: Some("knotwork".into()),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let buffer = root.push(json::Buffer {
+        byte_length: USize64::from(bin.len()),
+        name: None,
+        uri: None,
+        extensions: None,
+        extras: Default::default(),
+    });
+    let view = |root: &mut json::Root,
+                offset: usize,
+                length: usize,
+                stride: Option<usize>,
+                target: json::buffer::Target| {
         root.push(json::buffer::View {
             buffer,
             byte_length: USize64::from(length),
@@ -84,7 +115,13 @@ pub fn write_glb(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
             extras: Default::default(),
         })
     };
-    let accessor = |root: &mut json::Root, view, offset: usize, count: usize, component, type_, bounds: Option<([f32; 3], [f32; 3])>| {
+    let accessor = |root: &mut json::Root,
+                    view,
+                    offset: usize,
+                    count: usize,
+                    component,
+                    type_,
+                    bounds: Option<([f32; 3], [f32; 3])>| {
         root.push(json::Accessor {
             buffer_view: Some(view),
             byte_offset: Some(USize64::from(offset)),
@@ -106,18 +143,65 @@ pub fn write_glb(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
     let position_view = view(&mut root, 0, n * 12, Some(12), array);
     let normal_view = view(&mut root, n * 12, n * 12, Some(12), array);
     let uv_view = view(&mut root, n * 24, n * 8, Some(8), array);
-    let index_view = view(&mut root, index_offset, mesh.indices.len() * 4, None, Target::ElementArrayBuffer);
+    let index_view = view(
+        &mut root,
+        index_offset,
+        mesh.indices.len() * 4,
+        None,
+        Target::ElementArrayBuffer,
+    );
     let bounds = (n > 0).then_some((lo, hi));
-    let position = accessor(&mut root, position_view, 0, n, ComponentType::F32, Type::Vec3, bounds);
-    let normal = accessor(&mut root, normal_view, 0, n, ComponentType::F32, Type::Vec3, None);
-    let uv = accessor(&mut root, uv_view, 0, n, ComponentType::F32, Type::Vec2, None);
+    let position = accessor(
+        &mut root,
+        position_view,
+        0,
+        n,
+        ComponentType::F32,
+        Type::Vec3,
+        bounds,
+    );
+    let normal = accessor(
+        &mut root,
+        normal_view,
+        0,
+        n,
+        ComponentType::F32,
+        Type::Vec3,
+        None,
+    );
+    let uv = accessor(
+        &mut root,
+        uv_view,
+        0,
+        n,
+        ComponentType::F32,
+        Type::Vec2,
+        None,
+    );
     let mut nodes = Vec::new();
-    for (k, part) in mesh.parts.iter().enumerate().filter(|(_, p)| p.index_count > 0) {
-        let indices = accessor(&mut root, index_view, part.first_index as usize * 4, part.index_count as usize, ComponentType::U32, Type::Scalar, None);
-        let attributes = [(json::mesh::Semantic::Positions, position), (json::mesh::Semantic::Normals, normal), (json::mesh::Semantic::TexCoords(0), uv)]
-            .into_iter()
-            .map(|(semantic, accessor)| (Checked::Valid(semantic), accessor))
-            .collect();
+    for (k, part) in mesh
+        .parts
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.index_count > 0)
+    {
+        let indices = accessor(
+            &mut root,
+            index_view,
+            part.first_index as usize * 4,
+            part.index_count as usize,
+            ComponentType::U32,
+            Type::Scalar,
+            None,
+        );
+        let attributes = [
+            (json::mesh::Semantic::Positions, position),
+            (json::mesh::Semantic::Normals, normal),
+            (json::mesh::Semantic::TexCoords(0), uv),
+        ]
+        .into_iter()
+        .map(|(semantic, accessor)| (Checked::Valid(semantic), accessor))
+        .collect();
         let primitive = json::mesh::Primitive {
             attributes,
             extensions: None,
@@ -127,14 +211,33 @@ pub fn write_glb(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
             mode: Checked::Valid(json::mesh::Mode::Triangles),
             targets: None,
         };
-        let mesh_index = root.push(json::Mesh { extensions: None, extras: Default::default(), name: Some(format!("surface {k}")), primitives: vec![primitive], weights: None });
-        nodes.push(root.push(json::Node { mesh: Some(mesh_index), name: Some(format!("surface {k}")), ..Default::default() }));
+        let mesh_index = root.push(json::Mesh {
+            extensions: None,
+            extras: Default::default(),
+            name: Some(format!("surface {k}")),
+            primitives: vec![primitive],
+            weights: None,
+        });
+        nodes.push(root.push(json::Node {
+            mesh: Some(mesh_index),
+            name: Some(format!("surface {k}")),
+            ..Default::default()
+        }));
     }
-    let scene = root.push(json::Scene { extensions: None, extras: Default::default(), name: None, nodes });
+    let scene = root.push(json::Scene {
+        extensions: None,
+        extras: Default::default(),
+        name: None,
+        nodes,
+    });
     root.scene = Some(scene);
     let json_bytes = root.to_vec().map_err(std::io::Error::other)?;
     let glb = gltf::binary::Glb {
-        header: gltf::binary::Header { magic: *b"glTF", version: 2, length: 0 },
+        header: gltf::binary::Header {
+            magic: *b"glTF",
+            version: 2,
+            length: 0,
+        },
         json: json_bytes.into(),
         bin: Some(bin.into()),
     };

@@ -12,7 +12,13 @@ use glam::DVec3;
 
 /// Parses `.bpt` text. Errors carry the 1-based line ([`Error::AtLine`]).
 pub fn read_bpt(text: &str) -> Result<Scene> {
-    let mut tokens = Tokens { inner: text.lines().enumerate().flat_map(|(i, l)| l.split_whitespace().map(move |t| (i + 1, t))), line: 1 };
+    let mut tokens = Tokens {
+        inner: text
+            .lines()
+            .enumerate()
+            .flat_map(|(i, l)| l.split_whitespace().map(move |t| (i + 1, t))),
+        line: 1,
+    };
     let count: usize = tokens.parse("the patch count")?;
     let mut scene = Scene::default();
     // The count is untrusted: patches are read one by one, never preallocated from it.
@@ -21,7 +27,9 @@ pub fn read_bpt(text: &str) -> Result<Scene> {
         let n: usize = tokens.parse(&what("degree n"))?;
         let m: usize = tokens.parse(&what("degree m"))?;
         let line = tokens.line;
-        crate::geom::check_degree(n).and(crate::geom::check_degree(m)).map_err(|e| e.at_line(line))?;
+        crate::geom::check_degree(n)
+            .and(crate::geom::check_degree(m))
+            .map_err(|e| e.at_line(line))?;
         let mut points = Vec::with_capacity((n + 1) * (m + 1));
         for _ in 0..(n + 1) * (m + 1) {
             let mut xyz = [0.0; 3];
@@ -34,7 +42,10 @@ pub fn read_bpt(text: &str) -> Result<Scene> {
         scene.surfaces.push(surface);
     }
     if let Some((line, token)) = tokens.inner.next() {
-        return Err(Error::syntax(format!("unexpected `{token}` after the last of {count} patches")).at_line(line));
+        return Err(Error::syntax(format!(
+            "unexpected `{token}` after the last of {count} patches"
+        ))
+        .at_line(line));
     }
     Ok(scene)
 }
@@ -48,8 +59,15 @@ struct Tokens<I> {
 impl<'a, I: Iterator<Item = (usize, &'a str)>> Tokens<I> {
     fn parse<T: std::str::FromStr>(&mut self, what: &str) -> Result<T> {
         let last = self.line;
-        let (line, token) = self.inner.next().ok_or_else(|| Error::UnexpectedEnd { expected: what.to_string() }.at_line(last))?;
+        let (line, token) = self.inner.next().ok_or_else(|| {
+            Error::UnexpectedEnd {
+                expected: what.to_string(),
+            }
+            .at_line(last)
+        })?;
         self.line = line;
-        token.parse().map_err(|_| Error::syntax(format!("`{token}` is not a valid {what}")).at_line(line))
+        token
+            .parse()
+            .map_err(|_| Error::syntax(format!("`{token}` is not a valid {what}")).at_line(line))
     }
 }

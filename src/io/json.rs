@@ -34,7 +34,10 @@ struct Entry {
     shape: Shape,
     #[serde(default)]
     grid: Option<[u32; 2]>,
-    #[allow(dead_code, reason = "accepted for the reader's own bookkeeping, not used")]
+    #[allow(
+        dead_code,
+        reason = "accepted for the reader's own bookkeeping, not used"
+    )]
     #[serde(default)]
     name: Option<String>,
 }
@@ -80,20 +83,36 @@ enum Shape {
 }
 
 fn positive(name: &'static str, value: f64) -> Result<f64> {
-    if value.is_finite() && value > 0.0 { Ok(value) } else { Err(Error::InvalidParameter { name, value }) }
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(Error::InvalidParameter { name, value })
+    }
 }
 
 fn finite_point(p: [f64; 3]) -> Result<DVec3> {
     let p = DVec3::from_array(p);
-    if p.is_finite() { Ok(p) } else { Err(Error::ControlPointNotFinite { index: 0 }) }
+    if p.is_finite() {
+        Ok(p)
+    } else {
+        Err(Error::ControlPointNotFinite { index: 0 })
+    }
 }
 
-fn net(knots_u: KnotVector, knots_v: KnotVector, points: &[[f64; 3]], weights: Option<&[f64]>, range: (Option<[f64; 2]>, Option<[f64; 2]>)) -> Result<BSplineSurface> {
+fn net(
+    knots_u: KnotVector,
+    knots_v: KnotVector,
+    points: &[[f64; 3]],
+    weights: Option<&[f64]>,
+    range: (Option<[f64; 2]>, Option<[f64; 2]>),
+) -> Result<BSplineSurface> {
     let points: Vec<DVec3> = points.iter().map(|&p| DVec3::from_array(p)).collect();
     let mut surface = BSplineSurface::try_new(knots_u, knots_v, &points, weights)?;
     if range.0.is_some() || range.1.is_some() {
         let (ru, rv) = (surface.range_u(), surface.range_v());
-        let interval = |r: Option<[f64; 2]>, default: Interval| r.map_or(default, |[a, b]| Interval::new(a, b));
+        let interval = |r: Option<[f64; 2]>, default: Interval| {
+            r.map_or(default, |[a, b]| Interval::new(a, b))
+        };
         surface = surface.with_range(interval(range.0, ru), interval(range.1, rv))?;
     }
     Ok(surface)
@@ -102,19 +121,54 @@ fn net(knots_u: KnotVector, knots_v: KnotVector, points: &[[f64; 3]], weights: O
 impl Shape {
     fn build(self) -> Result<BSplineSurface> {
         match self {
-            Shape::Bspline { degree, knots_u, knots_v, points, weights, range_u, range_v } => {
-                net(KnotVector::try_new(degree[0], knots_u)?, KnotVector::try_new(degree[1], knots_v)?, &points, weights.as_deref(), (range_u, range_v))
-            }
-            Shape::Bezier { degree, breakpoints_u, breakpoints_v, points, weights, range_u, range_v } => {
+            Shape::Bspline {
+                degree,
+                knots_u,
+                knots_v,
+                points,
+                weights,
+                range_u,
+                range_v,
+            } => net(
+                KnotVector::try_new(degree[0], knots_u)?,
+                KnotVector::try_new(degree[1], knots_v)?,
+                &points,
+                weights.as_deref(),
+                (range_u, range_v),
+            ),
+            Shape::Bezier {
+                degree,
+                breakpoints_u,
+                breakpoints_v,
+                points,
+                weights,
+                range_u,
+                range_v,
+            } => {
                 let unit = [0.0, 1.0];
-                let ku = KnotVector::from_breakpoints(degree[0], breakpoints_u.as_deref().unwrap_or(&unit))?;
-                let kv = KnotVector::from_breakpoints(degree[1], breakpoints_v.as_deref().unwrap_or(&unit))?;
+                let ku = KnotVector::from_breakpoints(
+                    degree[0],
+                    breakpoints_u.as_deref().unwrap_or(&unit),
+                )?;
+                let kv = KnotVector::from_breakpoints(
+                    degree[1],
+                    breakpoints_v.as_deref().unwrap_or(&unit),
+                )?;
                 net(ku, kv, &points, weights.as_deref(), (range_u, range_v))
             }
-            Shape::Sphere { centre, radius } => Ok(shapes::sphere(finite_point(centre)?, positive("radius", radius)?)),
-            Shape::Torus { centre, major_radius, minor_radius } => {
-                Ok(shapes::torus(finite_point(centre)?, positive("major_radius", major_radius)?, positive("minor_radius", minor_radius)?))
-            }
+            Shape::Sphere { centre, radius } => Ok(shapes::sphere(
+                finite_point(centre)?,
+                positive("radius", radius)?,
+            )),
+            Shape::Torus {
+                centre,
+                major_radius,
+                minor_radius,
+            } => Ok(shapes::torus(
+                finite_point(centre)?,
+                positive("major_radius", major_radius)?,
+                positive("minor_radius", minor_radius)?,
+            )),
         }
     }
 }
@@ -122,17 +176,27 @@ impl Shape {
 /// Parses a JSON scene. Syntax and schema errors carry the line ([`Error::AtLine`]); errors in
 /// a surface's geometry name the surface ([`Error::InSurface`]).
 pub fn read_json_scene(text: &str) -> Result<Scene> {
-    let file: SceneFile = serde_json::from_str(text).map_err(|e| Error::syntax(format!("{e}")).at_line(e.line()))?;
+    let file: SceneFile =
+        serde_json::from_str(text).map_err(|e| Error::syntax(format!("{e}")).at_line(e.line()))?;
     let mut scene = Scene::default();
     for (index, entry) in file.surfaces.into_iter().enumerate() {
-        let in_surface = |e: Error| Error::InSurface { index, source: Box::new(e) };
+        let in_surface = |e: Error| Error::InSurface {
+            index,
+            source: Box::new(e),
+        };
         let grid = entry
             .grid
             .map(|[nu, nv]| {
-                if nu < 2 || nv < 2 { Err(in_surface(Error::GridTooSmall { nu, nv })) } else { Ok(TessOptions::DEFAULT.with_grid(nu, nv)) }
+                if nu < 2 || nv < 2 {
+                    Err(in_surface(Error::GridTooSmall { nu, nv }))
+                } else {
+                    Ok(TessOptions::DEFAULT.with_grid(nu, nv))
+                }
             })
             .transpose()?;
-        scene.surfaces.push(entry.shape.build().map_err(in_surface)?);
+        scene
+            .surfaces
+            .push(entry.shape.build().map_err(in_surface)?);
         scene.options.push(grid);
     }
     Ok(scene)

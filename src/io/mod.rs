@@ -34,7 +34,9 @@ pub struct Scene {
 impl Scene {
     /// The options of every surface: its own where the file gave some, else `default`.
     pub fn options_or(&self, default: TessOptions) -> Vec<TessOptions> {
-        (0..self.surfaces.len()).map(|k| self.options.get(k).copied().flatten().unwrap_or(default)).collect()
+        (0..self.surfaces.len())
+            .map(|k| self.options.get(k).copied().flatten().unwrap_or(default))
+            .collect()
     }
 }
 
@@ -42,7 +44,10 @@ const INPUT_FORMATS: &str = ".obj (free-form), .bpt, .json";
 const OUTPUT_FORMATS: &str = ".obj, .ply, .stl, .glb";
 
 fn extension(path: &Path) -> String {
-    path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
+    path.extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase()
 }
 
 /// A surface file format.
@@ -73,8 +78,14 @@ impl SceneFormat {
 pub fn read_scene_as(path: &Path, format: Option<SceneFormat>) -> Result<Scene> {
     let format = format
         .or_else(|| SceneFormat::from_extension(&extension(path)))
-        .ok_or_else(|| Error::UnknownFormat { path: path.to_path_buf(), expected: INPUT_FORMATS })?;
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io { path: path.to_path_buf(), source })?;
+        .ok_or_else(|| Error::UnknownFormat {
+            path: path.to_path_buf(),
+            expected: INPUT_FORMATS,
+        })?;
+    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let scene = match format {
         SceneFormat::Obj => read_obj_freeform(&text),
         SceneFormat::Bpt => read_bpt(&text),
@@ -128,7 +139,10 @@ impl MeshFormat {
 pub fn write_mesh_as(path: &Path, mesh: &Mesh, format: Option<MeshFormat>) -> Result<()> {
     let format = format
         .or_else(|| MeshFormat::from_extension(&extension(path)))
-        .ok_or_else(|| Error::UnknownFormat { path: path.to_path_buf(), expected: OUTPUT_FORMATS })?;
+        .ok_or_else(|| Error::UnknownFormat {
+            path: path.to_path_buf(),
+            expected: OUTPUT_FORMATS,
+        })?;
     write_atomic(path, |w| match format {
         MeshFormat::Obj => write_obj_mesh(mesh, w),
         MeshFormat::Ply => write_ply(mesh, w),
@@ -144,9 +158,17 @@ pub fn write_mesh(path: &Path, mesh: &Mesh) -> Result<()> {
 
 /// Writes through a temporary file next to `path` and renames it into place on success; on
 /// any failure the temporary file is removed and `path` is left as it was.
-pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>) -> Result<()> {
-    let io_error = |source| Error::Io { path: path.to_path_buf(), source };
-    let name = path.file_name().ok_or_else(|| io_error(std::io::Error::other("the output path has no file name")))?;
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<()> {
+    let io_error = |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let name = path
+        .file_name()
+        .ok_or_else(|| io_error(std::io::Error::other("the output path has no file name")))?;
     let mut temporary_name = std::ffi::OsString::from(".");
     temporary_name.push(name);
     temporary_name.push(format!(".{}.tmp", std::process::id()));
@@ -155,7 +177,10 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> std::io::
         let file = std::fs::File::create(&temporary)?;
         let mut buffered = std::io::BufWriter::new(file);
         write(&mut buffered)?;
-        buffered.into_inner().map_err(|e| e.into_error())?.sync_all()?;
+        buffered
+            .into_inner()
+            .map_err(|e| e.into_error())?
+            .sync_all()?;
         std::fs::rename(&temporary, path)
     })();
     if result.is_err() {

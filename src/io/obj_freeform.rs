@@ -19,13 +19,24 @@ pub fn read_obj_freeform(text: &str) -> Result<Scene> {
     for (line, statement) in logical_lines(text) {
         reader.line = line;
         // Errors found at `end` already name the line of the statement at fault.
-        reader.statement(&statement).map_err(|e| if e.line().is_some() { e } else { e.at_line(line) })?;
+        reader.statement(&statement).map_err(|e| {
+            if e.line().is_some() {
+                e
+            } else {
+                e.at_line(line)
+            }
+        })?;
     }
     if let Some(element) = reader.element {
-        return Err(Error::syntax(format!("`{}` element has no `end`", element.keyword())).at_line(element.line));
+        return Err(
+            Error::syntax(format!("`{}` element has no `end`", element.keyword()))
+                .at_line(element.line),
+        );
     }
     if reader.scene.surfaces.is_empty() && reader.scene.curves.is_empty() {
-        return Err(Error::syntax("no free-form surface or curve (`surf`/`curv` … `end`) in the file"));
+        return Err(Error::syntax(
+            "no free-form surface or curve (`surf`/`curv` … `end`) in the file",
+        ));
     }
     Ok(reader.scene)
 }
@@ -71,8 +82,13 @@ struct CsType {
 }
 
 enum Kind {
-    Surface { range_u: Interval, range_v: Interval },
-    Curve { range: Interval },
+    Surface {
+        range_u: Interval,
+        range_v: Interval,
+    },
+    Curve {
+        range: Interval,
+    },
     /// A parameter-space curve (`curv2`): read and skipped.
     SpaceCurve,
 }
@@ -109,7 +125,9 @@ struct Reader {
 }
 
 fn number(token: &str) -> Result<f64> {
-    token.parse::<f64>().map_err(|_| Error::syntax(format!("`{token}` is not a number")))
+    token
+        .parse::<f64>()
+        .map_err(|_| Error::syntax(format!("`{token}` is not a number")))
 }
 
 fn numbers(tokens: &[&str]) -> Result<Vec<f64>> {
@@ -117,7 +135,9 @@ fn numbers(tokens: &[&str]) -> Result<Vec<f64>> {
 }
 
 fn degree(token: &str) -> Result<usize> {
-    let value: usize = token.parse().map_err(|_| Error::syntax(format!("degree `{token}` is not a non-negative integer")))?;
+    let value: usize = token
+        .parse()
+        .map_err(|_| Error::syntax(format!("degree `{token}` is not a non-negative integer")))?;
     crate::geom::check_degree(value)?;
     Ok(value)
 }
@@ -125,17 +145,25 @@ fn degree(token: &str) -> Result<usize> {
 impl Reader {
     fn statement(&mut self, statement: &str) -> Result<()> {
         let tokens: Vec<&str> = statement.split_whitespace().collect();
-        let Some((&keyword, args)) = tokens.split_first() else { return Ok(()) };
+        let Some((&keyword, args)) = tokens.split_first() else {
+            return Ok(());
+        };
         if self.element.is_some() {
             return self.body_statement(keyword, args);
         }
         match keyword {
             "v" => {
                 if !(3..=4).contains(&args.len()) {
-                    return Err(Error::syntax(format!("`v` needs x y z [w], found {} values", args.len())));
+                    return Err(Error::syntax(format!(
+                        "`v` needs x y z [w], found {} values",
+                        args.len()
+                    )));
                 }
                 let values = numbers(args)?;
-                self.vertices.push((DVec3::new(values[0], values[1], values[2]), values.get(3).copied().unwrap_or(1.0)));
+                self.vertices.push((
+                    DVec3::new(values[0], values[1], values[2]),
+                    values.get(3).copied().unwrap_or(1.0),
+                ));
             }
             "cstype" => {
                 let (rational, name) = match args {
@@ -146,7 +174,11 @@ impl Reader {
                 let basis = match name {
                     "bezier" => Basis::Bezier,
                     "bspline" => Basis::BSpline,
-                    other => return Err(Error::syntax(format!("cstype `{other}` is not supported (bezier, bspline)"))),
+                    other => {
+                        return Err(Error::syntax(format!(
+                            "cstype `{other}` is not supported (bezier, bspline)"
+                        )));
+                    }
                 };
                 self.cstype = Some(CsType { rational, basis });
             }
@@ -154,15 +186,24 @@ impl Reader {
                 self.degrees = match args {
                     [du] => Some((degree(du)?, None)),
                     [du, dv] => Some((degree(du)?, Some(degree(dv)?))),
-                    _ => return Err(Error::syntax("`deg` needs one degree (curves) or two (surfaces)")),
+                    _ => {
+                        return Err(Error::syntax(
+                            "`deg` needs one degree (curves) or two (surfaces)",
+                        ));
+                    }
                 };
             }
             "surf" => {
                 if args.len() < 5 {
-                    return Err(Error::syntax("`surf` needs s0 s1 t0 t1 and control vertices"));
+                    return Err(Error::syntax(
+                        "`surf` needs s0 s1 t0 t1 and control vertices",
+                    ));
                 }
                 let r = numbers(&args[..4])?;
-                let kind = Kind::Surface { range_u: Interval::new(r[0], r[1]), range_v: Interval::new(r[2], r[3]) };
+                let kind = Kind::Surface {
+                    range_u: Interval::new(r[0], r[1]),
+                    range_v: Interval::new(r[2], r[3]),
+                };
                 self.begin(kind, &args[4..])?;
             }
             "curv" => {
@@ -170,11 +211,18 @@ impl Reader {
                     return Err(Error::syntax("`curv` needs u0 u1 and control vertices"));
                 }
                 let r = numbers(&args[..2])?;
-                self.begin(Kind::Curve { range: Interval::new(r[0], r[1]) }, &args[2..])?;
+                self.begin(
+                    Kind::Curve {
+                        range: Interval::new(r[0], r[1]),
+                    },
+                    &args[2..],
+                )?;
             }
             "curv2" => self.begin(Kind::SpaceCurve, &[])?,
             "parm" | "trim" | "hole" | "scrv" | "sp" | "end" => {
-                return Err(Error::syntax(format!("`{keyword}` outside a `surf`/`curv` element")));
+                return Err(Error::syntax(format!(
+                    "`{keyword}` outside a `surf`/`curv` element"
+                )));
             }
             // Texture and normal vertices, polygons, groups, display and rendering attributes:
             // nothing knotwork tessellates.
@@ -184,7 +232,10 @@ impl Reader {
     }
 
     fn begin(&mut self, kind: Kind, references: &[&str]) -> Result<()> {
-        let vertices = references.iter().map(|r| self.resolve(r)).collect::<Result<Vec<_>>>()?;
+        let vertices = references
+            .iter()
+            .map(|r| self.resolve(r))
+            .collect::<Result<Vec<_>>>()?;
         self.element = Some(Element {
             kind,
             line: self.line,
@@ -200,11 +251,20 @@ impl Reader {
     /// Resolves `v[/vt[/vn]]` to a 0-based vertex index.
     fn resolve(&self, reference: &str) -> Result<usize> {
         let head = reference.split('/').next().unwrap_or("");
-        let value: i64 = head.parse().map_err(|_| Error::syntax(format!("`{reference}` is not a vertex reference")))?;
+        let value: i64 = head
+            .parse()
+            .map_err(|_| Error::syntax(format!("`{reference}` is not a vertex reference")))?;
         let available = self.vertices.len();
-        let index = if value > 0 { value - 1 } else { available as i64 + value };
+        let index = if value > 0 {
+            value - 1
+        } else {
+            available as i64 + value
+        };
         if value == 0 || index < 0 || index >= available as i64 {
-            return Err(Error::VertexReference { reference: value, available });
+            return Err(Error::VertexReference {
+                reference: value,
+                available,
+            });
         }
         Ok(index as usize)
     }
@@ -214,12 +274,18 @@ impl Reader {
         let element = self.element.as_mut().expect("called inside an element");
         match keyword {
             "parm" => {
-                let (direction, values) = args.split_first().ok_or_else(|| Error::syntax("`parm` needs u|v and values"))?;
+                let (direction, values) = args
+                    .split_first()
+                    .ok_or_else(|| Error::syntax("`parm` needs u|v and values"))?;
                 let values = numbers(values)?;
                 match *direction {
                     "u" => element.parm_u = Some((line, values)),
                     "v" => element.parm_v = Some((line, values)),
-                    other => return Err(Error::syntax(format!("`parm {other}`: the direction must be u or v"))),
+                    other => {
+                        return Err(Error::syntax(format!(
+                            "`parm {other}`: the direction must be u or v"
+                        )));
+                    }
                 }
             }
             "trim" | "hole" | "scrv" | "sp" => {}
@@ -228,7 +294,10 @@ impl Reader {
                 self.finish(element)?;
             }
             other => {
-                return Err(Error::syntax(format!("`{other}` inside a `{}` element (missing `end`?)", element.keyword())));
+                return Err(Error::syntax(format!(
+                    "`{other}` inside a `{}` element (missing `end`?)",
+                    element.keyword()
+                )));
             }
         }
         Ok(())
@@ -240,21 +309,41 @@ impl Reader {
         }
         let line = element.line;
         let keyword = element.keyword();
-        let cstype = element.cstype.ok_or_else(|| Error::syntax(format!("`{keyword}` before any `cstype`")).at_line(line))?;
-        let (du, dv) = element.degrees.ok_or_else(|| Error::syntax(format!("`{keyword}` before any `deg`")).at_line(line))?;
-        let knots = |parm: Option<(usize, Vec<f64>)>, degree: usize, direction: &str| -> Result<KnotVector> {
-            let (parm_line, values) = parm.ok_or_else(|| Error::syntax(format!("`{keyword}` has no `parm {direction}`")).at_line(line))?;
+        let cstype = element.cstype.ok_or_else(|| {
+            Error::syntax(format!("`{keyword}` before any `cstype`")).at_line(line)
+        })?;
+        let (du, dv) = element
+            .degrees
+            .ok_or_else(|| Error::syntax(format!("`{keyword}` before any `deg`")).at_line(line))?;
+        let knots = |parm: Option<(usize, Vec<f64>)>,
+                     degree: usize,
+                     direction: &str|
+         -> Result<KnotVector> {
+            let (parm_line, values) = parm.ok_or_else(|| {
+                Error::syntax(format!("`{keyword}` has no `parm {direction}`")).at_line(line)
+            })?;
             let built = match cstype.basis {
                 Basis::BSpline => KnotVector::try_new(degree, values),
                 Basis::Bezier => KnotVector::from_breakpoints(degree, &values),
             };
             built.map_err(|e| e.at_line(parm_line))
         };
-        let points: Vec<DVec3> = element.vertices.iter().map(|&i| self.vertices[i].0).collect();
-        let weights: Option<Vec<f64>> = cstype.rational.then(|| element.vertices.iter().map(|&i| self.vertices[i].1).collect());
+        let points: Vec<DVec3> = element
+            .vertices
+            .iter()
+            .map(|&i| self.vertices[i].0)
+            .collect();
+        let weights: Option<Vec<f64>> = cstype.rational.then(|| {
+            element
+                .vertices
+                .iter()
+                .map(|&i| self.vertices[i].1)
+                .collect()
+        });
         match element.kind {
             Kind::Surface { range_u, range_v } => {
-                let dv = dv.ok_or_else(|| Error::syntax("a surface needs `deg du dv`").at_line(line))?;
+                let dv =
+                    dv.ok_or_else(|| Error::syntax("a surface needs `deg du dv`").at_line(line))?;
                 let ku = knots(element.parm_u, du, "u")?;
                 let kv = knots(element.parm_v, dv, "v")?;
                 let surface = BSplineSurface::try_new(ku, kv, &points, weights.as_deref())

@@ -7,20 +7,41 @@ use std::io::{Result, Write};
 /// ordinary magnitudes, exponent form (`6.66134e-16`) for very small or large ones.
 pub fn format_f64(x: f64) -> String {
     let magnitude = x.abs();
-    if magnitude != 0.0 && !(1e-5..1e16).contains(&magnitude) { format!("{x:e}") } else { format!("{x}") }
+    if magnitude != 0.0 && !(1e-5..1e16).contains(&magnitude) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
 }
 
 /// Writes `mesh` as an OBJ with positions, texture coordinates, normals and triangles.
 pub fn write_obj_mesh(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
-    writeln!(w, "# knotwork mesh: {} vertices, {} triangles", mesh.vertex_count(), mesh.triangle_count())?;
+    writeln!(
+        w,
+        "# knotwork mesh: {} vertices, {} triangles",
+        mesh.vertex_count(),
+        mesh.triangle_count()
+    )?;
     for p in &mesh.positions {
-        writeln!(w, "v {} {} {}", format_f64(p.x), format_f64(p.y), format_f64(p.z))?;
+        writeln!(
+            w,
+            "v {} {} {}",
+            format_f64(p.x),
+            format_f64(p.y),
+            format_f64(p.z)
+        )?;
     }
     for t in &mesh.uvs {
         writeln!(w, "vt {} {}", format_f64(t.x), format_f64(t.y))?;
     }
     for n in &mesh.normals {
-        writeln!(w, "vn {} {} {}", format_f64(n.x), format_f64(n.y), format_f64(n.z))?;
+        writeln!(
+            w,
+            "vn {} {} {}",
+            format_f64(n.x),
+            format_f64(n.y),
+            format_f64(n.z)
+        )?;
     }
     for triangle in mesh.indices.chunks_exact(3) {
         let [a, b, c] = [triangle[0] + 1, triangle[1] + 1, triangle[2] + 1];

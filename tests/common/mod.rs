@@ -26,7 +26,11 @@ pub fn quarter_cylinder() -> BSplineSurface {
     let mut points = Vec::new();
     let mut weights = Vec::new();
     for z in [0.0, 1.0] {
-        for (p, w) in [(DVec3::new(1.0, 0.0, z), 1.0), (DVec3::new(1.0, 1.0, z), S), (DVec3::new(0.0, 1.0, z), 1.0)] {
+        for (p, w) in [
+            (DVec3::new(1.0, 0.0, z), 1.0),
+            (DVec3::new(1.0, 1.0, z), S),
+            (DVec3::new(0.0, 1.0, z), 1.0),
+        ] {
             points.push(p);
             weights.push(w);
         }
