@@ -19,7 +19,7 @@ fn convert(input: &Path, output: &Path) -> knotwork::Result<usize> {
         &mut mesh,
     )?;
     let (welded, _) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
-    knotwork::io::write_mesh_as(output, &welded, Some(MeshFormat::Glb))?;
+    knotwork::io::write_mesh_as(output, &welded, &scene.groups, Some(MeshFormat::Glb))?;
     Ok(welded.triangle_count())
 }
 

@@ -900,3 +900,53 @@ fn json_errors_name_the_line_or_the_surface() {
         })
     ));
 }
+
+#[test]
+fn glb_has_one_mesh_per_surface_group() {
+    use knotwork::io::{SurfaceGroup, write_mesh_as};
+    let ducky = read_scene(Path::new("data/ducky.obj")).unwrap();
+    let names: Vec<&str> = ducky.groups.iter().map(|g| g.name.as_str()).collect();
+    assert_eq!(names, ["duck1", "duck2", "duck3"], "OBJ `g` groups");
+    assert_eq!(
+        read_scene(Path::new("data/teapot.bpt")).unwrap().groups,
+        [SurfaceGroup {
+            name: "patches".into(),
+            surfaces: 0..32
+        }]
+    );
+    let json = read_scene(Path::new("data/scene.json")).unwrap();
+    assert_eq!(json.groups.len(), 4, "every JSON surface is named");
+    let mesh = teapot_mesh(5);
+    let groups = [
+        SurfaceGroup {
+            name: "rim and body".into(),
+            surfaces: 0..12,
+        },
+        SurfaceGroup {
+            name: "lid".into(),
+            surfaces: 20..28,
+        },
+    ];
+    let path = scratch_dir("glb-groups").join("teapot.glb");
+    write_mesh_as(&path, &mesh, &groups, None).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
+    let meshes: Vec<(String, usize)> = gltf
+        .meshes()
+        .map(|m| {
+            (
+                m.name().unwrap().to_string(),
+                m.primitives().next().unwrap().indices().unwrap().count(),
+            )
+        })
+        .collect();
+    let cells = 6 * 4 * 4;
+    let mut expected = vec![("rim and body".to_string(), 12 * cells)];
+    expected.extend((12..20).map(|k| (format!("surface {k}"), cells)));
+    expected.push(("lid".to_string(), 8 * cells));
+    expected.extend((28..32).map(|k| (format!("surface {k}"), cells)));
+    assert_eq!(
+        meshes, expected,
+        "named groups, and a mesh per surface outside them"
+    );
+}

@@ -268,7 +268,7 @@ fn process(
         let (welded, report) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
         (mesh, merged) = (welded, report.merged_vertices);
     }
-    knotwork::io::write_mesh_as(output, &mesh, job.format)?;
+    knotwork::io::write_mesh_as(output, &mesh, &scene.groups, job.format)?;
     Ok(Tally {
         surfaces: scene.surfaces.len(),
         vertices: mesh.vertex_count(),

@@ -3,6 +3,7 @@
 //! nothing but a dependency. glTF 2.0 binary goes through the `gltf` crate's JSON model and
 //! GLB container writer: its schema is large and easy to get subtly wrong by hand.
 
+use super::{SurfaceGroup, cover_groups};
 use crate::mesh::Mesh;
 use gltf::json;
 use json::validation::{Checked, USize64};
@@ -54,9 +55,10 @@ pub fn write_stl(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
 }
 
 /// glTF 2.0 binary (.glb): one buffer with POSITION, NORMAL, TEXCOORD_0 (f32) and u32
-/// indices; one mesh and node per surface (a primitive of triangles over the shared vertex
-/// accessors with its own index accessor); POSITION bounds filled in.
-pub fn write_glb(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
+/// indices; one mesh and node per group of surfaces (`groups`, completed by
+/// [`cover_groups`]): a primitive of triangles over the shared vertex accessors with its own
+/// index accessor; POSITION bounds filled in.
+pub fn write_glb(mesh: &Mesh, groups: &[SurfaceGroup], w: &mut dyn Write) -> Result<()> {
     let n = mesh.vertex_count();
     let mut bin: Vec<u8> = Vec::with_capacity(n * 32 + mesh.indices.len() * 4);
     let positions: Vec<[f32; 3]> = mesh
@@ -179,17 +181,19 @@ pub fn write_glb(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
         None,
     );
     let mut nodes = Vec::new();
-    for (k, part) in mesh
-        .parts
-        .iter()
-        .enumerate()
-        .filter(|(_, p)| p.index_count > 0)
-    {
+    for group in cover_groups(groups, mesh.parts.len()) {
+        let parts = &mesh.parts[group.surfaces.clone()];
+        // Parts follow one another in the index buffer: a group's triangles are one range.
+        let first_index = parts[0].first_index as usize;
+        let index_count: usize = parts.iter().map(|p| p.index_count as usize).sum();
+        if index_count == 0 {
+            continue;
+        }
         let indices = accessor(
             &mut root,
             index_view,
-            part.first_index as usize * 4,
-            part.index_count as usize,
+            first_index * 4,
+            index_count,
             ComponentType::U32,
             Type::Scalar,
             None,
@@ -214,13 +218,13 @@ pub fn write_glb(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
         let mesh_index = root.push(json::Mesh {
             extensions: None,
             extras: Default::default(),
-            name: Some(format!("surface {k}")),
+            name: Some(group.name.clone()),
             primitives: vec![primitive],
             weights: None,
         });
         nodes.push(root.push(json::Node {
             mesh: Some(mesh_index),
-            name: Some(format!("surface {k}")),
+            name: Some(group.name),
             ..Default::default()
         }));
     }

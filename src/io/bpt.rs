@@ -47,6 +47,10 @@ pub fn read_bpt(text: &str) -> Result<Scene> {
         ))
         .at_line(line));
     }
+    scene.groups.push(super::SurfaceGroup {
+        name: "patches".into(),
+        surfaces: 0..scene.surfaces.len(),
+    });
     Ok(scene)
 }
 

@@ -13,8 +13,8 @@
 //!
 //! Points are Cartesian and listed u fastest; `weights` (optional) makes the surface
 //! rational; `range_u`/`range_v` (optional) restrict evaluation to part of the knot domain;
-//! `grid` (optional) overrides the tessellation grid for that surface; `name` is kept for
-//! reference. Bezier breakpoints default to [0, 1].
+//! `grid` (optional) overrides the tessellation grid for that surface; `name` (optional)
+//! names its mesh in glTF output. Bezier breakpoints default to [0, 1].
 
 use super::Scene;
 use crate::error::{Error, Result};
@@ -34,10 +34,6 @@ struct Entry {
     shape: Shape,
     #[serde(default)]
     grid: Option<[u32; 2]>,
-    #[allow(
-        dead_code,
-        reason = "accepted for the reader's own bookkeeping, not used"
-    )]
     #[serde(default)]
     name: Option<String>,
 }
@@ -198,6 +194,12 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
             .surfaces
             .push(entry.shape.build().map_err(in_surface)?);
         scene.options.push(grid);
+        if let Some(name) = entry.name {
+            scene.groups.push(super::SurfaceGroup {
+                name,
+                surfaces: index..index + 1,
+            });
+        }
     }
     Ok(scene)
 }

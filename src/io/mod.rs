@@ -29,6 +29,37 @@ pub struct Scene {
     /// Tessellation options a surface asks for itself (JSON `grid`), by surface index; empty
     /// or `None` where the file says nothing.
     pub options: Vec<Option<TessOptions>>,
+    /// Named groups of consecutive surfaces (OBJ `g`, a JSON surface's `name`, a whole `.bpt`
+    /// file); surfaces outside every group count as groups of their own.
+    pub groups: Vec<SurfaceGroup>,
+}
+
+/// A named run of consecutive surfaces: one mesh in a glTF file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SurfaceGroup {
+    pub name: String,
+    pub surfaces: std::ops::Range<usize>,
+}
+
+/// `groups` completed to cover surfaces 0..count in order: gaps become one group per surface
+/// ("surface k"); empty groups are dropped.
+pub fn cover_groups(groups: &[SurfaceGroup], count: usize) -> Vec<SurfaceGroup> {
+    let mut covered = Vec::new();
+    let mut next = 0;
+    let single = |k: usize| SurfaceGroup {
+        name: format!("surface {k}"),
+        surfaces: k..k + 1,
+    };
+    for group in groups
+        .iter()
+        .filter(|g| !g.surfaces.is_empty() && g.surfaces.end <= count)
+    {
+        covered.extend((next..group.surfaces.start).map(single));
+        covered.push(group.clone());
+        next = group.surfaces.end;
+    }
+    covered.extend((next..count).map(single));
+    covered
 }
 
 impl Scene {
@@ -136,7 +167,14 @@ impl MeshFormat {
 }
 
 /// Writes `mesh` to `path` in `format`, or in the format its extension names, atomically.
-pub fn write_mesh_as(path: &Path, mesh: &Mesh, format: Option<MeshFormat>) -> Result<()> {
+/// `groups` name runs of surfaces (parts): glTF gets one mesh per group; other formats ignore
+/// them.
+pub fn write_mesh_as(
+    path: &Path,
+    mesh: &Mesh,
+    groups: &[SurfaceGroup],
+    format: Option<MeshFormat>,
+) -> Result<()> {
     let format = format
         .or_else(|| MeshFormat::from_extension(&extension(path)))
         .ok_or_else(|| Error::UnknownFormat {
@@ -147,13 +185,13 @@ pub fn write_mesh_as(path: &Path, mesh: &Mesh, format: Option<MeshFormat>) -> Re
         MeshFormat::Obj => write_obj_mesh(mesh, w),
         MeshFormat::Ply => write_ply(mesh, w),
         MeshFormat::Stl => write_stl(mesh, w),
-        MeshFormat::Glb => write_glb(mesh, w),
+        MeshFormat::Glb => write_glb(mesh, groups, w),
     })
 }
 
 /// Writes `mesh` to `path` in the format its extension names, atomically.
 pub fn write_mesh(path: &Path, mesh: &Mesh) -> Result<()> {
-    write_mesh_as(path, mesh, None)
+    write_mesh_as(path, mesh, &[], None)
 }
 
 /// Writes through a temporary file next to `path` and renames it into place on success; on

@@ -38,7 +38,12 @@ pub fn read_obj_freeform(text: &str) -> Result<Scene> {
             "no free-form surface or curve (`surf`/`curv` … `end`) in the file",
         ));
     }
-    Ok(reader.scene)
+    let mut scene = reader.scene;
+    if let Some(open) = scene.groups.last_mut() {
+        open.surfaces.end = scene.surfaces.len();
+    }
+    scene.groups.retain(|g| !g.surfaces.is_empty());
+    Ok(scene)
 }
 
 /// Joins `\`-continued lines and strips comments; yields (first line number, statement).
@@ -219,6 +224,22 @@ impl Reader {
                 )?;
             }
             "curv2" => self.begin(Kind::SpaceCurve, &[])?,
+            "g" => {
+                // A group holds the surfaces that follow, until the next `g`.
+                let start = self.scene.surfaces.len();
+                if let Some(open) = self.scene.groups.last_mut() {
+                    open.surfaces.end = start;
+                }
+                let name = if args.is_empty() {
+                    "default".to_string()
+                } else {
+                    args.join(" ")
+                };
+                self.scene.groups.push(super::SurfaceGroup {
+                    name,
+                    surfaces: start..start,
+                });
+            }
             "parm" | "trim" | "hole" | "scrv" | "sp" | "end" => {
                 return Err(Error::syntax(format!(
                     "`{keyword}` outside a `surf`/`curv` element"
