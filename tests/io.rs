@@ -455,6 +455,12 @@ fn failed_writes_leave_nothing_behind() {
         write_mesh(&dir.join("out.fbx"), &mesh),
         Err(Error::UnknownFormat { .. })
     ));
+    // An empty mesh (a file with curves only) cannot be valid glTF: refused, nothing written.
+    assert!(matches!(
+        write_mesh(&dir.join("empty.glb"), &mesh),
+        Err(Error::Io { .. })
+    ));
+    assert!(!dir.join("empty.glb").exists());
 }
 
 // ---------------------------------------------------------------- command line

@@ -60,6 +60,12 @@ pub fn write_stl(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
 /// index accessor; POSITION bounds filled in.
 pub fn write_glb(mesh: &Mesh, groups: &[SurfaceGroup], w: &mut dyn Write) -> Result<()> {
     let n = mesh.vertex_count();
+    if mesh.indices.is_empty() {
+        // glTF accessors cannot be empty: a file without triangles would not be valid glTF.
+        return Err(std::io::Error::other(
+            "glTF needs at least one triangle: the input has no surfaces",
+        ));
+    }
     let mut bin: Vec<u8> = Vec::with_capacity(n * 32 + mesh.indices.len() * 4);
     let positions: Vec<[f32; 3]> = mesh
         .positions
@@ -152,7 +158,7 @@ pub fn write_glb(mesh: &Mesh, groups: &[SurfaceGroup], w: &mut dyn Write) -> Res
         None,
         Target::ElementArrayBuffer,
     );
-    let bounds = (n > 0).then_some((lo, hi));
+    let bounds = Some((lo, hi));
     let position = accessor(
         &mut root,
         position_view,
