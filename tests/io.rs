@@ -427,6 +427,25 @@ fn obj_mesh_round_trips_every_double() {
             assert_eq!(corner, &vec![mesh.indices[3 * t + c] + 1; 3]);
         }
     }
+    // And through an independent crate: tobj (f64), corner by corner.
+    let (models, _) = tobj::load_obj(&path, &tobj::GPU_LOAD_OPTIONS).unwrap();
+    let read = &models[0].mesh;
+    assert_eq!(read.indices.len(), mesh.indices.len());
+    for (corner, &theirs) in read.indices.iter().enumerate() {
+        let (theirs, ours) = (theirs as usize, mesh.indices[corner] as usize);
+        assert_eq!(
+            read.positions[3 * theirs..3 * theirs + 3],
+            mesh.positions[ours].to_array()
+        );
+        assert_eq!(
+            read.normals[3 * theirs..3 * theirs + 3],
+            mesh.normals[ours].to_array()
+        );
+        assert_eq!(
+            read.texcoords[2 * theirs..2 * theirs + 2],
+            mesh.uvs[ours].to_array()
+        );
+    }
 }
 
 #[test]
