@@ -117,20 +117,13 @@ fn perspective(fov_y: f32, aspect: f32, near: f32, far: f32) -> Mat4 {
 }
 
 fn control_box(surfaces: &[BSplineSurface]) -> (Vec3, Vec3) {
-    let mut lo = Vec3::splat(f32::INFINITY);
-    let mut hi = Vec3::splat(f32::NEG_INFINITY);
-    for s in surfaces {
-        for p in s.homogeneous_points() {
-            let c = (p.truncate() / p.w).as_vec3();
-            lo = lo.min(c);
-            hi = hi.max(c);
-        }
-    }
-    if surfaces.is_empty() {
-        (Vec3::ZERO, Vec3::ONE)
-    } else {
-        (lo, hi)
-    }
+    let union = surfaces
+        .iter()
+        .map(BSplineSurface::control_box)
+        .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)));
+    union.map_or((Vec3::ZERO, Vec3::ONE), |(lo, hi)| {
+        (lo.as_vec3(), hi.as_vec3())
+    })
 }
 
 /// Line segments between neighbouring control points (along u and along v), as point pairs.
@@ -369,18 +362,21 @@ impl Preview {
     ) -> Result<image::RgbaImage> {
         let (device, mesh) = (context.device(), batch.mesh());
         let (width, height) = (self.options.width, self.options.height);
+        // The wireframe needs each triangle's edges: read them back before the draw.
+        let wire_indices = match self.options.wireframe {
+            true => Some(wireframe_indices(&read_indices(context, mesh)?)),
+            false => None,
+        };
         scoped(device, || {
             context.queue().write_buffer(
                 &self.uniform,
                 0,
                 bytemuck::bytes_of(&frame_for(surfaces, width, height)),
             );
-            let wire = self.options.wireframe.then(|| {
+            let wire = wire_indices.as_ref().map(|edges| {
                 device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("knotwork wireframe"),
-                    contents: bytemuck::cast_slice(&wireframe_indices(&read_indices(
-                        context, mesh,
-                    ))),
+                    contents: bytemuck::cast_slice(edges),
                     usage: wgpu::BufferUsages::INDEX,
                 })
             });
@@ -472,7 +468,7 @@ impl Preview {
 }
 
 /// The index buffer's contents (for the wireframe, which needs each triangle's three edges).
-fn read_indices(context: &GpuContext, mesh: &GpuMesh) -> Vec<u32> {
+fn read_indices(context: &GpuContext, mesh: &GpuMesh) -> Result<Vec<u32>> {
     let bytes = u64::from(mesh.index_count) * 4;
     let staging = context.device().create_buffer(&wgpu::BufferDescriptor {
         label: Some("knotwork index readback"),
@@ -483,9 +479,7 @@ fn read_indices(context: &GpuContext, mesh: &GpuMesh) -> Vec<u32> {
     let mut encoder = context.device().create_command_encoder(&Default::default());
     encoder.copy_buffer_to_buffer(&mesh.indices, 0, &staging, 0, bytes);
     context.queue().submit([encoder.finish()]);
-    map_read(context, &staging)
-        .map(|b| bytemuck::cast_slice(&b[..bytes as usize]).to_vec())
-        .unwrap_or_default()
+    map_read(context, &staging).map(|b| bytemuck::cast_slice(&b[..bytes as usize]).to_vec())
 }
 
 /// Maps `buffer` (MAP_READ), waits, and copies its bytes out.

@@ -60,7 +60,8 @@ pub struct BSplineSurface {
     rational: bool,
     range_u: Interval,
     range_v: Interval,
-    size: f64,
+    /// Bounding box (min, max) of the Cartesian control points.
+    control_box: (DVec3, DVec3),
 }
 
 impl BSplineSurface {
@@ -99,7 +100,7 @@ impl BSplineSurface {
     ) -> Self {
         let (u0, u1) = knots_u.domain();
         let (v0, v1) = knots_v.domain();
-        let size = box_diagonal(&points);
+        let control_box = cartesian_box(&points);
         Self {
             knots_u,
             knots_v,
@@ -107,7 +108,7 @@ impl BSplineSurface {
             rational,
             range_u: Interval::new(u0, u1),
             range_v: Interval::new(v0, v1),
-            size,
+            control_box,
         }
     }
 
@@ -166,21 +167,26 @@ impl BSplineSurface {
         self.points[j * self.count_u() + i].w
     }
 
-    /// Diagonal of the bounding box of the Cartesian control points: the model size every
-    /// relative tolerance refers to. The surface lies inside that box (convex hull property).
+    /// Bounding box (min, max) of the Cartesian control points; the surface lies inside it
+    /// (convex hull property).
+    pub fn control_box(&self) -> (DVec3, DVec3) {
+        self.control_box
+    }
+
+    /// Diagonal of [`BSplineSurface::control_box`]: the model size every relative tolerance
+    /// refers to.
     pub fn control_box_diagonal(&self) -> f64 {
-        self.size
+        (self.control_box.1 - self.control_box.0).length()
     }
 }
 
-/// Diagonal of the bounding box of homogeneous points, taken in Cartesian space.
-pub(crate) fn box_diagonal(points: &[DVec4]) -> f64 {
-    let (lo, hi) = points.iter().fold(
+/// Bounding box (min, max) of homogeneous points, taken in Cartesian space.
+fn cartesian_box(points: &[DVec4]) -> (DVec3, DVec3) {
+    points.iter().fold(
         (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
         |(lo, hi), p| {
             let c = p.truncate() / p.w;
             (lo.min(c), hi.max(c))
         },
-    );
-    (hi - lo).length()
+    )
 }

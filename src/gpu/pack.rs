@@ -228,14 +228,7 @@ pub(crate) fn pack(
         }
         let rows_per_piece = (budget / widest).min(u64::from(nv)) as u32;
         let origin = {
-            let pts = surface.homogeneous_points();
-            let (lo, hi) = pts.iter().fold(
-                (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-                |(lo, hi), h| {
-                    let c = h.truncate() / h.w;
-                    (lo.min(c), hi.max(c))
-                },
-            );
+            let (lo, hi) = surface.control_box();
             0.5 * (lo + hi)
         };
         let first_point = packed.points.len();

@@ -38,6 +38,18 @@ struct Entry {
     name: Option<String>,
 }
 
+/// What every control-net kind has: points (u fastest), optional weights and ranges.
+#[derive(Deserialize)]
+struct Net {
+    points: Vec<[f64; 3]>,
+    #[serde(default)]
+    weights: Option<Vec<f64>>,
+    #[serde(default)]
+    range_u: Option<[f64; 2]>,
+    #[serde(default)]
+    range_v: Option<[f64; 2]>,
+}
+
 #[derive(Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 enum Shape {
@@ -45,13 +57,8 @@ enum Shape {
         degree: [usize; 2],
         knots_u: Vec<f64>,
         knots_v: Vec<f64>,
-        points: Vec<[f64; 3]>,
-        #[serde(default)]
-        weights: Option<Vec<f64>>,
-        #[serde(default)]
-        range_u: Option<[f64; 2]>,
-        #[serde(default)]
-        range_v: Option<[f64; 2]>,
+        #[serde(flatten)]
+        net: Net,
     },
     Bezier {
         degree: [usize; 2],
@@ -59,13 +66,8 @@ enum Shape {
         breakpoints_u: Option<Vec<f64>>,
         #[serde(default)]
         breakpoints_v: Option<Vec<f64>>,
-        points: Vec<[f64; 3]>,
-        #[serde(default)]
-        weights: Option<Vec<f64>>,
-        #[serde(default)]
-        range_u: Option<[f64; 2]>,
-        #[serde(default)]
-        range_v: Option<[f64; 2]>,
+        #[serde(flatten)]
+        net: Net,
     },
     Sphere {
         centre: [f64; 3],
@@ -95,23 +97,24 @@ fn finite_point(p: [f64; 3]) -> Result<DVec3> {
     }
 }
 
-fn net(
-    knots_u: KnotVector,
-    knots_v: KnotVector,
-    points: &[[f64; 3]],
-    weights: Option<&[f64]>,
-    range: (Option<[f64; 2]>, Option<[f64; 2]>),
-) -> Result<BSplineSurface> {
-    let points: Vec<DVec3> = points.iter().map(|&p| DVec3::from_array(p)).collect();
-    let mut surface = BSplineSurface::try_new(knots_u, knots_v, &points, weights)?;
-    if range.0.is_some() || range.1.is_some() {
-        let (ru, rv) = (surface.range_u(), surface.range_v());
-        let interval = |r: Option<[f64; 2]>, default: Interval| {
-            r.map_or(default, |[a, b]| Interval::new(a, b))
-        };
-        surface = surface.with_range(interval(range.0, ru), interval(range.1, rv))?;
+impl Net {
+    /// The surface on these knot vectors, restricted to the given ranges.
+    fn build(self, knots_u: KnotVector, knots_v: KnotVector) -> Result<BSplineSurface> {
+        let points: Vec<DVec3> = self.points.iter().map(|&p| DVec3::from_array(p)).collect();
+        let mut surface =
+            BSplineSurface::try_new(knots_u, knots_v, &points, self.weights.as_deref())?;
+        if self.range_u.is_some() || self.range_v.is_some() {
+            let interval = |r: Option<[f64; 2]>, default: Interval| {
+                r.map_or(default, |[a, b]| Interval::new(a, b))
+            };
+            let (ru, rv) = (
+                interval(self.range_u, surface.range_u()),
+                interval(self.range_v, surface.range_v()),
+            );
+            surface = surface.with_range(ru, rv)?;
+        }
+        Ok(surface)
     }
-    Ok(surface)
 }
 
 impl Shape {
@@ -121,25 +124,16 @@ impl Shape {
                 degree,
                 knots_u,
                 knots_v,
-                points,
-                weights,
-                range_u,
-                range_v,
-            } => net(
+                net,
+            } => net.build(
                 KnotVector::try_new(degree[0], knots_u)?,
                 KnotVector::try_new(degree[1], knots_v)?,
-                &points,
-                weights.as_deref(),
-                (range_u, range_v),
             ),
             Shape::Bezier {
                 degree,
                 breakpoints_u,
                 breakpoints_v,
-                points,
-                weights,
-                range_u,
-                range_v,
+                net,
             } => {
                 let unit = [0.0, 1.0];
                 let ku = KnotVector::from_breakpoints(
@@ -150,7 +144,7 @@ impl Shape {
                     degree[1],
                     breakpoints_v.as_deref().unwrap_or(&unit),
                 )?;
-                net(ku, kv, &points, weights.as_deref(), (range_u, range_v))
+                net.build(ku, kv)
             }
             Shape::Sphere { centre, radius } => Ok(shapes::sphere(
                 finite_point(centre)?,
