@@ -62,6 +62,31 @@ pub enum Error {
     InvalidParameter { name: &'static str, value: f64 },
     #[error("breakpoints must increase strictly: breakpoint {index} is {value}")]
     BreakpointsNotIncreasing { index: usize, value: f64 },
+    #[error("{found} points given for {form}: at least {min} are needed")]
+    TooFewPoints {
+        found: usize,
+        min: usize,
+        form: &'static str,
+    },
+    #[error("{name} = {value} lies outside [{start}, {end}]")]
+    ParameterOutside {
+        name: &'static str,
+        value: f64,
+        start: f64,
+        end: f64,
+    },
+    #[error("the curves do not meet at {at}: they are {gap} apart")]
+    CurvesDoNotMeet { at: String, gap: f64 },
+    #[error("joint {joint} is not C{required} continuous (measured: {measured})")]
+    ContinuityNotMet {
+        joint: usize,
+        required: u8,
+        measured: String,
+    },
+    #[error("a blending function must be 1 at 0 and 0 at 1; this one is {at_zero} and {at_one}")]
+    InvalidBlend { at_zero: f64, at_one: f64 },
+    #[error("{format} files cannot hold curves (polylines): write .obj or .glb")]
+    PolylinesUnsupported { format: &'static str },
     #[error("grid {nu}x{nv} is invalid: each side needs at least 2 samples")]
     GridTooSmall { nu: u32, nv: u32 },
     #[error("{found} sets of tessellation options for {expected} surfaces")]

@@ -155,31 +155,33 @@ impl BSplineCurve {
     /// Position and first derivative (tangent, model units per unit of parameter) at `u`,
     /// clamped to the knot domain.
     pub fn evaluate(&self, u: f64) -> (DVec3, DVec3) {
-        let knots = self.knots();
-        let p = knots.degree();
-        let span = knots.find_span(u);
-        let mut basis: BasisDers = [[0.0; MAX_ORDER]; 3];
-        basis_ders(
-            knots,
-            span,
-            u.clamp(knots.domain().0, knots.domain().1),
-            1,
-            &mut basis,
-        );
-        let (mut h, mut hu) = (DVec4::ZERO, DVec4::ZERO);
-        for (a, &pt) in self.homogeneous_points()[span - p..=span]
-            .iter()
-            .enumerate()
-        {
-            h += basis[0][a] * pt;
-            hu += basis[1][a] * pt;
-        }
-        let position = h.truncate() / h.w;
-        (position, (hu.truncate() - hu.w * position) / h.w)
+        let [position, first, _] = self.derivatives(u);
+        (position, first)
     }
 
     /// The point at `u`.
     pub fn point(&self, u: f64) -> DVec3 {
         self.evaluate(u).0
+    }
+
+    /// Position, first and second derivative at `u` (clamped to the knot domain).
+    pub fn derivatives(&self, u: f64) -> [DVec3; 3] {
+        let knots = self.knots();
+        let p = knots.degree();
+        let span = knots.find_span(u);
+        let mut basis: BasisDers = [[0.0; MAX_ORDER]; 3];
+        let (a, b) = knots.domain();
+        basis_ders(knots, span, u.clamp(a, b), 2, &mut basis);
+        let mut h = [DVec4::ZERO; 3];
+        for (r, &pt) in self.homogeneous_points()[span - p..=span].iter().enumerate() {
+            for (k, hk) in h.iter_mut().enumerate() {
+                *hk += basis[k][r] * pt;
+            }
+        }
+        let w = h[0].w;
+        let position = h[0].truncate() / w;
+        let first = (h[1].truncate() - h[1].w * position) / w;
+        let second = (h[2].truncate() - 2.0 * h[1].w * first - h[2].w * position) / w;
+        [position, first, second]
     }
 }

@@ -1,5 +1,6 @@
 //! Bezier curves and patches as B-splines, and Bezier extraction of B-spline surfaces.
 
+use super::piecewise::{de_casteljau, refine_to_bezier};
 use super::{BSplineCurve, BSplineSurface, Interval, KnotVector};
 use crate::error::Result;
 use glam::{DVec3, DVec4};
@@ -15,6 +16,21 @@ pub fn bezier_curve(
         points,
         weights,
     )
+}
+
+/// The Bernstein polynomial B_(k,n)(t) = C(n, k)·t^k·(1 − t)^(n−k).
+pub fn bernstein(n: usize, k: usize, t: f64) -> f64 {
+    if k > n {
+        return 0.0;
+    }
+    let binomial = (0..k).fold(1.0, |c, i| c * (n - i) as f64 / (i + 1) as f64);
+    binomial * t.powi(k as i32) * (1.0 - t).powi((n - k) as i32)
+}
+
+/// The point at `t` of the Bezier curve with control polygon `points`, by de Casteljau's
+/// repeated interpolation (independent of the B-spline evaluator).
+pub fn de_casteljau_point(points: &[DVec3], t: f64) -> DVec3 {
+    de_casteljau(points, t)
 }
 
 /// A single Bezier patch of degree (degree_u, degree_v) on [0, 1]², control points u fastest.
@@ -82,17 +98,6 @@ impl BezierPatch {
     }
 }
 
-/// The point at `t` of the Bezier polygon `points` (homogeneous), by repeated interpolation.
-pub(crate) fn de_casteljau(points: &[DVec4], t: f64) -> DVec4 {
-    let mut work = points.to_vec();
-    for level in 1..work.len() {
-        for k in 0..work.len() - level {
-            work[k] = work[k].lerp(work[k + 1], t);
-        }
-    }
-    work[0]
-}
-
 impl BSplineSurface {
     /// Bezier extraction: inserts knots until every knot inside the domain has multiplicity
     /// equal to the degree and both domain ends degree+1, then cuts out the rational Bezier
@@ -136,56 +141,4 @@ impl BSplineSurface {
         }
         patches
     }
-}
-
-/// Refines one B-spline polygon of degree `p` into its Bezier segments. Returns the distinct
-/// breakpoints of the domain and the k·p + 1 points of the k segments (shared ends).
-fn refine_to_bezier(p: usize, knots: &[f64], points: &[DVec4]) -> (Vec<f64>, Vec<DVec4>) {
-    let mut knots = knots.to_vec();
-    let mut points = points.to_vec();
-    let n = points.len();
-    let (a, b) = (knots[p], knots[n]);
-    let mut breaks: Vec<f64> = knots[p..=n].to_vec();
-    breaks.dedup();
-    for (index, &t) in breaks.iter().enumerate() {
-        let target = if index == 0 || index == breaks.len() - 1 {
-            p + 1
-        } else {
-            p
-        };
-        let have = knots.iter().filter(|&&k| k == t).count();
-        for _ in have..target {
-            insert_knot(p, &mut knots, &mut points, t);
-        }
-    }
-    // The domain now starts with degree+1 copies of `a`: its first one is the first point of
-    // the first segment.
-    let first = knots
-        .iter()
-        .position(|&k| k == a)
-        .expect("domain start is a knot");
-    let count = p * (breaks.len() - 1) + 1;
-    debug_assert_eq!(knots[first + p], a);
-    debug_assert_eq!(knots[first + count], b);
-    (breaks, points[first..first + count].to_vec())
-}
-
-/// Boehm's single knot insertion of `t` into a degree-`p` polygon with knots `knots`.
-fn insert_knot(p: usize, knots: &mut Vec<f64>, points: &mut Vec<DVec4>, t: f64) {
-    let n = points.len();
-    // Span k with knots[k] <= t < knots[k+1], taken among k in [p, n-1]; the domain end maps
-    // to the last non-empty span so inserting at the end still works.
-    let mut k = p + knots[p + 1..n].partition_point(|&x| x <= t);
-    while k > p && knots[k] == knots[k + 1] {
-        k -= 1;
-    }
-    let mut inserted = Vec::with_capacity(n + 1);
-    inserted.extend_from_slice(&points[..=k - p]);
-    for i in k - p + 1..=k {
-        let alpha = (t - knots[i]) / (knots[i + p] - knots[i]);
-        inserted.push(points[i - 1].lerp(points[i], alpha));
-    }
-    inserted.extend_from_slice(&points[k..]);
-    *points = inserted;
-    knots.insert(k + 1, t);
 }

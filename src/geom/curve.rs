@@ -32,6 +32,18 @@ impl BSplineCurve {
         })
     }
 
+    /// Builds from homogeneous points (x·w, y·w, z·w, w), checking count, finiteness and
+    /// weights; the range is the whole domain.
+    pub(crate) fn from_homogeneous(
+        knots: KnotVector,
+        points: Vec<DVec4>,
+        rational: bool,
+    ) -> Result<Self> {
+        let cartesian: Vec<DVec3> = points.iter().map(|p| p.truncate() / p.w).collect();
+        let weights: Vec<f64> = points.iter().map(|p| p.w).collect();
+        Self::try_new(knots, &cartesian, Some(&weights)).map(|c| Self { rational, ..c })
+    }
+
     /// Restricts evaluation to `range`, which must lie inside the knot domain.
     pub fn with_range(mut self, range: Interval) -> Result<Self> {
         range.check_inside(self.knots.domain())?;

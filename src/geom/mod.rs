@@ -1,14 +1,21 @@
 //! The geometry model: knot vectors, B-spline and Bezier surfaces and curves, all validated at
 //! construction. Every surface is held in one canonical form — a tensor-product B-spline in
-//! homogeneous coordinates (x·w, y·w, z·w, w) — so one evaluator serves every kind.
+//! homogeneous coordinates (x·w, y·w, z·w, w) — so one evaluator serves every kind. The
+//! classic forms ([`curves`], [`patches`], [`shapes`]) convert to it exactly.
 
 mod bezier;
 mod curve;
+pub mod curves;
 mod knots;
+pub mod patches;
+mod piecewise;
 pub mod shapes;
 mod surface;
 
-pub use bezier::{BezierPatch, bezier_curve, bezier_surface, piecewise_bezier_surface};
+pub use bezier::{
+    BezierPatch, bernstein, bezier_curve, bezier_surface, de_casteljau_point,
+    piecewise_bezier_surface,
+};
 pub use curve::BSplineCurve;
 pub(crate) use knots::check_degree;
 pub use knots::{KnotVector, MAX_DEGREE};

@@ -1,3 +1,4 @@
+use super::piecewise::split_polygon;
 use super::{KnotVector, homogeneous};
 use crate::error::{Error, Result};
 use glam::{DVec3, DVec4};
@@ -177,6 +178,66 @@ impl BSplineSurface {
     /// refers to.
     pub fn control_box_diagonal(&self) -> f64 {
         (self.control_box.1 - self.control_box.0).length()
+    }
+}
+
+impl BSplineSurface {
+    /// Subdivides at u = `t`, strictly inside the range: knot insertion to full multiplicity
+    /// in every control row (de Casteljau's split for a Bezier patch). The two surfaces
+    /// together are this one.
+    pub fn split_u(&self, t: f64) -> Result<(Self, Self)> {
+        self.transposed().split_v(t).map(|(a, b)| (a.transposed(), b.transposed()))
+    }
+
+    /// Subdivides at v = `t`, strictly inside the range (see [`BSplineSurface::split_u`]).
+    pub fn split_v(&self, t: f64) -> Result<(Self, Self)> {
+        let range = self.range_v;
+        if !(t > range.start && t < range.end) {
+            return Err(Error::ParameterOutside {
+                name: "split parameter v",
+                value: t,
+                start: range.start,
+                end: range.end,
+            });
+        }
+        let (q, nu) = (self.degree_v(), self.count_u());
+        // Columns (fixed i) are B-spline polygons along v: split each.
+        let columns: Vec<_> = (0..nu)
+            .map(|i| {
+                let column: Vec<DVec4> = self.points[i..].iter().step_by(nu).copied().collect();
+                split_polygon(q, self.knots_v.knots(), &column, t)
+            })
+            .collect();
+        let half = |pick: &dyn Fn(&((Vec<f64>, Vec<DVec4>), (Vec<f64>, Vec<DVec4>))) -> &(Vec<f64>, Vec<DVec4>),
+                    range_v: Interval|
+         -> Result<Self> {
+            let knots_v = KnotVector::try_new(q, pick(&columns[0]).0.clone())?;
+            let count_v = knots_v.control_count();
+            let mut points = Vec::with_capacity(nu * count_v);
+            for j in 0..count_v {
+                points.extend(columns.iter().map(|c| pick(c).1[j]));
+            }
+            Self::from_homogeneous(self.knots_u.clone(), knots_v, points, self.rational)
+                .with_range(self.range_u, range_v)
+        };
+        Ok((
+            half(&|c| &c.0, Interval::new(range.start, t))?,
+            half(&|c| &c.1, Interval::new(t, range.end))?,
+        ))
+    }
+
+    /// The same surface with u and v exchanged (the normal flips).
+    pub fn transposed(&self) -> Self {
+        let (nu, nv) = (self.count_u(), self.count_v());
+        let points = (0..nu)
+            .flat_map(|i| (0..nv).map(move |j| (i, j)))
+            .map(|(i, j)| self.points[j * nu + i])
+            .collect();
+        let mut surface =
+            Self::from_homogeneous(self.knots_v.clone(), self.knots_u.clone(), points, self.rational);
+        surface.range_u = self.range_v;
+        surface.range_v = self.range_u;
+        surface
     }
 }
 

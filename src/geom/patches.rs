@@ -1,0 +1,302 @@
+//! Classic patch forms, each converted exactly (up to f64 rounding) to a rational
+//! [`BSplineSurface`] so that one evaluator and one GPU kernel family serve them all:
+//! bilinear, ruled, Coons (bilinear or polynomial blends), algebraic (power basis) and
+//! Hermite patches. Curves are reparametrised onto [0, 1] first; so are the patches.
+
+use super::piecewise::{Piecewise, merged_breaks};
+use super::{BSplineCurve, BSplineSurface, KnotVector, bezier_surface};
+use crate::error::{Error, Result};
+use glam::{DVec3, DVec4};
+
+/// The bilinear patch with corners S(0,0) = p00, S(1,0) = p10, S(0,1) = p01, S(1,1) = p11:
+/// (1−u)(1−v)p00 + u(1−v)p10 + (1−u)v·p01 + uv·p11.
+pub fn bilinear(p00: DVec3, p10: DVec3, p01: DVec3, p11: DVec3) -> Result<BSplineSurface> {
+    bezier_surface(1, 1, &[p00, p10, p01, p11], None)
+}
+
+/// A curve over [0, 1] split into its numerator N (x·w, y·w, z·w) and weight W, as Bezier
+/// pieces; a curve with unit weights gets the constant 1 (so products do not raise degrees).
+fn numerator_and_weight(curve: &BSplineCurve) -> (Piecewise<DVec3>, Piecewise<f64>) {
+    let pieces = curve.bezier_form().reparametrized(0.0, 1.0);
+    let weight = if pieces.coeffs.iter().all(|c| c.w == 1.0) {
+        Piecewise::constant(1.0, 0.0, 1.0)
+    } else {
+        pieces.map(|c| c.w)
+    };
+    (pieces.map(DVec4::truncate), weight)
+}
+
+/// Degree and breakpoints that every listed function can be raised and refined to.
+fn common_form(degrees: &[usize], breaks: &[&[f64]]) -> (usize, Vec<f64>) {
+    let degree = degrees.iter().copied().max().unwrap_or(1).max(1);
+    (degree, merged_breaks(breaks.iter().copied()))
+}
+
+fn surface(
+    (degree_u, breaks_u): (usize, Vec<f64>),
+    (degree_v, breaks_v): (usize, Vec<f64>),
+    points: Vec<DVec4>,
+    rational: bool,
+) -> Result<BSplineSurface> {
+    Ok(BSplineSurface::from_homogeneous(
+        KnotVector::from_breakpoints(degree_u, &breaks_u)?,
+        KnotVector::from_breakpoints(degree_v, &breaks_v)?,
+        points,
+        rational,
+    ))
+}
+
+/// The ruled surface S(u, v) = (1 − v)·c0(u) + v·c1(u) between any two curves (each over its
+/// range, mapped onto u ∈ [0, 1]). Exact also for rational curves with different weights: the
+/// surface is [(1−v)·N0·W1 + v·N1·W0] / (W0·W1), of degree p0 + p1 in u then.
+pub fn ruled(c0: &BSplineCurve, c1: &BSplineCurve) -> Result<BSplineSurface> {
+    let (n0, w0) = numerator_and_weight(c0);
+    let (n1, w1) = numerator_and_weight(c1);
+    let (a, b, weight) = (w1.times(&n0), w0.times(&n1), w0.times(&w1));
+    let (degree, breaks) = common_form(
+        &[a.degree, b.degree, weight.degree],
+        &[&a.breaks, &b.breaks, &weight.breaks],
+    );
+    let (a, b, weight) = (
+        a.conformed(degree, &breaks),
+        b.conformed(degree, &breaks),
+        weight.conformed(degree, &breaks),
+    );
+    let mut points: Vec<DVec4> = a.coeffs.iter().zip(&weight.coeffs).map(|(n, &w)| n.extend(w)).collect();
+    points.extend(b.coeffs.iter().zip(&weight.coeffs).map(|(n, &w)| n.extend(w)));
+    let rational = c0.is_rational() || c1.is_rational();
+    surface((degree, breaks), (1, vec![0.0, 1.0]), points, rational)
+}
+
+/// A Coons blending function α on [0, 1] with α(0) = 1 and α(1) = 0; its partner is 1 − α.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Blend {
+    /// α(t) = 1 − t: the bilinearly blended Coons patch.
+    Linear,
+    /// α(t) = 1 − 3t² + 2t³ (the Hermite f₀): the patch meets the boundary ruled surfaces'
+    /// cross-boundary tangents with zero blend slope.
+    Cubic,
+    /// α(t) = 1 − 10t³ + 15t⁴ − 6t⁵: zero blend slope and curvature at both ends.
+    Quintic,
+    /// α(t) = Σ cᵢ tⁱ, coefficients from the constant term up.
+    Polynomial(Vec<f64>),
+}
+
+impl Blend {
+    /// Power-basis coefficients of α, checked: finite, α(0) = 1 and α(1) = 0 (within 1e-12).
+    pub fn power_coefficients(&self) -> Result<Vec<f64>> {
+        let coefficients = match self {
+            Blend::Linear => vec![1.0, -1.0],
+            Blend::Cubic => vec![1.0, 0.0, -3.0, 2.0],
+            Blend::Quintic => vec![1.0, 0.0, 0.0, -10.0, 15.0, -6.0],
+            Blend::Polynomial(c) => c.clone(),
+        };
+        let at_zero = coefficients.first().copied().unwrap_or(0.0);
+        let at_one: f64 = coefficients.iter().sum();
+        let finite = coefficients.iter().all(|c| c.is_finite());
+        if !finite || (at_zero - 1.0).abs() > 1e-12 || at_one.abs() > 1e-12 {
+            return Err(Error::InvalidBlend { at_zero, at_one });
+        }
+        Ok(coefficients)
+    }
+
+    /// α(t), for callers evaluating the Coons formula directly.
+    pub fn value(&self, t: f64) -> Result<f64> {
+        Ok(self
+            .power_coefficients()?
+            .iter()
+            .rev()
+            .fold(0.0, |acc, c| acc * t + c))
+    }
+}
+
+/// The four boundaries of a Coons patch: S(u, 0), S(u, 1), S(0, v), S(1, v), each over its own
+/// range mapped onto [0, 1].
+#[derive(Debug, Clone, Copy)]
+pub struct CoonsBoundaries<'a> {
+    pub v0: &'a BSplineCurve,
+    pub v1: &'a BSplineCurve,
+    pub u0: &'a BSplineCurve,
+    pub u1: &'a BSplineCurve,
+}
+
+/// The Coons patch of four boundary curves with blend α (in both directions):
+/// S = α(u)·S(0,v) + (1−α(u))·S(1,v) + α(v)·S(u,0) + (1−α(v))·S(u,1)
+///     − [α(u), 1−α(u)]·[[S(0,0), S(0,1)], [S(1,0), S(1,1)]]·[α(v), 1−α(v)]ᵀ.
+/// The corners must agree within `tolerance` (model units). Exact: with polynomial blends and
+/// (rational) B-spline boundaries every term is a tensor product of piecewise polynomials over
+/// the common denominator W(u,v) = W_v0(u)·W_v1(u)·W_u0(v)·W_u1(v), so the patch is a rational
+/// B-spline of degree deg α + deg(W_v0·W_v1·N) (for non-rational curves: deg α + curve degree).
+pub fn coons(curves: CoonsBoundaries<'_>, blend: &Blend, tolerance: f64) -> Result<BSplineSurface> {
+    let alpha = Piecewise::from_power(&blend.power_coefficients()?);
+    let one_minus_alpha = alpha.map(|c| 1.0 - c);
+    let corners = check_corners(&curves, tolerance)?;
+    let (nq0, wq0) = numerator_and_weight(curves.v0);
+    let (nq1, wq1) = numerator_and_weight(curves.v1);
+    let (np0, wp0) = numerator_and_weight(curves.u0);
+    let (np1, wp1) = numerator_and_weight(curves.u1);
+    // Along u: the v-boundaries' numerators and the u-blends, all over W_v0·W_v1.
+    let du = wq0.times(&wq1);
+    let along_u = [
+        alpha.times(&du),
+        one_minus_alpha.times(&du),
+        du.clone(),
+    ];
+    let curves_u = [wq1.times(&nq0), wq0.times(&nq1)];
+    // Along v: the same with the u-boundaries.
+    let dv = wp0.times(&wp1);
+    let along_v = [
+        alpha.times(&dv),
+        one_minus_alpha.times(&dv),
+        dv.clone(),
+    ];
+    let curves_v = [wp1.times(&np0), wp0.times(&np1)];
+    let form = |scalars: &[Piecewise<f64>; 3], vectors: &[Piecewise<DVec3>; 2]| {
+        let degrees: Vec<usize> = scalars
+            .iter()
+            .map(|f| f.degree)
+            .chain(vectors.iter().map(|f| f.degree))
+            .collect();
+        let breaks: Vec<&[f64]> = scalars
+            .iter()
+            .map(|f| &f.breaks[..])
+            .chain(vectors.iter().map(|f| &f.breaks[..]))
+            .collect();
+        common_form(&degrees, &breaks)
+    };
+    let (form_u, form_v) = (form(&along_u, &curves_u), form(&along_v, &curves_v));
+    let conform_s = |fs: &[Piecewise<f64>; 3], (d, b): &(usize, Vec<f64>)| {
+        fs.clone().map(|f| f.conformed(*d, b).coeffs)
+    };
+    let conform_v = |fs: &[Piecewise<DVec3>; 2], (d, b): &(usize, Vec<f64>)| {
+        fs.clone().map(|f| f.conformed(*d, b).coeffs)
+    };
+    let [au, bu, wu] = conform_s(&along_u, &form_u);
+    let [q0, q1] = conform_v(&curves_u, &form_u);
+    let [av, bv, wv] = conform_s(&along_v, &form_v);
+    let [p0, p1] = conform_v(&curves_v, &form_v);
+    let [c00, c10, c01, c11] = corners;
+    let mut points = Vec::with_capacity(au.len() * av.len());
+    for j in 0..av.len() {
+        for i in 0..au.len() {
+            let xyz = au[i] * p0[j] + bu[i] * p1[j] + q0[i] * av[j] + q1[i] * bv[j]
+                - c00 * (au[i] * av[j])
+                - c01 * (au[i] * bv[j])
+                - c10 * (bu[i] * av[j])
+                - c11 * (bu[i] * bv[j]);
+            points.push(xyz.extend(wu[i] * wv[j]));
+        }
+    }
+    let rational = [curves.v0, curves.v1, curves.u0, curves.u1]
+        .iter()
+        .any(|c| c.is_rational());
+    surface(form_u, form_v, points, rational)
+}
+
+/// The corners S(0,0), S(1,0), S(0,1), S(1,1) from the v-boundaries, checked against the
+/// u-boundaries' ends.
+fn check_corners(curves: &CoonsBoundaries<'_>, tolerance: f64) -> Result<[DVec3; 4]> {
+    let start = |c: &BSplineCurve| c.point(c.range().start);
+    let end = |c: &BSplineCurve| c.point(c.range().end);
+    let corners = [
+        start(curves.v0),
+        end(curves.v0),
+        start(curves.v1),
+        end(curves.v1),
+    ];
+    let others = [
+        (start(curves.u0), "S(0,0): start of u0 and v0"),
+        (start(curves.u1), "S(1,0): start of u1 and end of v0"),
+        (end(curves.u0), "S(0,1): end of u0 and start of v1"),
+        (end(curves.u1), "S(1,1): end of u1 and v1"),
+    ];
+    for (corner, (other, at)) in corners.iter().zip(others) {
+        let gap = (*corner - other).length();
+        if gap.is_nan() || gap > tolerance {
+            return Err(Error::CurvesDoNotMeet {
+                at: format!("corner {at}"),
+                gap,
+            });
+        }
+    }
+    Ok(corners)
+}
+
+/// The polynomial patch S(u, v) = Σᵢ Σⱼ a_ij uⁱ vʲ on [0, 1]², with `coefficients[i][j]` =
+/// a_ij (rows: powers of u; every row the same length), converted to Bernstein form — e.g.
+/// the bicubic patch [1 u u² u³]·A·[1 v v² v³]ᵀ.
+pub fn algebraic(coefficients: &[Vec<DVec3>]) -> Result<BSplineSurface> {
+    let degree_u = coefficients.len().saturating_sub(1);
+    let degree_v = coefficients.first().map_or(0, |row| row.len().saturating_sub(1));
+    for row in coefficients {
+        if row.len() != degree_v + 1 {
+            return Err(Error::ControlPointCount {
+                expected: degree_v + 1,
+                found: row.len(),
+                what: "the same number of v powers in every row of coefficients",
+            });
+        }
+    }
+    // Convert along v for each power of u, then along u for each Bernstein index in v.
+    let along_v: Vec<Vec<DVec3>> = coefficients
+        .iter()
+        .map(|row| Piecewise::from_power(row).coeffs)
+        .collect();
+    let mut points = vec![DVec3::ZERO; (degree_u + 1) * (degree_v + 1)];
+    for l in 0..=degree_v {
+        let column: Vec<DVec3> = along_v.iter().map(|row| row[l]).collect();
+        for (k, b) in Piecewise::from_power(&column).coeffs.into_iter().enumerate() {
+            points[l * (degree_u + 1) + k] = b;
+        }
+    }
+    bezier_surface(degree_u, degree_v, &points, None)
+}
+
+/// The boundary data of a bicubic Hermite patch, each array ordered by corner (u, v) =
+/// (0,0), (1,0), (0,1), (1,1): positions, ∂S/∂u, ∂S/∂v and twists ∂²S/∂u∂v.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HermiteCorners {
+    pub points: [DVec3; 4],
+    pub du: [DVec3; 4],
+    pub dv: [DVec3; 4],
+    pub twists: [DVec3; 4],
+}
+
+/// The bicubic Hermite patch S(u, v) = F(u)·G·F(v)ᵀ with F = [f₀ f₁ f₂ f₃], f₀ = 1 − 3t² + 2t³,
+/// f₁ = 3t² − 2t³, f₂ = t − 2t² + t³, f₃ = t³ − t², and G the 4×4 geometry matrix of corner
+/// points, tangents and twists. Exact change of basis to a bicubic Bezier patch: along each
+/// direction, (P₀, P₁, T₀, T₁) ↦ (P₀, P₀ + T₀/3, P₁ − T₁/3, P₁).
+pub fn hermite_patch(corners: &HermiteCorners) -> Result<BSplineSurface> {
+    let HermiteCorners {
+        points: s,
+        du,
+        dv,
+        twists,
+    } = corners;
+    // G[i][j]: i over (S(0,·), S(1,·), S_u(0,·), S_u(1,·)), j over (·(0), ·(1), ∂v(0), ∂v(1)).
+    let g = [
+        [s[0], s[2], dv[0], dv[2]],
+        [s[1], s[3], dv[1], dv[3]],
+        [du[0], du[2], twists[0], twists[2]],
+        [du[1], du[3], twists[1], twists[3]],
+    ];
+    let h = [
+        [1.0, 0.0, 0.0, 0.0],
+        [1.0, 0.0, 1.0 / 3.0, 0.0],
+        [0.0, 1.0, 0.0, -1.0 / 3.0],
+        [0.0, 1.0, 0.0, 0.0],
+    ];
+    let mut points = Vec::with_capacity(16);
+    for hl in &h {
+        for hk in &h {
+            let mut b = DVec3::ZERO;
+            for (i, gi) in g.iter().enumerate() {
+                for (j, gij) in gi.iter().enumerate() {
+                    b += hk[i] * hl[j] * *gij;
+                }
+            }
+            points.push(b);
+        }
+    }
+    bezier_surface(3, 3, &points, None)
+}

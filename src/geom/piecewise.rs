@@ -1,0 +1,354 @@
+//! Piecewise polynomials in Bernstein form: the exact algebra behind the conversions of
+//! classic forms (refinement, degree elevation, products of weight functions) and the
+//! Bezier-extraction of B-splines. Every operation is exact up to f64 rounding.
+
+use glam::{DVec3, DVec4};
+use std::ops::{Add, Mul, Sub};
+
+/// What a control point can be: a scalar, a Cartesian or a homogeneous point.
+pub(crate) trait Value:
+    Copy + Default + Add<Output = Self> + Sub<Output = Self> + Mul<f64, Output = Self>
+{
+}
+impl Value for f64 {}
+impl Value for DVec3 {}
+impl Value for DVec4 {}
+
+/// Linear interpolation a + t·(b − a) for any [`Value`].
+pub(crate) fn lerp<T: Value>(a: T, b: T, t: f64) -> T {
+    a + (b - a) * t
+}
+
+/// A piecewise polynomial on strictly increasing breakpoints; piece k is the Bezier polygon
+/// `coeffs[k·degree ..= k·degree + degree]` on [breaks[k], breaks[k+1]], neighbouring pieces
+/// sharing their end coefficient (so the function is continuous; degree 0 means a constant).
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Piecewise<T> {
+    pub degree: usize,
+    pub breaks: Vec<f64>,
+    pub coeffs: Vec<T>,
+}
+
+fn binomial(n: usize, k: usize) -> f64 {
+    (0..k).fold(1.0, |c, i| c * (n - i) as f64 / (i + 1) as f64)
+}
+
+impl<T: Value> Piecewise<T> {
+    /// The constant `value` on [a, b].
+    pub fn constant(value: T, a: f64, b: f64) -> Self {
+        Self {
+            degree: 0,
+            breaks: vec![a, b],
+            coeffs: vec![value],
+        }
+    }
+
+    /// The polynomial Σ power[i]·t^i on [0, 1], in Bernstein form:
+    /// t^i = Σ_{k ≥ i} C(k, i)/C(n, i) · B_{k,n}(t).
+    pub fn from_power(power: &[T]) -> Self {
+        let n = power.len().saturating_sub(1);
+        let coeffs = (0..=n)
+            .map(|k| {
+                (0..=k).fold(T::default(), |acc, i| {
+                    acc + power[i] * (binomial(k, i) / binomial(n, i))
+                })
+            })
+            .collect();
+        Self {
+            degree: n,
+            breaks: vec![0.0, 1.0],
+            coeffs,
+        }
+    }
+
+    /// A B-spline polygon of `degree` on `knots`, cut into its Bezier pieces over its domain.
+    pub fn from_bspline(degree: usize, knots: &[f64], points: &[T]) -> Self {
+        let (breaks, coeffs) = refine_to_bezier(degree, knots, points);
+        Self {
+            degree,
+            breaks,
+            coeffs,
+        }
+    }
+
+    pub fn pieces(&self) -> usize {
+        self.breaks.len() - 1
+    }
+
+    /// The Bezier polygon of piece `k`.
+    pub fn piece(&self, k: usize) -> &[T] {
+        if self.degree == 0 {
+            return &self.coeffs[..1];
+        }
+        &self.coeffs[k * self.degree..=(k + 1) * self.degree]
+    }
+
+    /// Applies `f` to every coefficient (exact for linear maps such as taking a component).
+    pub fn map<U: Value>(&self, f: impl Fn(T) -> U) -> Piecewise<U> {
+        Piecewise {
+            degree: self.degree,
+            breaks: self.breaks.clone(),
+            coeffs: self.coeffs.iter().map(|&c| f(c)).collect(),
+        }
+    }
+
+    /// The same function with its domain mapped linearly onto [a, b].
+    pub fn reparametrized(mut self, a: f64, b: f64) -> Self {
+        let (a0, b0) = (self.breaks[0], *self.breaks.last().expect("two breakpoints"));
+        let last = self.breaks.len() - 1;
+        for (k, x) in self.breaks.iter_mut().enumerate() {
+            *x = if k == last {
+                b
+            } else {
+                a + (b - a) * ((*x - a0) / (b0 - a0))
+            };
+        }
+        self
+    }
+
+    /// Value at `t` (clamped to the domain), by de Casteljau's algorithm on its piece.
+    #[cfg(test)]
+    pub fn value(&self, t: f64) -> T {
+        let k = self.breaks[1..self.breaks.len() - 1].partition_point(|&b| b <= t);
+        let (a, b) = (self.breaks[k], self.breaks[k + 1]);
+        de_casteljau(self.piece(k), ((t - a) / (b - a)).clamp(0.0, 1.0))
+    }
+
+    /// The same function with one more breakpoint at every entry of `breaks` inside the
+    /// domain that is not one already (pieces split by de Casteljau's algorithm).
+    pub fn refined(&self, breaks: &[f64]) -> Self {
+        let p = self.degree;
+        let mut out = Self {
+            degree: p,
+            breaks: vec![self.breaks[0]],
+            coeffs: vec![self.piece(0)[0]],
+        };
+        for k in 0..self.pieces() {
+            let (a, b) = (self.breaks[k], self.breaks[k + 1]);
+            let mut rest = self.piece(k).to_vec();
+            let mut start = a;
+            for &t in breaks.iter().filter(|&&t| t > a && t < b) {
+                let (left, right) = split_bezier(&rest, (t - start) / (b - start));
+                if p > 0 {
+                    out.coeffs.extend_from_slice(&left[1..]);
+                }
+                out.breaks.push(t);
+                rest = right;
+                start = t;
+            }
+            if p > 0 {
+                out.coeffs.extend_from_slice(&rest[1..]);
+            }
+            out.breaks.push(b);
+        }
+        out
+    }
+
+    /// The same function in Bernstein form of a higher `degree` on every piece.
+    pub fn elevated(&self, degree: usize) -> Self {
+        assert!(degree >= self.degree, "degree elevation cannot lower the degree");
+        if degree == self.degree {
+            return self.clone();
+        }
+        let mut coeffs = Vec::with_capacity(self.pieces() * degree + 1);
+        for k in 0..self.pieces() {
+            let piece = elevate_bezier(self.piece(k), degree);
+            let skip = usize::from(k > 0);
+            coeffs.extend_from_slice(&piece[skip..]);
+        }
+        Self {
+            degree,
+            breaks: self.breaks.clone(),
+            coeffs,
+        }
+    }
+
+    /// The same function of `degree` (≥ its own) on `breaks` (a superset of its own).
+    pub fn conformed(&self, degree: usize, breaks: &[f64]) -> Self {
+        self.refined(breaks).elevated(degree)
+    }
+}
+
+impl Piecewise<f64> {
+    /// The product of this scalar function and `other` on the union of their breakpoints:
+    /// per piece, C_k = Σ_{i+j=k} C(p,i)·C(q,j)/C(p+q,k) · a_i·b_j.
+    pub fn times<T: Value>(&self, other: &Piecewise<T>) -> Piecewise<T> {
+        let breaks = merged_breaks([&self.breaks[..], &other.breaks[..]]);
+        let (a, b) = (self.refined(&breaks), other.refined(&breaks));
+        let (p, q) = (a.degree, b.degree);
+        let mut coeffs = Vec::with_capacity((breaks.len() - 1) * (p + q) + 1);
+        for k in 0..breaks.len() - 1 {
+            let (pa, pb) = (a.piece(k), b.piece(k));
+            for m in usize::from(k > 0)..=p + q {
+                let mut c = T::default();
+                for i in m.saturating_sub(q)..=m.min(p) {
+                    c = c + pb[m - i] * (binomial(p, i) * binomial(q, m - i) * pa[i]);
+                }
+                coeffs.push(c * (1.0 / binomial(p + q, m)));
+            }
+        }
+        Piecewise {
+            degree: p + q,
+            breaks,
+            coeffs,
+        }
+    }
+}
+
+/// The sorted union of several breakpoint lists (equal values merged).
+pub(crate) fn merged_breaks<'a>(lists: impl IntoIterator<Item = &'a [f64]>) -> Vec<f64> {
+    let mut all: Vec<f64> = lists.into_iter().flatten().copied().collect();
+    all.sort_by(f64::total_cmp);
+    all.dedup();
+    all
+}
+
+/// The point at `t` of the Bezier polygon `points`, by repeated interpolation.
+pub(crate) fn de_casteljau<T: Value>(points: &[T], t: f64) -> T {
+    let mut work = points.to_vec();
+    for level in 1..work.len() {
+        for k in 0..work.len() - level {
+            work[k] = lerp(work[k], work[k + 1], t);
+        }
+    }
+    work[0]
+}
+
+/// Splits a Bezier polygon at local parameter `t` into the polygons of [0, t] and [t, 1]
+/// (de Casteljau subdivision; t = ½ is the midpoint method).
+pub(crate) fn split_bezier<T: Value>(points: &[T], t: f64) -> (Vec<T>, Vec<T>) {
+    let n = points.len();
+    let mut work = points.to_vec();
+    let mut left = Vec::with_capacity(n);
+    let mut right = Vec::with_capacity(n);
+    left.push(work[0]);
+    right.push(work[n - 1]);
+    for level in 1..n {
+        for k in 0..n - level {
+            work[k] = lerp(work[k], work[k + 1], t);
+        }
+        left.push(work[0]);
+        right.push(work[n - 1 - level]);
+    }
+    right.reverse();
+    (left, right)
+}
+
+/// A Bezier polygon raised to `degree`: Q_i = i/(p+1)·P_(i−1) + (1 − i/(p+1))·P_i, repeated.
+pub(crate) fn elevate_bezier<T: Value>(points: &[T], degree: usize) -> Vec<T> {
+    let mut current = points.to_vec();
+    while current.len() <= degree {
+        let p1 = current.len() as f64; // p + 1
+        let mut next = Vec::with_capacity(current.len() + 1);
+        next.push(current[0]);
+        for i in 1..current.len() {
+            let a = i as f64 / p1;
+            next.push(current[i - 1] * a + current[i] * (1.0 - a));
+        }
+        next.push(current[current.len() - 1]);
+        current = next;
+    }
+    current
+}
+
+/// Refines one B-spline polygon of degree `p` into its Bezier segments. Returns the distinct
+/// breakpoints of the domain and the k·p + 1 points of the k segments (shared ends).
+pub(crate) fn refine_to_bezier<T: Value>(
+    p: usize,
+    knots: &[f64],
+    points: &[T],
+) -> (Vec<f64>, Vec<T>) {
+    let mut knots = knots.to_vec();
+    let mut points = points.to_vec();
+    let n = points.len();
+    let (a, b) = (knots[p], knots[n]);
+    let mut breaks: Vec<f64> = knots[p..=n].to_vec();
+    breaks.dedup();
+    for (index, &t) in breaks.iter().enumerate() {
+        let target = if index == 0 || index == breaks.len() - 1 {
+            p + 1
+        } else {
+            p
+        };
+        let have = knots.iter().filter(|&&k| k == t).count();
+        for _ in have..target {
+            insert_knot(p, &mut knots, &mut points, t);
+        }
+    }
+    // The domain now starts with degree+1 copies of `a`: its first one is the first point of
+    // the first segment.
+    let first = knots
+        .iter()
+        .position(|&k| k == a)
+        .expect("domain start is a knot");
+    let count = p * (breaks.len() - 1) + 1;
+    debug_assert_eq!(knots[first + p], a);
+    debug_assert_eq!(knots[first + count], b);
+    (breaks, points[first..first + count].to_vec())
+}
+
+/// Boehm's single knot insertion of `t` into a degree-`p` polygon with knots `knots`.
+pub(crate) fn insert_knot<T: Value>(p: usize, knots: &mut Vec<f64>, points: &mut Vec<T>, t: f64) {
+    let n = points.len();
+    // Span k with knots[k] <= t < knots[k+1], taken among k in [p, n-1]; the domain end maps
+    // to the last non-empty span so inserting at the end still works.
+    let mut k = p + knots[p + 1..n].partition_point(|&x| x <= t);
+    while k > p && knots[k] == knots[k + 1] {
+        k -= 1;
+    }
+    let mut inserted = Vec::with_capacity(n + 1);
+    inserted.extend_from_slice(&points[..=k - p]);
+    for i in k - p + 1..=k {
+        let alpha = (t - knots[i]) / (knots[i + p] - knots[i]);
+        inserted.push(lerp(points[i - 1], points[i], alpha));
+    }
+    inserted.extend_from_slice(&points[k..]);
+    *points = inserted;
+    knots.insert(k + 1, t);
+}
+
+/// Splits a degree-`p` B-spline polygon at `t` (strictly inside its domain) by inserting `t`
+/// up to multiplicity `p`: returns (knots, points) of the part before and after `t`.
+pub(crate) fn split_polygon<T: Value>(
+    p: usize,
+    knots: &[f64],
+    points: &[T],
+    t: f64,
+) -> ((Vec<f64>, Vec<T>), (Vec<f64>, Vec<T>)) {
+    let mut knots = knots.to_vec();
+    let mut points = points.to_vec();
+    let have = knots.iter().filter(|&&k| k == t).count();
+    for _ in have.min(p)..p {
+        insert_knot(p, &mut knots, &mut points, t);
+    }
+    let r = knots.iter().position(|&k| k == t).expect("inserted knot");
+    let mut left_knots = knots[..r + p].to_vec();
+    left_knots.push(t);
+    let mut right_knots = vec![t];
+    right_knots.extend_from_slice(&knots[r..]);
+    (
+        (left_knots, points[..r].to_vec()),
+        (right_knots, points[r - 1..].to_vec()),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A product, refinement and elevation agree with plain polynomial arithmetic.
+    #[test]
+    fn algebra_matches_power_form() {
+        // a(t) = 1 + 2t − t², b(t) = 3 − t³ on [0, 1].
+        let a = Piecewise::from_power(&[1.0, 2.0, -1.0]);
+        let b = Piecewise::from_power(&[3.0, 0.0, 0.0, -1.0]);
+        let product = a.times(&b).refined(&[0.3, 0.7]).elevated(7);
+        assert_eq!(product.degree, 7);
+        assert_eq!(product.pieces(), 3);
+        for k in 0..=20 {
+            let t = k as f64 / 20.0;
+            let exact = (1.0 + 2.0 * t - t * t) * (3.0 - t * t * t);
+            assert!((product.value(t) - exact).abs() < 1e-14, "t = {t}");
+        }
+    }
+}
