@@ -93,6 +93,8 @@ pub enum Error {
     OptionsCount { expected: usize, found: usize },
     #[error("surface {index}: {source}")]
     InSurface { index: usize, source: Box<Error> },
+    #[error("curve {index}: {source}")]
+    InCurve { index: usize, source: Box<Error> },
     #[error("a buffer holds {found} elements where {expected} are needed")]
     BufferLength { expected: usize, found: usize },
     #[error("the mesh would have {vertices} vertices, more than u32 indices can address")]
@@ -165,7 +167,8 @@ impl Error {
         match self {
             Error::AtLine { source, .. }
             | Error::InFile { source, .. }
-            | Error::InSurface { source, .. } => source.root(),
+            | Error::InSurface { source, .. }
+            | Error::InCurve { source, .. } => source.root(),
             other => other,
         }
     }

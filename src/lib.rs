@@ -45,7 +45,7 @@ pub use cpu::CpuTessellator;
 pub use error::{Error, Result};
 pub use geom::{BSplineCurve, BSplineSurface, BezierPatch, Interval, KnotVector};
 pub use gpu::{GpuBatch, GpuContext, GpuMesh, GpuTessellator};
-pub use mesh::{Mesh, MeshPart, TessOptions};
+pub use mesh::{Mesh, MeshPart, Polyline, TessOptions};
 
 /// One interface for every tessellation backend: the same surfaces and options give a
 /// [`Mesh`] with the same layout, whichever backend runs.

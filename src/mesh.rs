@@ -62,6 +62,17 @@ pub struct Mesh {
     pub indices: Vec<u32>,
     /// One entry per input surface, in input order.
     pub parts: Vec<MeshPart>,
+    /// Tessellated curves, in input order. Surface tessellators leave them alone; fill them
+    /// with [`crate::BSplineCurve::polyline`].
+    pub polylines: Vec<Polyline>,
+}
+
+/// A curve sampled uniformly in parameter over its range: positions and tangents (first
+/// derivatives, model units per unit of parameter); the last sample lands on the range end.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Polyline {
+    pub positions: Vec<DVec3>,
+    pub tangents: Vec<DVec3>,
 }
 
 impl Mesh {

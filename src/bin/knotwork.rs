@@ -51,6 +51,9 @@ enum Command {
         /// Merge vertices that coincide across patch edges and drop collapsed triangles.
         #[arg(long)]
         weld: bool,
+        /// Points per curve polyline (OBJ `l`, glTF LINE_STRIP); a JSON curve's own `samples` wins.
+        #[arg(long, default_value_t = 65, value_parser = clap::value_parser!(u32).range(2..))]
+        samples: u32,
     },
     /// Render the tessellated surfaces of INPUT to a PNG (headless, on the GPU adapter).
     Render {
@@ -175,6 +178,7 @@ fn main() -> ExitCode {
             format,
             input_format,
             weld,
+            samples,
         } => {
             let job = Job {
                 options: TessOptions::DEFAULT.with_grid(grid.0, grid.1),
@@ -190,6 +194,7 @@ fn main() -> ExitCode {
                     InputFormat::Json => SceneFormat::Json,
                 }),
                 weld,
+                samples,
             };
             tessellate(&inputs, &output, backend, &job)
         }
@@ -243,12 +248,14 @@ struct Job {
     format: Option<MeshFormat>,
     input_format: Option<SceneFormat>,
     weld: bool,
+    samples: u32,
 }
 
 /// Counts for one file.
 #[derive(Default)]
 struct Tally {
     surfaces: usize,
+    curves: usize,
     vertices: usize,
     triangles: usize,
     merged: usize,
@@ -268,9 +275,11 @@ fn process(
         let (welded, report) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
         (mesh, merged) = (welded, report.merged_vertices);
     }
+    mesh.polylines = scene.polylines(job.samples)?;
     knotwork::io::write_mesh_as(output, &mesh, &scene.groups, job.format)?;
     Ok(Tally {
         surfaces: scene.surfaces.len(),
+        curves: scene.curves.len(),
         vertices: mesh.vertex_count(),
         triangles: mesh.triangle_count(),
         merged,
@@ -323,9 +332,10 @@ fn tessellate(
             String::new()
         };
         println!(
-            "{}: {} surfaces, {} vertices, {} triangles{weld} in {:.3} s ({}) -> {}",
+            "{}: {} surfaces, {} curves, {} vertices, {} triangles{weld} in {:.3} s ({}) -> {}",
             inputs[0].display(),
             tally.surfaces,
+            tally.curves,
             tally.vertices,
             tally.triangles,
             start.elapsed().as_secs_f64(),
@@ -364,6 +374,7 @@ fn tessellate(
         match result {
             Ok(t) => {
                 total.surfaces += t.surfaces;
+                total.curves += t.curves;
                 total.vertices += t.vertices;
                 total.triangles += t.triangles;
                 total.merged += t.merged;
@@ -387,10 +398,11 @@ fn tessellate(
         String::new()
     };
     println!(
-        "{} files ({} failed): {} surfaces, {} vertices, {} triangles{weld} in {seconds:.3} s, {:.1} M vertices/s ({}) -> {}",
+        "{} files ({} failed): {} surfaces, {} curves, {} vertices, {} triangles{weld} in {seconds:.3} s, {:.1} M vertices/s ({}) -> {}",
         results.len(),
         failed,
         total.surfaces,
+        total.curves,
         total.vertices,
         total.triangles,
         total.vertices as f64 / seconds / 1e6,

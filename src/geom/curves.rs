@@ -140,6 +140,44 @@ pub fn periodic_cubic(points: &[DVec3], tension: f64) -> Result<BSplineCurve> {
     unit_piecewise(3, polygon)
 }
 
+/// The circular arc centre + radius·(cos θ·x + sin θ·y) for θ over `angles` (radians), with
+/// x, y the plane's axes (made orthonormal: y loses its component along x). Exact: rational
+/// quadratic segments of at most 90° (see [`super::shapes::unit_arc`]); from angles.start to
+/// angles.end, clockwise when the end is the smaller.
+pub fn arc(
+    centre: DVec3,
+    radius: f64,
+    x_axis: DVec3,
+    y_axis: DVec3,
+    angles: super::Interval,
+) -> Result<BSplineCurve> {
+    let x = x_axis.normalize_or_zero();
+    let y = (y_axis - y_axis.dot(x) * x).normalize_or_zero();
+    if x == DVec3::ZERO || y == DVec3::ZERO {
+        return Err(Error::InvalidParameter {
+            name: "length of the arc plane's axes (x, and y off x)",
+            value: 0.0,
+        });
+    }
+    // A decreasing range runs clockwise: the increasing arc, reversed (its knots are symmetric).
+    let clockwise = angles.end < angles.start;
+    let increasing = if clockwise {
+        super::Interval::new(angles.end, angles.start)
+    } else {
+        angles
+    };
+    let (knots, mut unit) = super::shapes::unit_arc(increasing)?;
+    if clockwise {
+        unit.reverse();
+    }
+    let points: Vec<DVec3> = unit
+        .iter()
+        .map(|&(c, s, _)| centre + radius * (c * x + s * y))
+        .collect();
+    let weights: Vec<f64> = unit.iter().map(|&(_, _, w)| w).collect();
+    BSplineCurve::try_new(knots, &points, Some(&weights))
+}
+
 /// Joins curves end to end into one: curve k keeps its own parameter length and follows
 /// curve k−1 directly (so parametric continuity is measured as the notes define it). Each
 /// end must meet the next start within `tolerance` (model units); the result is exact, in

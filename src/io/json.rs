@@ -1,30 +1,40 @@
-//! The JSON scene format: surfaces for programmatic use, one object per surface with a
-//! `kind` tag, so new kinds extend it without breaking old files.
+//! The JSON scene format: curves and surfaces for programmatic use, one object per item with
+//! a `kind` tag, so new kinds extend it without breaking old files. Every kind is converted
+//! exactly to a (rational) B-spline; the README lists each with an example.
 //!
 //! ```json
-//! { "surfaces": [
-//!   { "kind": "bspline", "degree": [3, 2], "knots_u": [...], "knots_v": [...],
-//!     "points": [[x, y, z], ...], "weights": [...], "range_u": [a, b], "range_v": [c, d],
-//!     "grid": [33, 17] },
-//!   { "kind": "bezier", "degree": [3, 3], "breakpoints_u": [0, 1, 2], "points": [...] },
-//!   { "kind": "sphere", "centre": [0, 0, 0], "radius": 1 },
-//!   { "kind": "torus", "centre": [0, 0, 0], "major_radius": 2, "minor_radius": 0.5 } ] }
+//! { "curves": [
+//!     { "kind": "catmull_rom", "points": [[0, 0, 0], [1, 1, 0], [2, 0, 0], [3, 1, 0]],
+//!       "tension": 0.5, "samples": 33 } ],
+//!   "surfaces": [
+//!     { "kind": "bspline", "degree": [3, 2], "knots_u": [...], "knots_v": [...],
+//!       "points": [[x, y, z], ...], "weights": [...], "range_u": [a, b], "range_v": [c, d],
+//!       "grid": [33, 17] },
+//!     { "kind": "coons", "blend": "cubic", "v0": {curve}, "v1": {curve}, "u0": {curve},
+//!       "u1": {curve} },
+//!     { "kind": "torus", "centre": [0, 0, 0], "major_radius": 2, "minor_radius": 0.5 } ] }
 //! ```
 //!
-//! Points are Cartesian and listed u fastest; `weights` (optional) makes the surface
-//! rational; `range_u`/`range_v` (optional) restrict evaluation to part of the knot domain;
-//! `grid` (optional) overrides the tessellation grid for that surface; `name` (optional)
-//! names its mesh in glTF output. Bezier breakpoints default to [0, 1].
+//! Points are Cartesian and listed u fastest; `weights` (optional) makes a net rational;
+//! `range_u`/`range_v` (optional) restrict evaluation to part of the knot domain; `grid`
+//! (optional) overrides the tessellation grid for that surface, `samples` the polyline length
+//! of a curve; `name` (optional) names its mesh in glTF output. Angles are in degrees. Bezier
+//! breakpoints default to [0, 1].
 
 use super::Scene;
 use crate::error::{Error, Result};
-use crate::geom::{BSplineSurface, Interval, KnotVector, shapes};
+use crate::geom::patches::{self, Blend, CoonsBoundaries, HermiteCorners};
+use crate::geom::{BSplineCurve, BSplineSurface, Interval, KnotVector, bezier_curve, curves, shapes};
 use crate::mesh::TessOptions;
 use glam::DVec3;
 use serde::Deserialize;
 
 #[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct SceneFile {
+    #[serde(default)]
+    curves: Vec<CurveEntry>,
+    #[serde(default)]
     surfaces: Vec<Entry>,
 }
 
@@ -36,6 +46,14 @@ struct Entry {
     grid: Option<[u32; 2]>,
     #[serde(default)]
     name: Option<String>,
+}
+
+#[derive(Deserialize)]
+struct CurveEntry {
+    #[serde(flatten)]
+    curve: Curve,
+    #[serde(default)]
+    samples: Option<u32>,
 }
 
 /// What every control-net kind has: points (u fastest), optional weights and ranges.
@@ -50,8 +68,98 @@ struct Net {
     range_v: Option<[f64; 2]>,
 }
 
+/// A number or one number per point.
 #[derive(Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case")]
+#[serde(untagged)]
+enum OneOrMany {
+    One(f64),
+    Many(Vec<f64>),
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+enum KnotType {
+    Uniform,
+    OpenUniform,
+}
+
+#[derive(Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+enum Curve {
+    Bezier {
+        points: Vec<[f64; 3]>,
+        #[serde(default)]
+        weights: Option<Vec<f64>>,
+    },
+    Bspline {
+        degree: usize,
+        #[serde(default)]
+        knots: Option<Vec<f64>>,
+        #[serde(default)]
+        knot_type: Option<KnotType>,
+        points: Vec<[f64; 3]>,
+        #[serde(default)]
+        weights: Option<Vec<f64>>,
+    },
+    Hermite {
+        points: Vec<[f64; 3]>,
+        tangents: Vec<[f64; 3]>,
+    },
+    CatmullRom {
+        points: Vec<[f64; 3]>,
+        #[serde(default)]
+        tension: Option<OneOrMany>,
+    },
+    NaturalCubic {
+        points: Vec<[f64; 3]>,
+    },
+    PeriodicCubic {
+        points: Vec<[f64; 3]>,
+        #[serde(default)]
+        tension: Option<f64>,
+    },
+    Arc {
+        centre: [f64; 3],
+        radius: f64,
+        #[serde(default = "x_axis")]
+        x_axis: [f64; 3],
+        #[serde(default = "y_axis")]
+        y_axis: [f64; 3],
+        angles: [f64; 2],
+    },
+    Piecewise {
+        segments: Vec<Curve>,
+        #[serde(default)]
+        continuity: u8,
+    },
+}
+
+fn x_axis() -> [f64; 3] {
+    [1.0, 0.0, 0.0]
+}
+fn y_axis() -> [f64; 3] {
+    [0.0, 1.0, 0.0]
+}
+fn z_axis() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+fn full_turn() -> [f64; 2] {
+    [0.0, 360.0]
+}
+
+#[derive(Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+enum BlendSpec {
+    #[default]
+    Linear,
+    Cubic,
+    Quintic,
+    #[serde(untagged)]
+    Polynomial(Vec<f64>),
+}
+
+#[derive(Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 enum Shape {
     Bspline {
         degree: [usize; 2],
@@ -69,15 +177,114 @@ enum Shape {
         #[serde(flatten)]
         net: Net,
     },
+    Bilinear {
+        /// S(0,0), S(1,0), S(0,1), S(1,1).
+        corners: [[f64; 3]; 4],
+    },
+    Ruled {
+        curves: [Curve; 2],
+    },
+    Coons {
+        v0: Curve,
+        v1: Curve,
+        u0: Curve,
+        u1: Curve,
+        #[serde(default)]
+        blend: BlendSpec,
+    },
+    Algebraic {
+        /// coefficients[i][j] multiplies u^i v^j.
+        coefficients: Vec<Vec<[f64; 3]>>,
+    },
+    Hermite {
+        /// Each by corner (0,0), (1,0), (0,1), (1,1).
+        corners: [[f64; 3]; 4],
+        du: [[f64; 3]; 4],
+        dv: [[f64; 3]; 4],
+        #[serde(default)]
+        twists: [[f64; 3]; 4],
+    },
+    Revolution {
+        profile: Curve,
+        #[serde(default)]
+        axis_point: [f64; 3],
+        #[serde(default = "z_axis")]
+        axis_direction: [f64; 3],
+        #[serde(default = "full_turn")]
+        angles: [f64; 2],
+    },
     Sphere {
         centre: [f64; 3],
         radius: f64,
+    },
+    Ellipsoid {
+        centre: [f64; 3],
+        radii: [f64; 3],
+        #[serde(default = "full_turn")]
+        longitude: [f64; 2],
+        #[serde(default = "pole_to_pole")]
+        latitude: [f64; 2],
     },
     Torus {
         centre: [f64; 3],
         major_radius: f64,
         minor_radius: f64,
+        #[serde(default = "full_turn")]
+        around: [f64; 2],
+        #[serde(default = "full_turn")]
+        tube: [f64; 2],
     },
+    HyperboloidOneSheet {
+        centre: [f64; 3],
+        radii: [f64; 3],
+        height: [f64; 2],
+        #[serde(default = "full_turn")]
+        angles: [f64; 2],
+    },
+    HyperboloidTwoSheets {
+        centre: [f64; 3],
+        radii: [f64; 3],
+        height: f64,
+        #[serde(default = "full_turn")]
+        angles: [f64; 2],
+    },
+    EllipticCylinder {
+        centre: [f64; 3],
+        a: f64,
+        b: f64,
+        height: [f64; 2],
+        #[serde(default = "full_turn")]
+        angles: [f64; 2],
+    },
+    EllipticParaboloid {
+        centre: [f64; 3],
+        a: f64,
+        b: f64,
+        c: f64,
+        rho: [f64; 2],
+        #[serde(default = "full_turn")]
+        angles: [f64; 2],
+    },
+    HyperbolicParaboloid {
+        centre: [f64; 3],
+        a: f64,
+        b: f64,
+        c: f64,
+        x: [f64; 2],
+        y: [f64; 2],
+    },
+    EllipticCone {
+        centre: [f64; 3],
+        a: f64,
+        b: f64,
+        height: [f64; 2],
+        #[serde(default = "full_turn")]
+        angles: [f64; 2],
+    },
+}
+
+fn pole_to_pole() -> [f64; 2] {
+    [-90.0, 90.0]
 }
 
 fn positive(name: &'static str, value: f64) -> Result<f64> {
@@ -97,19 +304,114 @@ fn finite_point(p: [f64; 3]) -> Result<DVec3> {
     }
 }
 
+fn points(list: &[[f64; 3]]) -> Vec<DVec3> {
+    list.iter().map(|&p| DVec3::from_array(p)).collect()
+}
+
+/// An angle range given in degrees, in radians.
+fn degrees([a, b]: [f64; 2]) -> Interval {
+    Interval::new(a.to_radians(), b.to_radians())
+}
+
+fn interval([a, b]: [f64; 2]) -> Interval {
+    Interval::new(a, b)
+}
+
+/// Joints of a piecewise curve are checked to this fraction of the curves' size.
+const JOIN_REL_TOLERANCE: f64 = 1e-9;
+
+impl Curve {
+    fn build(self) -> Result<BSplineCurve> {
+        match self {
+            Curve::Bezier { points: p, weights } => {
+                let degree = p.len().saturating_sub(1);
+                bezier_curve(degree, &points(&p), weights.as_deref())
+            }
+            Curve::Bspline {
+                degree,
+                knots,
+                knot_type,
+                points: p,
+                weights,
+            } => {
+                let knots = match (knots, knot_type) {
+                    (Some(knots), None) => KnotVector::try_new(degree, knots)?,
+                    (None, Some(KnotType::Uniform)) => KnotVector::uniform(degree, p.len())?,
+                    (None, Some(KnotType::OpenUniform) | None) => {
+                        KnotVector::clamped_uniform(degree, p.len())?
+                    }
+                    (Some(_), Some(_)) => {
+                        return Err(Error::syntax("give `knots` or `knot_type`, not both"));
+                    }
+                };
+                BSplineCurve::try_new(knots, &points(&p), weights.as_deref())
+            }
+            Curve::Hermite {
+                points: p,
+                tangents,
+            } => curves::hermite(&points(&p), &points(&tangents)),
+            Curve::CatmullRom { points: p, tension } => {
+                let tensions = match tension {
+                    None => vec![0.0],
+                    Some(OneOrMany::One(t)) => vec![t],
+                    Some(OneOrMany::Many(t)) => t,
+                };
+                curves::catmull_rom(&points(&p), &tensions)
+            }
+            Curve::NaturalCubic { points: p } => curves::natural_cubic(&points(&p)),
+            Curve::PeriodicCubic { points: p, tension } => {
+                curves::periodic_cubic(&points(&p), tension.unwrap_or(1.0))
+            }
+            Curve::Arc {
+                centre,
+                radius,
+                x_axis,
+                y_axis,
+                angles,
+            } => curves::arc(
+                finite_point(centre)?,
+                positive("radius", radius)?,
+                finite_point(x_axis)?,
+                finite_point(y_axis)?,
+                degrees(angles),
+            ),
+            Curve::Piecewise {
+                segments,
+                continuity,
+            } => {
+                let parts: Vec<BSplineCurve> =
+                    segments.into_iter().map(Curve::build).collect::<Result<_>>()?;
+                let size = parts
+                    .iter()
+                    .map(BSplineCurve::control_extent)
+                    .fold(0.0, f64::max);
+                for (joint, pair) in parts.windows(2).enumerate() {
+                    let measured = curves::continuity(&pair[0], &pair[1], JOIN_REL_TOLERANCE);
+                    if measured.parametric.is_none_or(|c| c < continuity) {
+                        return Err(Error::ContinuityNotMet {
+                            joint: joint + 1,
+                            required: continuity,
+                            measured: measured
+                                .parametric
+                                .map_or("the curves do not meet".into(), |c| format!("C{c}")),
+                        });
+                    }
+                }
+                curves::join(&parts, JOIN_REL_TOLERANCE * size)
+            }
+        }
+    }
+}
+
 impl Net {
     /// The surface on these knot vectors, restricted to the given ranges.
     fn build(self, knots_u: KnotVector, knots_v: KnotVector) -> Result<BSplineSurface> {
-        let points: Vec<DVec3> = self.points.iter().map(|&p| DVec3::from_array(p)).collect();
         let mut surface =
-            BSplineSurface::try_new(knots_u, knots_v, &points, self.weights.as_deref())?;
+            BSplineSurface::try_new(knots_u, knots_v, &points(&self.points), self.weights.as_deref())?;
         if self.range_u.is_some() || self.range_v.is_some() {
-            let interval = |r: Option<[f64; 2]>, default: Interval| {
-                r.map_or(default, |[a, b]| Interval::new(a, b))
-            };
             let (ru, rv) = (
-                interval(self.range_u, surface.range_u()),
-                interval(self.range_v, surface.range_v()),
+                self.range_u.map_or(surface.range_u(), interval),
+                self.range_v.map_or(surface.range_v(), interval),
             );
             surface = surface.with_range(ru, rv)?;
         }
@@ -118,17 +420,19 @@ impl Net {
 }
 
 impl Shape {
-    fn build(self) -> Result<BSplineSurface> {
+    /// The surfaces of this entry (two for a two-sheet hyperboloid, else one).
+    fn build(self) -> Result<Vec<BSplineSurface>> {
+        let one = |s: Result<BSplineSurface>| s.map(|s| vec![s]);
         match self {
             Shape::Bspline {
                 degree,
                 knots_u,
                 knots_v,
                 net,
-            } => net.build(
+            } => one(net.build(
                 KnotVector::try_new(degree[0], knots_u)?,
                 KnotVector::try_new(degree[1], knots_v)?,
-            ),
+            )),
             Shape::Bezier {
                 degree,
                 breakpoints_u,
@@ -144,20 +448,174 @@ impl Shape {
                     degree[1],
                     breakpoints_v.as_deref().unwrap_or(&unit),
                 )?;
-                net.build(ku, kv)
+                one(net.build(ku, kv))
             }
-            Shape::Sphere { centre, radius } => Ok(shapes::sphere(
+            Shape::Bilinear { corners } => {
+                let [a, b, c, d] = corners.map(DVec3::from_array);
+                one(patches::bilinear(a, b, c, d))
+            }
+            Shape::Ruled { curves: [c0, c1] } => one(patches::ruled(&c0.build()?, &c1.build()?)),
+            Shape::Coons {
+                v0,
+                v1,
+                u0,
+                u1,
+                blend,
+            } => {
+                let [v0, v1, u0, u1] = [v0.build()?, v1.build()?, u0.build()?, u1.build()?];
+                let size = [&v0, &v1, &u0, &u1]
+                    .iter()
+                    .map(|c| c.control_extent())
+                    .fold(0.0, f64::max);
+                let blend = match blend {
+                    BlendSpec::Linear => Blend::Linear,
+                    BlendSpec::Cubic => Blend::Cubic,
+                    BlendSpec::Quintic => Blend::Quintic,
+                    BlendSpec::Polynomial(c) => Blend::Polynomial(c),
+                };
+                let boundaries = CoonsBoundaries {
+                    v0: &v0,
+                    v1: &v1,
+                    u0: &u0,
+                    u1: &u1,
+                };
+                one(patches::coons(boundaries, &blend, JOIN_REL_TOLERANCE * size))
+            }
+            Shape::Algebraic { coefficients } => {
+                let rows: Vec<Vec<DVec3>> = coefficients.iter().map(|r| points(r)).collect();
+                one(patches::algebraic(&rows))
+            }
+            Shape::Hermite {
+                corners,
+                du,
+                dv,
+                twists,
+            } => {
+                let four = |a: [[f64; 3]; 4]| a.map(DVec3::from_array);
+                one(patches::hermite_patch(&HermiteCorners {
+                    points: four(corners),
+                    du: four(du),
+                    dv: four(dv),
+                    twists: four(twists),
+                }))
+            }
+            Shape::Revolution {
+                profile,
+                axis_point,
+                axis_direction,
+                angles,
+            } => one(shapes::revolve(
+                &profile.build()?,
+                finite_point(axis_point)?,
+                finite_point(axis_direction)?,
+                degrees(angles),
+            )),
+            Shape::Sphere { centre, radius } => Ok(vec![shapes::sphere(
                 finite_point(centre)?,
                 positive("radius", radius)?,
+            )]),
+            Shape::Ellipsoid {
+                centre,
+                radii,
+                longitude,
+                latitude,
+            } => one(shapes::ellipsoid(
+                finite_point(centre)?,
+                DVec3::from_array(radii),
+                degrees(longitude),
+                degrees(latitude),
             )),
             Shape::Torus {
                 centre,
                 major_radius,
                 minor_radius,
-            } => Ok(shapes::torus(
+                around,
+                tube,
+            } => one(shapes::torus_section(
                 finite_point(centre)?,
-                positive("major_radius", major_radius)?,
-                positive("minor_radius", minor_radius)?,
+                major_radius,
+                minor_radius,
+                degrees(around),
+                degrees(tube),
+            )),
+            Shape::HyperboloidOneSheet {
+                centre,
+                radii,
+                height,
+                angles,
+            } => one(shapes::hyperboloid_one_sheet(
+                finite_point(centre)?,
+                DVec3::from_array(radii),
+                degrees(angles),
+                interval(height),
+            )),
+            Shape::HyperboloidTwoSheets {
+                centre,
+                radii,
+                height,
+                angles,
+            } => Ok(shapes::hyperboloid_two_sheets(
+                finite_point(centre)?,
+                DVec3::from_array(radii),
+                degrees(angles),
+                height,
+            )?
+            .into()),
+            Shape::EllipticCylinder {
+                centre,
+                a,
+                b,
+                height,
+                angles,
+            } => one(shapes::elliptic_cylinder(
+                finite_point(centre)?,
+                a,
+                b,
+                degrees(angles),
+                interval(height),
+            )),
+            Shape::EllipticParaboloid {
+                centre,
+                a,
+                b,
+                c,
+                rho,
+                angles,
+            } => one(shapes::elliptic_paraboloid(
+                finite_point(centre)?,
+                a,
+                b,
+                c,
+                degrees(angles),
+                interval(rho),
+            )),
+            Shape::HyperbolicParaboloid {
+                centre,
+                a,
+                b,
+                c,
+                x,
+                y,
+            } => one(shapes::hyperbolic_paraboloid(
+                finite_point(centre)?,
+                a,
+                b,
+                c,
+                interval(x),
+                interval(y),
+            )),
+            Shape::EllipticCone {
+                centre,
+                a,
+                b,
+                height,
+                angles,
+            } => one(shapes::elliptic_cone(
+                finite_point(centre)?,
+                a,
+                b,
+                degrees(angles),
+                interval(height),
             )),
         }
     }
@@ -169,6 +627,22 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
     let file: SceneFile =
         serde_json::from_str(text).map_err(|e| Error::syntax(format!("{e}")).at_line(e.line()))?;
     let mut scene = Scene::default();
+    for (index, entry) in file.curves.into_iter().enumerate() {
+        let in_curve = |e: Error| Error::InCurve {
+            index,
+            source: Box::new(e),
+        };
+        if let Some(samples) = entry.samples
+            && samples < 2
+        {
+            return Err(in_curve(Error::GridTooSmall {
+                nu: samples,
+                nv: 1,
+            }));
+        }
+        scene.curves.push(entry.curve.build().map_err(in_curve)?);
+        scene.curve_samples.push(entry.samples);
+    }
     for (index, entry) in file.surfaces.into_iter().enumerate() {
         let in_surface = |e: Error| Error::InSurface {
             index,
@@ -184,14 +658,14 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
                 }
             })
             .transpose()?;
-        scene
-            .surfaces
-            .push(entry.shape.build().map_err(in_surface)?);
-        scene.options.push(grid);
+        let built = entry.shape.build().map_err(in_surface)?;
+        let first = scene.surfaces.len();
+        scene.options.extend(std::iter::repeat_n(grid, built.len()));
+        scene.surfaces.extend(built);
         if let Some(name) = entry.name {
             scene.groups.push(super::SurfaceGroup {
                 name,
-                surfaces: index..index + 1,
+                surfaces: first..scene.surfaces.len(),
             });
         }
     }

@@ -25,7 +25,11 @@ use std::path::Path;
 #[derive(Debug, Clone, Default)]
 pub struct Scene {
     pub surfaces: Vec<BSplineSurface>,
+    /// Curves to tessellate into polylines.
     pub curves: Vec<BSplineCurve>,
+    /// Polyline samples a curve asks for itself (JSON `samples`), by curve index; empty or
+    /// `None` where the file says nothing.
+    pub curve_samples: Vec<Option<u32>>,
     /// Tessellation options a surface asks for itself (JSON `grid`), by surface index; empty
     /// or `None` where the file says nothing.
     pub options: Vec<Option<TessOptions>>,
@@ -67,6 +71,19 @@ impl Scene {
     pub fn options_or(&self, default: TessOptions) -> Vec<TessOptions> {
         (0..self.surfaces.len())
             .map(|k| self.options.get(k).copied().flatten().unwrap_or(default))
+            .collect()
+    }
+
+    /// Every curve sampled into a polyline: with its own sample count where the file gave
+    /// one, else `default_samples`.
+    pub fn polylines(&self, default_samples: u32) -> Result<Vec<crate::mesh::Polyline>> {
+        self.curves
+            .iter()
+            .enumerate()
+            .map(|(k, curve)| {
+                let samples = self.curve_samples.get(k).copied().flatten();
+                curve.polyline(samples.unwrap_or(default_samples))
+            })
             .collect()
     }
 }
@@ -181,6 +198,11 @@ pub fn write_mesh_as(
             path: path.to_path_buf(),
             expected: OUTPUT_FORMATS,
         })?;
+    if !mesh.polylines.is_empty() && matches!(format, MeshFormat::Ply | MeshFormat::Stl) {
+        return Err(Error::PolylinesUnsupported {
+            format: if format == MeshFormat::Ply { "PLY" } else { "STL" },
+        });
+    }
     write_atomic(path, |w| match format {
         MeshFormat::Obj => write_obj_mesh(mesh, w),
         MeshFormat::Ply => write_ply(mesh, w),

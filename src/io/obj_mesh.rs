@@ -14,7 +14,8 @@ pub fn format_f64(x: f64) -> String {
     }
 }
 
-/// Writes `mesh` as an OBJ with positions, texture coordinates, normals and triangles.
+/// Writes `mesh` as an OBJ with positions, texture coordinates, normals and triangles, then
+/// its polylines as `v` points and `l` statements.
 pub fn write_obj_mesh(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
     writeln!(
         w,
@@ -46,6 +47,18 @@ pub fn write_obj_mesh(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
     for triangle in mesh.indices.chunks_exact(3) {
         let [a, b, c] = [triangle[0] + 1, triangle[1] + 1, triangle[2] + 1];
         writeln!(w, "f {a}/{a}/{a} {b}/{b}/{b} {c}/{c}/{c}")?;
+    }
+    // Curves: their points follow the surface vertices, one `l` statement per polyline.
+    let mut next = mesh.vertex_count() + 1;
+    for polyline in &mesh.polylines {
+        for p in &polyline.positions {
+            writeln!(w, "v {} {} {}", format_f64(p.x), format_f64(p.y), format_f64(p.z))?;
+        }
+        let references: Vec<String> = (next..next + polyline.positions.len())
+            .map(|k| k.to_string())
+            .collect();
+        writeln!(w, "l {}", references.join(" "))?;
+        next += polyline.positions.len();
     }
     Ok(())
 }
