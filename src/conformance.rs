@@ -7,6 +7,7 @@ use crate::geom::{BSplineSurface, Interval, KnotVector, bezier_surface, shapes};
 use crate::mesh::{Mesh, TessOptions};
 use crate::{CpuTessellator, Tessellator};
 use glam::DVec3;
+use std::f64::consts::{FRAC_PI_2, PI};
 
 /// Position bar, relative to the surface's bounding-box diagonal.
 pub const POSITION_REL_BAR: f64 = 1e-5;
@@ -327,5 +328,129 @@ pub fn suite() -> Vec<Case> {
         surfaces: vec![pinched],
         options: grid(25),
     });
+    cases.push(Case {
+        name: "classic forms (Coons, ruled, Hermite, quadrics)".into(),
+        surfaces: classic_forms(),
+        options: grid(21),
+    });
     cases
+}
+
+/// One surface of each classic form whose conversion raises degrees or weights: a cubic-blend
+/// Coons patch of circular arcs (rational, degree 7), a ruled surface between a cubic and an
+/// arc, a Hermite patch and the quadrics.
+fn classic_forms() -> Vec<BSplineSurface> {
+    use crate::geom::curves;
+    use crate::geom::patches::{self, Blend, CoonsBoundaries, HermiteCorners};
+    let quarter = Interval::new(0.0, FRAC_PI_2);
+    let arc = |x: DVec3, y: DVec3, a: f64| {
+        curves::arc(DVec3::ZERO, 1.0, x, y, Interval::new(a, a + FRAC_PI_2)).unwrap()
+    };
+    let (v0, u1) = (
+        arc(DVec3::X, DVec3::Y, 0.0),
+        arc(DVec3::X, DVec3::Y, FRAC_PI_2),
+    );
+    let (u0, v1) = (
+        arc(DVec3::X, DVec3::Z, 0.0),
+        arc(DVec3::X, DVec3::Z, FRAC_PI_2),
+    );
+    let boundaries = CoonsBoundaries {
+        v0: &v0,
+        v1: &v1,
+        u0: &u0,
+        u1: &u1,
+    };
+    let cubic = crate::geom::bezier_curve(
+        3,
+        &[
+            DVec3::ZERO,
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(2.0, -1.0, 0.0),
+            DVec3::X * 3.0,
+        ],
+        None,
+    )
+    .unwrap();
+    let over = curves::arc(
+        DVec3::new(1.5, 0.0, 2.0),
+        1.5,
+        -DVec3::X,
+        DVec3::Y,
+        Interval::new(0.0, PI),
+    )
+    .unwrap();
+    let hermite = HermiteCorners {
+        points: [
+            DVec3::ZERO,
+            DVec3::X * 2.0,
+            DVec3::Y * 2.0,
+            DVec3::new(2.0, 2.0, 1.0),
+        ],
+        du: [
+            DVec3::new(2.0, 0.0, 1.0),
+            DVec3::new(2.0, 0.0, -1.0),
+            DVec3::X * 2.0,
+            DVec3::X * 2.0,
+        ],
+        dv: [
+            DVec3::Y * 2.0,
+            DVec3::new(0.0, 2.0, 1.0),
+            DVec3::Y * 2.0,
+            DVec3::Y * 2.0,
+        ],
+        twists: [DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, DVec3::Z],
+    };
+    let centre = DVec3::new(1.0, -2.0, 0.5);
+    let [upper, lower] =
+        shapes::hyperboloid_two_sheets(centre, DVec3::new(1.0, 2.0, 1.5), shapes::FULL_TURN, 4.0)
+            .unwrap();
+    vec![
+        patches::coons(boundaries, &Blend::Cubic, 1e-12).unwrap(),
+        patches::ruled(&cubic, &over).unwrap(),
+        patches::hermite_patch(&hermite).unwrap(),
+        shapes::ellipsoid(
+            centre,
+            DVec3::new(3.0, 2.0, 1.0),
+            shapes::FULL_TURN,
+            Interval::new(-1.0, FRAC_PI_2),
+        )
+        .unwrap(),
+        shapes::torus_section(centre, 2.0, 0.5, Interval::new(0.0, PI), shapes::FULL_TURN).unwrap(),
+        shapes::hyperboloid_one_sheet(
+            centre,
+            DVec3::new(1.0, 1.5, 2.0),
+            shapes::FULL_TURN,
+            Interval::new(-2.0, 3.0),
+        )
+        .unwrap(),
+        upper,
+        lower,
+        shapes::elliptic_cylinder(centre, 1.0, 1.0, quarter, Interval::new(0.0, 2.0)).unwrap(),
+        shapes::elliptic_paraboloid(
+            centre,
+            1.0,
+            2.0,
+            1.0,
+            shapes::FULL_TURN,
+            Interval::new(0.0, 1.5),
+        )
+        .unwrap(),
+        shapes::hyperbolic_paraboloid(
+            centre,
+            1.0,
+            1.0,
+            2.0,
+            Interval::new(-1.0, 1.0),
+            Interval::new(-1.0, 2.0),
+        )
+        .unwrap(),
+        shapes::elliptic_cone(
+            centre,
+            1.0,
+            0.5,
+            shapes::FULL_TURN,
+            Interval::new(-1.0, 2.0),
+        )
+        .unwrap(),
+    ]
 }

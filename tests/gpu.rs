@@ -441,6 +441,33 @@ fn per_surface_grids_conform() {
     );
 }
 
+/// Every classic form of data/forms.json (each converted exactly to a rational B-spline)
+/// conforms on the GPU, surface by surface; the measured errors are printed.
+#[test]
+fn classic_forms_conform_surface_by_surface() {
+    let Some(context) = gpu() else { return };
+    let scene = knotwork::io::read_scene(std::path::Path::new("data/forms.json")).unwrap();
+    let tessellator = GpuTessellator::from_context(
+        GpuContext::from_device(context.device().clone(), context.queue().clone()).unwrap(),
+    );
+    let options = TessOptions::DEFAULT.with_grid(29, 23);
+    assert_eq!(scene.surfaces.len(), 17);
+    for (k, surface) in scene.surfaces.iter().enumerate() {
+        let one = std::slice::from_ref(surface);
+        let mesh = tessellator.tessellate(one, &options).unwrap();
+        let report = conformance::compare(one, &options, &mesh).unwrap();
+        println!(
+            "surface {k:2} (degree {}x{}): position {:.2e} of diagonal, normal {:.2e} rad, near degenerate points {:.2e} rad",
+            surface.degree_u(),
+            surface.degree_v(),
+            report.worst_position,
+            report.worst_normal,
+            report.worst_degenerate_normal
+        );
+        assert!(report.passes(), "surface {k}: {report:?}");
+    }
+}
+
 /// The teapot's render is not blank: in the middle of the image, where the model is, most
 /// pixels differ from the background; the corners show the background.
 #[test]

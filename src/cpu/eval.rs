@@ -169,10 +169,7 @@ impl BSplineCurve {
     /// `samples` (≥ 2) points and tangents uniform in parameter over the evaluation range.
     pub fn polyline(&self, samples: u32) -> Result<Polyline> {
         if samples < 2 {
-            return Err(Error::GridTooSmall {
-                nu: samples,
-                nv: 1,
-            });
+            return Err(Error::GridTooSmall { nu: samples, nv: 1 });
         }
         let range = self.range();
         let (positions, tangents) = (0..samples)
@@ -193,7 +190,10 @@ impl BSplineCurve {
         let (a, b) = knots.domain();
         basis_ders(knots, span, u.clamp(a, b), 2, &mut basis);
         let mut h = [DVec4::ZERO; 3];
-        for (r, &pt) in self.homogeneous_points()[span - p..=span].iter().enumerate() {
+        for (r, &pt) in self.homogeneous_points()[span - p..=span]
+            .iter()
+            .enumerate()
+        {
             for (k, hk) in h.iter_mut().enumerate() {
                 *hk += basis[k][r] * pt;
             }

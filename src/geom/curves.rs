@@ -36,7 +36,11 @@ fn same_count(expected: usize, found: usize, what: &'static str) -> Result<()> {
 fn unit_piecewise(degree: usize, polygon: Vec<DVec3>) -> Result<BSplineCurve> {
     let segments = (polygon.len() - 1) / degree;
     let breaks: Vec<f64> = (0..=segments).map(|k| k as f64).collect();
-    BSplineCurve::try_new(KnotVector::from_breakpoints(degree, &breaks)?, &polygon, None)
+    BSplineCurve::try_new(
+        KnotVector::from_breakpoints(degree, &breaks)?,
+        &polygon,
+        None,
+    )
 }
 
 /// The cubic Hermite spline through `points` with the given tangents (derivatives with
@@ -62,7 +66,11 @@ pub fn hermite(points: &[DVec3], tangents: &[DVec3]) -> Result<BSplineCurve> {
 pub fn catmull_rom(points: &[DVec3], tensions: &[f64]) -> Result<BSplineCurve> {
     at_least(points, 4, "a Catmull–Rom spline")?;
     if tensions.len() != 1 {
-        same_count(points.len(), tensions.len(), "one tension per point, or one")?;
+        same_count(
+            points.len(),
+            tensions.len(),
+            "one tension per point, or one",
+        )?;
     }
     for &v in tensions {
         if !v.is_finite() {
@@ -240,7 +248,10 @@ pub fn continuity(a: &BSplineCurve, b: &BSplineCurve, relative: f64) -> Continui
     let mut parametric = meets.then_some(0u8);
     if meets {
         for order in 1..3 {
-            let scale = da[order].length().max(db[order].length()).max(size * 1e-300);
+            let scale = da[order]
+                .length()
+                .max(db[order].length())
+                .max(size * 1e-300);
             if close(da[order], db[order], scale) {
                 parametric = Some(order as u8);
             } else {
@@ -270,8 +281,16 @@ impl BSplineCurve {
             return whole;
         }
         let cut = whole.refined(&[range.start, range.end]);
-        let first = cut.breaks.iter().position(|&x| x == range.start).expect("cut");
-        let last = cut.breaks.iter().position(|&x| x == range.end).expect("cut");
+        let first = cut
+            .breaks
+            .iter()
+            .position(|&x| x == range.start)
+            .expect("cut");
+        let last = cut
+            .breaks
+            .iter()
+            .position(|&x| x == range.end)
+            .expect("cut");
         let p = cut.degree;
         Piecewise {
             degree: p,
@@ -352,7 +371,8 @@ impl BSplineCurve {
         let ((left_knots, left_points), (right_knots, right_points)) =
             split_polygon(p, self.knots().knots(), self.homogeneous_points(), t);
         let rational = self.is_rational();
-        let left = Self::from_homogeneous(KnotVector::try_new(p, left_knots)?, left_points, rational)?;
+        let left =
+            Self::from_homogeneous(KnotVector::try_new(p, left_knots)?, left_points, rational)?;
         let right =
             Self::from_homogeneous(KnotVector::try_new(p, right_knots)?, right_points, rational)?;
         let left_range = super::Interval::new(range.start, t);

@@ -62,8 +62,18 @@ pub fn ruled(c0: &BSplineCurve, c1: &BSplineCurve) -> Result<BSplineSurface> {
         b.conformed(degree, &breaks),
         weight.conformed(degree, &breaks),
     );
-    let mut points: Vec<DVec4> = a.coeffs.iter().zip(&weight.coeffs).map(|(n, &w)| n.extend(w)).collect();
-    points.extend(b.coeffs.iter().zip(&weight.coeffs).map(|(n, &w)| n.extend(w)));
+    let mut points: Vec<DVec4> = a
+        .coeffs
+        .iter()
+        .zip(&weight.coeffs)
+        .map(|(n, &w)| n.extend(w))
+        .collect();
+    points.extend(
+        b.coeffs
+            .iter()
+            .zip(&weight.coeffs)
+            .map(|(n, &w)| n.extend(w)),
+    );
     let rational = c0.is_rational() || c1.is_rational();
     surface((degree, breaks), (1, vec![0.0, 1.0]), points, rational)
 }
@@ -137,19 +147,11 @@ pub fn coons(curves: CoonsBoundaries<'_>, blend: &Blend, tolerance: f64) -> Resu
     let (np1, wp1) = numerator_and_weight(curves.u1);
     // Along u: the v-boundaries' numerators and the u-blends, all over W_v0·W_v1.
     let du = wq0.times(&wq1);
-    let along_u = [
-        alpha.times(&du),
-        one_minus_alpha.times(&du),
-        du.clone(),
-    ];
+    let along_u = [alpha.times(&du), one_minus_alpha.times(&du), du.clone()];
     let curves_u = [wq1.times(&nq0), wq0.times(&nq1)];
     // Along v: the same with the u-boundaries.
     let dv = wp0.times(&wp1);
-    let along_v = [
-        alpha.times(&dv),
-        one_minus_alpha.times(&dv),
-        dv.clone(),
-    ];
+    let along_v = [alpha.times(&dv), one_minus_alpha.times(&dv), dv.clone()];
     let curves_v = [wp1.times(&np0), wp0.times(&np1)];
     let form = |scalars: &[Piecewise<f64>; 3], vectors: &[Piecewise<DVec3>; 2]| {
         let degrees: Vec<usize> = scalars
@@ -227,7 +229,9 @@ fn check_corners(curves: &CoonsBoundaries<'_>, tolerance: f64) -> Result<[DVec3;
 /// the bicubic patch [1 u u² u³]·A·[1 v v² v³]ᵀ.
 pub fn algebraic(coefficients: &[Vec<DVec3>]) -> Result<BSplineSurface> {
     let degree_u = coefficients.len().saturating_sub(1);
-    let degree_v = coefficients.first().map_or(0, |row| row.len().saturating_sub(1));
+    let degree_v = coefficients
+        .first()
+        .map_or(0, |row| row.len().saturating_sub(1));
     for row in coefficients {
         if row.len() != degree_v + 1 {
             return Err(Error::ControlPointCount {
@@ -245,7 +249,11 @@ pub fn algebraic(coefficients: &[Vec<DVec3>]) -> Result<BSplineSurface> {
     let mut points = vec![DVec3::ZERO; (degree_u + 1) * (degree_v + 1)];
     for l in 0..=degree_v {
         let column: Vec<DVec3> = along_v.iter().map(|row| row[l]).collect();
-        for (k, b) in Piecewise::from_power(&column).coeffs.into_iter().enumerate() {
+        for (k, b) in Piecewise::from_power(&column)
+            .coeffs
+            .into_iter()
+            .enumerate()
+        {
             points[l * (degree_u + 1) + k] = b;
         }
     }

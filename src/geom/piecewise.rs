@@ -94,7 +94,10 @@ impl<T: Value> Piecewise<T> {
 
     /// The same function with its domain mapped linearly onto [a, b].
     pub fn reparametrized(mut self, a: f64, b: f64) -> Self {
-        let (a0, b0) = (self.breaks[0], *self.breaks.last().expect("two breakpoints"));
+        let (a0, b0) = (
+            self.breaks[0],
+            *self.breaks.last().expect("two breakpoints"),
+        );
         let last = self.breaks.len() - 1;
         for (k, x) in self.breaks.iter_mut().enumerate() {
             *x = if k == last {
@@ -146,7 +149,10 @@ impl<T: Value> Piecewise<T> {
 
     /// The same function in Bernstein form of a higher `degree` on every piece.
     pub fn elevated(&self, degree: usize) -> Self {
-        assert!(degree >= self.degree, "degree elevation cannot lower the degree");
+        assert!(
+            degree >= self.degree,
+            "degree elevation cannot lower the degree"
+        );
         if degree == self.degree {
             return self.clone();
         }

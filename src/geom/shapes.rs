@@ -77,7 +77,10 @@ pub fn revolve(
     }
     let (arc_knots, arc) = unit_arc(angles)?;
     let (profile_knots, profile_points) = if profile.range() == profile.domain_interval() {
-        (profile.knots().clone(), profile.homogeneous_points().to_vec())
+        (
+            profile.knots().clone(),
+            profile.homogeneous_points().to_vec(),
+        )
     } else {
         let pieces = profile.bezier_form();
         (
@@ -107,7 +110,10 @@ pub fn revolve(
 /// A planar profile in the (radius, height) half-plane, (r, z, weight) points, as a curve in
 /// the xz-plane.
 fn profile(knots: KnotVector, points: &[(f64, f64, f64)]) -> Result<BSplineCurve> {
-    let xyz: Vec<DVec3> = points.iter().map(|&(r, z, _)| DVec3::new(r, 0.0, z)).collect();
+    let xyz: Vec<DVec3> = points
+        .iter()
+        .map(|&(r, z, _)| DVec3::new(r, 0.0, z))
+        .collect();
     let weights: Vec<f64> = points.iter().map(|&(_, _, w)| w).collect();
     BSplineCurve::try_new(knots, &xyz, Some(&weights))
 }
@@ -156,7 +162,11 @@ pub fn ellipsoid(
     if latitude.start < -FRAC_PI_2 - 1e-12 || latitude.end > FRAC_PI_2 + 1e-12 {
         return Err(Error::ParameterOutside {
             name: "latitude",
-            value: if latitude.start < -FRAC_PI_2 { latitude.start } else { latitude.end },
+            value: if latitude.start < -FRAC_PI_2 {
+                latitude.start
+            } else {
+                latitude.end
+            },
             start: -FRAC_PI_2,
             end: FRAC_PI_2,
         });
@@ -186,7 +196,10 @@ pub fn torus_section(
     around: Interval,
     tube: Interval,
 ) -> Result<BSplineSurface> {
-    let (major, minor) = (positive("major radius", major)?, positive("minor radius", minor)?);
+    let (major, minor) = (
+        positive("major radius", major)?,
+        positive("minor radius", minor)?,
+    );
     let (knots, circle) = unit_arc(tube)?;
     let points: Vec<(f64, f64, f64)> = circle
         .iter()
@@ -240,7 +253,10 @@ pub fn hyperboloid_one_sheet(
 ) -> Result<BSplineSurface> {
     let radii = positive_radii(radii)?;
     increasing("height", height)?;
-    let (s0, s1) = ((height.start / radii.z).asinh(), (height.end / radii.z).asinh());
+    let (s0, s1) = (
+        (height.start / radii.z).asinh(),
+        (height.end / radii.z).asinh(),
+    );
     let arc = hyperbola_arc(s0, s1);
     revolve_scaled(quadratic_bezier_knots(), &arc, around, radii, centre)
 }
@@ -355,7 +371,11 @@ pub fn hyperbolic_paraboloid(
             DVec3::new(0.0, dy, 0.0) + z(2.0 * kb * y0 * dy),
             z(kb * dy * dy),
         ],
-        vec![DVec3::new(dx, 0.0, 0.0) + z(2.0 * ka * x0 * dx), DVec3::ZERO, DVec3::ZERO],
+        vec![
+            DVec3::new(dx, 0.0, 0.0) + z(2.0 * ka * x0 * dx),
+            DVec3::ZERO,
+            DVec3::ZERO,
+        ],
         vec![z(ka * dx * dx), DVec3::ZERO, DVec3::ZERO],
     ];
     patches::algebraic(&coefficients)

@@ -186,7 +186,9 @@ impl BSplineSurface {
     /// in every control row (de Casteljau's split for a Bezier patch). The two surfaces
     /// together are this one.
     pub fn split_u(&self, t: f64) -> Result<(Self, Self)> {
-        self.transposed().split_v(t).map(|(a, b)| (a.transposed(), b.transposed()))
+        self.transposed()
+            .split_v(t)
+            .map(|(a, b)| (a.transposed(), b.transposed()))
     }
 
     /// Subdivides at v = `t`, strictly inside the range (see [`BSplineSurface::split_u`]).
@@ -208,7 +210,9 @@ impl BSplineSurface {
                 split_polygon(q, self.knots_v.knots(), &column, t)
             })
             .collect();
-        let half = |pick: &dyn Fn(&((Vec<f64>, Vec<DVec4>), (Vec<f64>, Vec<DVec4>))) -> &(Vec<f64>, Vec<DVec4>),
+        let half = |pick: &dyn Fn(
+            &((Vec<f64>, Vec<DVec4>), (Vec<f64>, Vec<DVec4>)),
+        ) -> &(Vec<f64>, Vec<DVec4>),
                     range_v: Interval|
          -> Result<Self> {
             let knots_v = KnotVector::try_new(q, pick(&columns[0]).0.clone())?;
@@ -233,8 +237,12 @@ impl BSplineSurface {
             .flat_map(|i| (0..nv).map(move |j| (i, j)))
             .map(|(i, j)| self.points[j * nu + i])
             .collect();
-        let mut surface =
-            Self::from_homogeneous(self.knots_v.clone(), self.knots_u.clone(), points, self.rational);
+        let mut surface = Self::from_homogeneous(
+            self.knots_v.clone(),
+            self.knots_u.clone(),
+            points,
+            self.rational,
+        );
         surface.range_u = self.range_v;
         surface.range_v = self.range_u;
         surface

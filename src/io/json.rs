@@ -24,7 +24,9 @@
 use super::Scene;
 use crate::error::{Error, Result};
 use crate::geom::patches::{self, Blend, CoonsBoundaries, HermiteCorners};
-use crate::geom::{BSplineCurve, BSplineSurface, Interval, KnotVector, bezier_curve, curves, shapes};
+use crate::geom::{
+    BSplineCurve, BSplineSurface, Interval, KnotVector, bezier_curve, curves, shapes,
+};
 use crate::mesh::TessOptions;
 use glam::DVec3;
 use serde::Deserialize;
@@ -379,8 +381,10 @@ impl Curve {
                 segments,
                 continuity,
             } => {
-                let parts: Vec<BSplineCurve> =
-                    segments.into_iter().map(Curve::build).collect::<Result<_>>()?;
+                let parts: Vec<BSplineCurve> = segments
+                    .into_iter()
+                    .map(Curve::build)
+                    .collect::<Result<_>>()?;
                 let size = parts
                     .iter()
                     .map(BSplineCurve::control_extent)
@@ -406,8 +410,12 @@ impl Curve {
 impl Net {
     /// The surface on these knot vectors, restricted to the given ranges.
     fn build(self, knots_u: KnotVector, knots_v: KnotVector) -> Result<BSplineSurface> {
-        let mut surface =
-            BSplineSurface::try_new(knots_u, knots_v, &points(&self.points), self.weights.as_deref())?;
+        let mut surface = BSplineSurface::try_new(
+            knots_u,
+            knots_v,
+            &points(&self.points),
+            self.weights.as_deref(),
+        )?;
         if self.range_u.is_some() || self.range_v.is_some() {
             let (ru, rv) = (
                 self.range_u.map_or(surface.range_u(), interval),
@@ -479,7 +487,11 @@ impl Shape {
                     u0: &u0,
                     u1: &u1,
                 };
-                one(patches::coons(boundaries, &blend, JOIN_REL_TOLERANCE * size))
+                one(patches::coons(
+                    boundaries,
+                    &blend,
+                    JOIN_REL_TOLERANCE * size,
+                ))
             }
             Shape::Algebraic { coefficients } => {
                 let rows: Vec<Vec<DVec3>> = coefficients.iter().map(|r| points(r)).collect();
@@ -635,10 +647,7 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
         if let Some(samples) = entry.samples
             && samples < 2
         {
-            return Err(in_curve(Error::GridTooSmall {
-                nu: samples,
-                nv: 1,
-            }));
+            return Err(in_curve(Error::GridTooSmall { nu: samples, nv: 1 }));
         }
         scene.curves.push(entry.curve.build().map_err(in_curve)?);
         scene.curve_samples.push(entry.samples);

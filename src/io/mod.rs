@@ -200,7 +200,11 @@ pub fn write_mesh_as(
         })?;
     if !mesh.polylines.is_empty() && matches!(format, MeshFormat::Ply | MeshFormat::Stl) {
         return Err(Error::PolylinesUnsupported {
-            format: if format == MeshFormat::Ply { "PLY" } else { "STL" },
+            format: if format == MeshFormat::Ply {
+                "PLY"
+            } else {
+                "STL"
+            },
         });
     }
     write_atomic(path, |w| match format {

@@ -52,7 +52,13 @@ pub fn write_obj_mesh(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
     let mut next = mesh.vertex_count() + 1;
     for polyline in &mesh.polylines {
         for p in &polyline.positions {
-            writeln!(w, "v {} {} {}", format_f64(p.x), format_f64(p.y), format_f64(p.z))?;
+            writeln!(
+                w,
+                "v {} {} {}",
+                format_f64(p.x),
+                format_f64(p.y),
+                format_f64(p.z)
+            )?;
         }
         let references: Vec<String> = (next..next + polyline.positions.len())
             .map(|k| k.to_string())
