@@ -686,19 +686,24 @@ fn glb_round_trips_and_validates() {
         triangles += indices.len() / 3;
     }
     assert_eq!(triangles, mesh.triangle_count());
-    // The Khronos validator, where `.ci/run` (or the user) installed it.
+    validate_with_khronos(&path);
+}
+
+/// Runs the Khronos glTF validator on `path` where `.ci/run` (or the user) installed it, and
+/// requires 0 errors and 0 warnings.
+fn validate_with_khronos(path: &Path) {
     match std::env::var("KNOTWORK_GLTF_VALIDATOR") {
         Ok(folder) => {
             let run = Command::new("node")
                 .arg("tools/validate_gltf.js")
-                .arg(&path)
+                .arg(path)
                 .env("KNOTWORK_GLTF_VALIDATOR", folder)
                 .output()
                 .expect("node runs");
             let report = String::from_utf8_lossy(&run.stdout);
             println!("Khronos glTF validator: errors, warnings = {report}");
             assert!(
-                run.status.success() && report.starts_with("0 "),
+                run.status.success() && report.starts_with("0 0"),
                 "{report}{}",
                 String::from_utf8_lossy(&run.stderr)
             );
@@ -974,4 +979,136 @@ fn glb_has_one_mesh_per_surface_group() {
         meshes, expected,
         "named groups, and a mesh per surface outside them"
     );
+}
+
+/// data/forms.json holds every classic kind: its curves become OBJ `l` polylines and glTF
+/// LINE_STRIP primitives (with tangents), its surfaces meshes; STL refuses the curves.
+#[test]
+fn classic_forms_scene_writes_polylines() {
+    let scene = read_scene(Path::new("data/forms.json")).unwrap();
+    assert_eq!((scene.surfaces.len(), scene.curves.len()), (17, 9));
+    let dir = scratch_dir("forms");
+    let obj_path = dir.join("forms.obj");
+    let run = knotwork(&[
+        "tessellate",
+        "data/forms.json",
+        "-o",
+        obj_path.to_str().unwrap(),
+        "--backend",
+        "cpu",
+        "--grid",
+        "5x4",
+        "--samples",
+        "17",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(String::from_utf8_lossy(&run.stdout).contains("17 surfaces, 9 curves"));
+    let text = std::fs::read_to_string(&obj_path).unwrap();
+    let vertices: Vec<&str> = text.lines().filter(|l| l.starts_with("v ")).collect();
+    let lines: Vec<Vec<usize>> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("l "))
+        .map(|l| l.split(' ').map(|k| k.parse().unwrap()).collect())
+        .collect();
+    // The periodic curve asks for 129 samples itself; the others take --samples.
+    let lengths: Vec<usize> = lines.iter().map(Vec::len).collect();
+    assert_eq!(lengths, [17, 17, 17, 17, 17, 17, 129, 17, 17]);
+    let point = |k: usize| -> DVec3 {
+        let xyz: Vec<f64> = vertices[k - 1][2..]
+            .split(' ')
+            .map(|x| x.parse().unwrap())
+            .collect();
+        DVec3::new(xyz[0], xyz[1], xyz[2])
+    };
+    // The first curve is the notes' Bezier (1,1), (2,3), (4,3), (6,4): sample 4 of 16 is u = 1/4.
+    assert_eq!(point(lines[0][0]), DVec3::new(1.0, 1.0, 0.0));
+    assert!((point(lines[0][4]) - DVec3::new(123.0 / 64.0, 139.0 / 64.0, 0.0)).length() < 1e-12);
+    assert_eq!(vertices.len(), 17 * 5 * 4 + lengths.iter().sum::<usize>());
+
+    let glb_path = dir.join("forms.glb");
+    let run = knotwork(&[
+        "tessellate",
+        "data/forms.json",
+        "-o",
+        glb_path.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let bytes = std::fs::read(&glb_path).unwrap();
+    let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
+    let blob = gltf.blob.as_deref().unwrap();
+    let curves = gltf
+        .meshes()
+        .find(|m| m.name() == Some("curves"))
+        .expect("a curves mesh");
+    assert_eq!(curves.primitives().count(), 9);
+    for primitive in curves.primitives() {
+        assert_eq!(primitive.mode(), gltf::mesh::Mode::LineStrip);
+        let tangents = primitive
+            .attributes()
+            .find(|(semantic, _)| semantic.to_string() == "_TANGENT")
+            .expect("tangents");
+        let positions = primitive
+            .reader(|_| Some(blob))
+            .read_positions()
+            .unwrap()
+            .count();
+        assert_eq!(tangents.1.count(), positions);
+    }
+    validate_with_khronos(&glb_path);
+
+    let stl_path = dir.join("forms.stl");
+    let run = knotwork(&[
+        "tessellate",
+        "data/forms.json",
+        "-o",
+        stl_path.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(!run.status.success());
+    assert!(String::from_utf8_lossy(&run.stderr).contains("STL files cannot hold curves"));
+    assert!(!stl_path.exists());
+}
+
+/// Errors in the classic kinds name the curve or surface, the joint, the line.
+#[test]
+fn classic_form_errors_name_the_item() {
+    let error = |text: &str| knotwork::io::read_json_scene(text).unwrap_err().to_string();
+    let kinked = r#"{ "curves": [ { "kind": "piecewise", "continuity": 1, "segments": [
+        { "kind": "bezier", "points": [[0, 0, 0], [1, 1, 0], [2, 0, 0]] },
+        { "kind": "bezier", "points": [[2, 0, 0], [3, 0, 0], [4, 1, 0]] } ] } ] }"#;
+    assert_eq!(
+        error(kinked),
+        "curve 0: joint 1 is not C1 continuous (measured: C0)"
+    );
+    let apart = r#"{ "surfaces": [ { "kind": "ruled", "curves": [
+        { "kind": "catmull_rom", "points": [[0, 0, 0], [1, 1, 0]] },
+        { "kind": "bezier", "points": [[0, 0, 1], [1, 1, 1]] } ] } ] }"#;
+    assert_eq!(
+        error(apart),
+        "surface 0: 2 points given for a Catmull–Rom spline: at least 4 are needed"
+    );
+    let typo =
+        "{ \"surfaces\": [\n { \"kind\": \"sphere\", \"centre\": [0, 0, 0],\n \"raduis\": 1 } ] }";
+    let message = error(typo);
+    assert!(
+        message.starts_with("line 3:") && message.contains("raduis"),
+        "{message}"
+    );
+    let blend = r#"{ "surfaces": [ { "kind": "coons", "blend": [1, -2],
+        "v0": { "kind": "bezier", "points": [[0, 0, 0], [1, 0, 0]] },
+        "v1": { "kind": "bezier", "points": [[0, 1, 0], [1, 1, 0]] },
+        "u0": { "kind": "bezier", "points": [[0, 0, 0], [0, 1, 0]] },
+        "u1": { "kind": "bezier", "points": [[1, 0, 0], [1, 1, 0]] } } ] }"#;
+    assert!(error(blend).contains("blending function must be 1 at 0 and 0 at 1"));
 }

@@ -313,6 +313,9 @@ pub(crate) fn insert_knot<T: Value>(p: usize, knots: &mut Vec<f64>, points: &mut
     knots.insert(k + 1, t);
 }
 
+/// A B-spline polygon: its knots and control points.
+pub(crate) type Polygon<T> = (Vec<f64>, Vec<T>);
+
 /// Splits a degree-`p` B-spline polygon at `t` (strictly inside its domain) by inserting `t`
 /// up to multiplicity `p`: returns (knots, points) of the part before and after `t`.
 pub(crate) fn split_polygon<T: Value>(
@@ -320,7 +323,7 @@ pub(crate) fn split_polygon<T: Value>(
     knots: &[f64],
     points: &[T],
     t: f64,
-) -> ((Vec<f64>, Vec<T>), (Vec<f64>, Vec<T>)) {
+) -> (Polygon<T>, Polygon<T>) {
     let mut knots = knots.to_vec();
     let mut points = points.to_vec();
     let have = knots.iter().filter(|&&k| k == t).count();

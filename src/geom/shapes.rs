@@ -30,10 +30,13 @@ fn check_sweep(name: &'static str, angles: Interval) -> Result<f64> {
     Ok(sweep)
 }
 
+/// A planar rational profile: knots and (x, y, weight) control points.
+pub type PlanarProfile = (KnotVector, Vec<(f64, f64, f64)>);
+
 /// The arc of the unit circle over `angles` as a rational quadratic B-spline on [0, 1]:
 /// ⌈sweep / 90°⌉ equal segments, each with middle weight cos(δ/2). Points are (x, y, weight);
 /// a full turn ends exactly where it starts.
-pub fn unit_arc(angles: Interval) -> Result<(KnotVector, Vec<(f64, f64, f64)>)> {
+pub fn unit_arc(angles: Interval) -> Result<PlanarProfile> {
     let sweep = check_sweep("arc sweep", angles)?;
     let segments = ((sweep / FRAC_PI_2) - 1e-9).ceil().max(1.0) as usize;
     let delta = sweep / segments as f64;

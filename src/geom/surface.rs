@@ -1,4 +1,4 @@
-use super::piecewise::split_polygon;
+use super::piecewise::{Polygon, split_polygon};
 use super::{KnotVector, homogeneous};
 use crate::error::{Error, Result};
 use glam::{DVec3, DVec4};
@@ -210,23 +210,22 @@ impl BSplineSurface {
                 split_polygon(q, self.knots_v.knots(), &column, t)
             })
             .collect();
-        let half = |pick: &dyn Fn(
-            &((Vec<f64>, Vec<DVec4>), (Vec<f64>, Vec<DVec4>)),
-        ) -> &(Vec<f64>, Vec<DVec4>),
-                    range_v: Interval|
-         -> Result<Self> {
-            let knots_v = KnotVector::try_new(q, pick(&columns[0]).0.clone())?;
+        let half = |after: bool, range_v: Interval| -> Result<Self> {
+            fn pick(halves: &(Polygon<DVec4>, Polygon<DVec4>), after: bool) -> &Polygon<DVec4> {
+                if after { &halves.1 } else { &halves.0 }
+            }
+            let knots_v = KnotVector::try_new(q, pick(&columns[0], after).0.clone())?;
             let count_v = knots_v.control_count();
             let mut points = Vec::with_capacity(nu * count_v);
             for j in 0..count_v {
-                points.extend(columns.iter().map(|c| pick(c).1[j]));
+                points.extend(columns.iter().map(|c| pick(c, after).1[j]));
             }
             Self::from_homogeneous(self.knots_u.clone(), knots_v, points, self.rational)
                 .with_range(self.range_u, range_v)
         };
         Ok((
-            half(&|c| &c.0, Interval::new(range.start, t))?,
-            half(&|c| &c.1, Interval::new(t, range.end))?,
+            half(false, Interval::new(range.start, t))?,
+            half(true, Interval::new(t, range.end))?,
         ))
     }
 

@@ -1,0 +1,837 @@
+//! The classic curve and surface forms: the lecture notes' worked exercises, exactness of every
+//! conversion against closed forms (≤ 1e-12 of the model size), the operations (split, knot
+//! insertion, degree elevation, joins, continuity) and their errors.
+
+mod common;
+
+use common::EXACT_REL;
+use glam::DVec3;
+use knotwork::geom::curves::{self, Continuity};
+use knotwork::geom::patches::{self, Blend, CoonsBoundaries, HermiteCorners};
+use knotwork::geom::{bernstein, bezier_curve, bezier_surface, de_casteljau_point, shapes};
+use knotwork::{BSplineCurve, BSplineSurface, Error, Interval, KnotVector};
+use std::f64::consts::{FRAC_PI_2, PI};
+
+fn p2(x: f64, y: f64) -> DVec3 {
+    DVec3::new(x, y, 0.0)
+}
+
+fn close(a: DVec3, b: DVec3, size: f64) -> bool {
+    (a - b).length() <= EXACT_REL * size
+}
+
+fn assert_close(a: DVec3, b: DVec3, size: f64, what: &str) {
+    assert!(close(a, b, size), "{what}: {a} vs {b} (size {size})");
+}
+
+fn params(n: usize) -> impl Iterator<Item = f64> {
+    (0..=n).map(move |k| k as f64 / n as f64)
+}
+
+/// The notes' worked Bezier examples at u = 1/4, 1/2, 3/4, by three independent routes:
+/// the Bernstein sum, de Casteljau and the B-spline evaluator. (Example 5's printed
+/// y(1/4) = 3.875 is a typo: 27/64 + 135/64 + 45/64 = 207/64.)
+#[test]
+fn worked_bezier_examples() {
+    let examples: [(&[DVec3], [DVec3; 3]); 4] = [
+        (
+            &[p2(1., 1.), p2(2., 3.), p2(4., 3.), p2(6., 4.)],
+            [
+                p2(123. / 64., 139. / 64.),
+                p2(25. / 8., 23. / 8.),
+                p2(289. / 64., 217. / 64.),
+            ],
+        ),
+        (
+            &[p2(1., 1.), p2(2., 2.), p2(3., 1.)],
+            [p2(1.5, 1.375), p2(2., 1.5), p2(2.5, 1.375)],
+        ),
+        (
+            &[p2(10., 100.), p2(50., 100.), p2(70., 120.), p2(100., 150.)],
+            [
+                p2(2350. / 64., 6630. / 64.),
+                p2(58.75, 113.75),
+                p2(5050. / 64., 8290. / 64.),
+            ],
+        ),
+        (
+            &[p2(0., 1.), p2(2., 5.), p2(5., 5.), p2(8., 0.)],
+            [
+                p2(107. / 64., 207. / 64.),
+                p2(29. / 8., 31. / 8.),
+                p2(369. / 64., 181. / 64.),
+            ],
+        ),
+    ];
+    for (points, expected) in examples {
+        let n = points.len() - 1;
+        let curve = bezier_curve(n, points, None).unwrap();
+        for (t, want) in [0.25, 0.5, 0.75].into_iter().zip(expected) {
+            let sum = (0..=n).fold(DVec3::ZERO, |acc, k| acc + bernstein(n, k, t) * points[k]);
+            assert_close(sum, want, 100.0, "Bernstein");
+            assert_close(de_casteljau_point(points, t), want, 100.0, "de Casteljau");
+            assert_close(curve.point(t), want, 100.0, "B-spline evaluator");
+        }
+    }
+}
+
+/// The periodic cubic B-spline: the corrected basis B₁ = (3u³ − 6u² + 4)/6 (the notes print
+/// +6u²), the boundary conditions p(0) = (p0 + 4p1 + p2)/6 and p′(0) = (p2 − p0)/2, equality
+/// with the uniform B-spline of the wrapped points at t = 1, and for tension t the start
+/// (t·p0 + (6−2t)·p1 + t·p2)/6 with derivative t/2·(p2 − p0), C¹ but not C² at the joints.
+#[test]
+fn periodic_cubic_with_tension() {
+    let pts = [p2(0., 0.), p2(3., 0.5), p2(4., 3.), p2(1., 4.), p2(-1., 2.)];
+    let n = pts.len();
+    let curve = curves::periodic_cubic(&pts, 1.0).unwrap();
+    let [start, velocity, _] = curve.derivatives(0.0);
+    assert_close(start, (pts[0] + 4.0 * pts[1] + pts[2]) / 6.0, 5.0, "p(0)");
+    assert_close(velocity, (pts[2] - pts[0]) / 2.0, 5.0, "p'(0)");
+    let basis = |u: f64| {
+        [
+            (1.0 - u).powi(3) / 6.0,
+            (3.0 * u.powi(3) - 6.0 * u * u + 4.0) / 6.0,
+            (-3.0 * u.powi(3) + 3.0 * u * u + 3.0 * u + 1.0) / 6.0,
+            u.powi(3) / 6.0,
+        ]
+    };
+    let wrapped: Vec<DVec3> = (0..n + 3).map(|k| pts[k % n]).collect();
+    let uniform =
+        BSplineCurve::try_new(KnotVector::uniform(3, n + 3).unwrap(), &wrapped, None).unwrap();
+    for segment in 0..n {
+        for u in params(8) {
+            let by_basis = (0..4).fold(DVec3::ZERO, |acc, k| {
+                acc + basis(u)[k] * pts[(segment + k) % n]
+            });
+            let at = segment as f64 + u;
+            assert_close(curve.point(at), by_basis, 5.0, "corrected basis");
+            assert_close(
+                curve.point(at),
+                uniform.point(3.0 + at),
+                5.0,
+                "uniform B-spline",
+            );
+        }
+    }
+    // Closed: the end is the start.
+    assert_close(curve.point(n as f64), curve.point(0.0), 5.0, "closed");
+
+    let t = 0.5;
+    let tense = curves::periodic_cubic(&pts, t).unwrap();
+    let [start, velocity, _] = tense.derivatives(0.0);
+    assert_close(
+        start,
+        (t * pts[0] + (6.0 - 2.0 * t) * pts[1] + t * pts[2]) / 6.0,
+        5.0,
+        "p(0), t",
+    );
+    assert_close(velocity, t / 2.0 * (pts[2] - pts[0]), 5.0, "p'(0), t");
+    let (left, right) = tense.split_at(2.0).unwrap();
+    assert_eq!(curves::continuity(&left, &right, 1e-9).parametric, Some(1));
+    let (left, right) = curve.split_at(2.0).unwrap();
+    assert_eq!(curves::continuity(&left, &right, 1e-9).parametric, Some(2));
+}
+
+/// Hermite, Catmull–Rom and natural splines interpolate with the tangents they promise; the
+/// natural spline is C² with zero end curvature.
+#[test]
+fn interpolating_curves() {
+    let pts = [p2(0., 0.), p2(1., 2.), p2(3., 1.), p2(4., 3.), p2(6., 2.)];
+    let tangents = [p2(1., 1.), p2(2., 0.), p2(0., -1.), p2(1., 3.), p2(2., 2.)];
+    let hermite = curves::hermite(&pts, &tangents).unwrap();
+    for k in 0..pts.len() {
+        let [p, d, _] = hermite.derivatives(k as f64);
+        assert_close(p, pts[k], 6.0, "Hermite point");
+        assert_close(d, tangents[k], 6.0, "Hermite tangent");
+    }
+    let tensions = [0.0, 0.5, -1.0, 1.0, 0.0];
+    let catmull = curves::catmull_rom(&pts, &tensions).unwrap();
+    for k in 1..pts.len() - 1 {
+        let [p, d, _] = catmull.derivatives((k - 1) as f64);
+        assert_close(p, pts[k], 6.0, "Catmull-Rom point");
+        let want = 0.5 * (1.0 - tensions[k]) * (pts[k + 1] - pts[k - 1]);
+        assert_close(d, want, 6.0, "Catmull-Rom tangent");
+    }
+    let natural = curves::natural_cubic(&pts).unwrap();
+    let last = (pts.len() - 1) as f64;
+    assert!(natural.derivatives(0.0)[2].length() < EXACT_REL * 60.0);
+    assert!(natural.derivatives(last)[2].length() < EXACT_REL * 60.0);
+    for k in 1..pts.len() - 1 {
+        assert_close(natural.point(k as f64), pts[k], 6.0, "natural point");
+        let (left, right) = natural.split_at(k as f64).unwrap();
+        let c = curves::continuity(&left, &right, 1e-10);
+        assert_eq!(c.parametric, Some(2), "joint {k}");
+    }
+}
+
+/// Joining Bezier curves: the notes' C¹ rule (second point of the next curve at
+/// p_n + (p_n − p_(n−1))) and C² rule (third at p_(n−2) + 4(p_n − p_(n−1))); a shorter
+/// tangent is G¹ but not C¹; a kinked one neither.
+#[test]
+fn bezier_join_conditions() {
+    let p = [p2(0., 0.), p2(1., 2.), p2(3., 2.), p2(4., 0.)];
+    let first = bezier_curve(3, &p, None).unwrap();
+    let q1 = p[3] + (p[3] - p[2]);
+    let q2 = p[1] + 4.0 * (p[3] - p[2]);
+    let next = |q1: DVec3, q2: DVec3| bezier_curve(3, &[p[3], q1, q2, p2(9., 1.)], None).unwrap();
+    let c = |b: &BSplineCurve| curves::continuity(&first, b, 1e-12);
+    assert_eq!(
+        c(&next(q1, q2)),
+        Continuity {
+            parametric: Some(2),
+            geometric_tangent: true
+        }
+    );
+    assert_eq!(c(&next(q1, p2(7., 0.))).parametric, Some(1));
+    let shorter = p[3] + 0.5 * (p[3] - p[2]);
+    assert_eq!(
+        c(&next(shorter, q2)),
+        Continuity {
+            parametric: Some(0),
+            geometric_tangent: true
+        }
+    );
+    assert_eq!(
+        c(&next(p2(5., 1.), q2)),
+        Continuity {
+            parametric: Some(0),
+            geometric_tangent: false
+        }
+    );
+    let apart = bezier_curve(3, &[p2(4., 1.), q1, q2, p2(9., 1.)], None).unwrap();
+    assert_eq!(c(&apart).parametric, None);
+    // The joined curve is both curves, one after the other.
+    let second = next(q1, q2);
+    let joined = curves::join(&[first.clone(), second.clone()], 1e-12).unwrap();
+    for u in params(10) {
+        assert_close(joined.point(u), first.point(u), 10.0, "first part");
+        assert_close(joined.point(1.0 + u), second.point(u), 10.0, "second part");
+    }
+    let error = curves::join(&[first, apart], 1e-9).unwrap_err();
+    assert!(matches!(error, Error::CurvesDoNotMeet { .. }), "{error}");
+}
+
+/// Subdivision, knot insertion and degree elevation leave a (rational) curve unchanged; the
+/// midpoint split of a cubic gives the notes' A, AB, ABC, ABCD and ABCD, BCD, CD, D.
+#[test]
+fn curve_operations_preserve_the_curve() {
+    let [a, b, c, d] = [p2(0., 0.), p2(1., 3.), p2(4., 3.), p2(5., 0.)];
+    let cubic = bezier_curve(3, &[a, b, c, d], None).unwrap();
+    let (left, right) = cubic.split_at(0.5).unwrap();
+    let (ab, bc, cd) = ((a + b) / 2.0, (b + c) / 2.0, (c + d) / 2.0);
+    let (abc, bcd) = ((ab + bc) / 2.0, (bc + cd) / 2.0);
+    let abcd = (abc + bcd) / 2.0;
+    let cartesian = |curve: &BSplineCurve| -> Vec<DVec3> {
+        curve
+            .homogeneous_points()
+            .iter()
+            .map(|h| h.truncate() / h.w)
+            .collect()
+    };
+    assert_eq!(cartesian(&left), vec![a, ab, abc, abcd]);
+    assert_eq!(cartesian(&right), vec![abcd, bcd, cd, d]);
+
+    let knots = KnotVector::try_new(3, vec![0., 0., 0., 0., 1., 2.5, 4., 4., 4., 4.]).unwrap();
+    let pts = [
+        p2(0., 0.),
+        p2(1., 2.),
+        p2(2., -1.),
+        p2(3., 3.),
+        p2(4., 0.),
+        p2(5., 1.),
+    ];
+    let weights = [1.0, 2.0, 0.5, 1.0, 3.0, 1.0];
+    let nurbs = BSplineCurve::try_new(knots, &pts, Some(&weights)).unwrap();
+    let refined = nurbs.with_knot(1.7, 2).unwrap();
+    assert_eq!(refined.homogeneous_points().len(), 8);
+    let elevated = nurbs.elevated(5).unwrap();
+    assert_eq!(elevated.degree(), 5);
+    let (left, right) = nurbs.split_at(2.5).unwrap();
+    for u in params(40).map(|t| 4.0 * t) {
+        let want = nurbs.point(u);
+        assert_close(refined.point(u), want, 6.0, "knot insertion");
+        assert_close(elevated.point(u), want, 6.0, "degree elevation");
+        let half = if u <= 2.5 { &left } else { &right };
+        assert_close(half.point(u), want, 6.0, "split");
+    }
+    assert!(matches!(
+        nurbs.split_at(4.0).unwrap_err(),
+        Error::ParameterOutside { .. }
+    ));
+}
+
+/// The bilinear patch and a ruled surface between two cubic Beziers are exactly the Bezier
+/// surfaces of degree (1, 1) and (3, 1) with those rows (the notes' question 3b).
+#[test]
+fn bilinear_and_ruled_are_bezier_surfaces() {
+    let corners = [DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::new(1.0, 1.0, 1.0)];
+    let bilinear = patches::bilinear(corners[0], corners[1], corners[2], corners[3]).unwrap();
+    for (u, v) in params(4).flat_map(|u| params(4).map(move |v| (u, v))) {
+        let want = (1.0 - u) * (1.0 - v) * corners[0]
+            + u * (1.0 - v) * corners[1]
+            + (1.0 - u) * v * corners[2]
+            + u * v * corners[3];
+        assert_close(bilinear.point(u, v), want, 2.0, "bilinear");
+    }
+    let p = [
+        DVec3::ZERO,
+        DVec3::new(1., 2., 0.),
+        DVec3::new(2., -1., 1.),
+        DVec3::new(3., 0., 0.),
+    ];
+    let q = [
+        DVec3::new(0., 0., 2.),
+        DVec3::new(1., 1., 3.),
+        DVec3::new(2., 1., 2.),
+        DVec3::new(3., 0., 2.),
+    ];
+    let ruled = patches::ruled(
+        &bezier_curve(3, &p, None).unwrap(),
+        &bezier_curve(3, &q, None).unwrap(),
+    )
+    .unwrap();
+    let rows: Vec<DVec3> = p.iter().chain(&q).copied().collect();
+    let bezier = bezier_surface(3, 1, &rows, None).unwrap();
+    assert_eq!(ruled.knots_u(), bezier.knots_u());
+    assert_eq!(ruled.knots_v(), bezier.knots_v());
+    assert_eq!(ruled.homogeneous_points(), bezier.homogeneous_points());
+}
+
+/// A ruled surface between a rational arc and a cubic: rulings are straight, in Cartesian
+/// space, at every u: S(u, v) = (1 − v)·c0(u) + v·c1(u).
+#[test]
+fn ruled_between_rational_and_polynomial_curves() {
+    let arc = curves::arc(DVec3::Z, 2.0, DVec3::X, DVec3::Y, Interval::new(0.0, 2.0)).unwrap();
+    let cubic = bezier_curve(
+        3,
+        &[
+            DVec3::X,
+            DVec3::Y,
+            DVec3::new(-1.0, 2.0, 0.5),
+            DVec3::new(-2.0, 0.0, 0.0),
+        ],
+        None,
+    )
+    .unwrap();
+    let ruled = patches::ruled(&arc, &cubic).unwrap();
+    for (u, v) in params(8).flat_map(|u| params(5).map(move |v| (u, v))) {
+        let want = (1.0 - v) * arc.point(u) + v * cubic.point(u);
+        assert_close(ruled.point(u, v), want, 4.0, "ruled");
+    }
+}
+
+/// Four boundary curves of a Coons patch, mixing a rational arc, a quadratic, a cubic and a
+/// natural spline.
+fn boundaries() -> [BSplineCurve; 4] {
+    let v0 = curves::arc(
+        DVec3::new(1.0, 0.0, 0.0),
+        1.0,
+        -DVec3::X,
+        DVec3::Z,
+        Interval::new(0.0, PI),
+    )
+    .unwrap();
+    let v1 = bezier_curve(
+        2,
+        &[
+            DVec3::new(0., 3., 0.),
+            DVec3::new(1., 3., 1.),
+            DVec3::new(2., 3., 0.),
+        ],
+        None,
+    )
+    .unwrap();
+    let u0 = curves::natural_cubic(&[
+        DVec3::ZERO,
+        DVec3::new(-0.5, 1., 0.3),
+        DVec3::new(0., 2., 0.),
+        DVec3::new(0., 3., 0.),
+    ])
+    .unwrap();
+    let u1 = bezier_curve(
+        3,
+        &[
+            DVec3::new(2., 0., 0.),
+            DVec3::new(2.5, 1., -1.),
+            DVec3::new(2., 2., 1.),
+            DVec3::new(2., 3., 0.),
+        ],
+        None,
+    )
+    .unwrap();
+    [v0, v1, u0, u1]
+}
+
+/// The Coons formula evaluated directly from the curves (the independent reference).
+fn coons_direct(curves: &[BSplineCurve; 4], alpha: &Blend, u: f64, v: f64) -> DVec3 {
+    let at = |c: &BSplineCurve, t: f64| c.point(c.range().lerp(t));
+    let [v0, v1, u0, u1] = curves;
+    let (au, av) = (alpha.value(u).unwrap(), alpha.value(v).unwrap());
+    let (c00, c10, c01, c11) = (at(v0, 0.), at(v0, 1.), at(v1, 0.), at(v1, 1.));
+    au * at(u0, v) + (1.0 - au) * at(u1, v) + av * at(v0, u) + (1.0 - av) * at(v1, u)
+        - (au * av * c00
+            + au * (1.0 - av) * c01
+            + (1.0 - au) * av * c10
+            + (1.0 - au) * (1.0 - av) * c11)
+}
+
+/// Coons patches interpolate all four boundaries exactly and equal the Coons formula inside,
+/// for linear, cubic (the notes' α = 1 − 3u² + 2u³), quintic and a custom polynomial blend.
+#[test]
+fn coons_patches_interpolate_their_boundaries() {
+    let curves = boundaries();
+    let [v0, v1, u0, u1] = &curves;
+    let size = 4.0;
+    for blend in [
+        Blend::Linear,
+        Blend::Cubic,
+        Blend::Quintic,
+        Blend::Polynomial(vec![1.0, -0.5, -0.5]),
+    ] {
+        let patch = patches::coons(CoonsBoundaries { v0, v1, u0, u1 }, &blend, 1e-12).unwrap();
+        let at = |c: &BSplineCurve, t: f64| c.point(c.range().lerp(t));
+        for t in params(24) {
+            assert_close(patch.point(t, 0.0), at(v0, t), size, "S(u, 0)");
+            assert_close(patch.point(t, 1.0), at(v1, t), size, "S(u, 1)");
+            assert_close(patch.point(0.0, t), at(u0, t), size, "S(0, v)");
+            assert_close(patch.point(1.0, t), at(u1, t), size, "S(1, v)");
+        }
+        for (u, v) in params(7).flat_map(|u| params(7).map(move |v| (u, v))) {
+            assert_close(
+                patch.point(u, v),
+                coons_direct(&curves, &blend, u, v),
+                size,
+                "interior",
+            );
+        }
+    }
+    let bad = Blend::Polynomial(vec![1.0, -0.5]);
+    assert!(matches!(
+        patches::coons(CoonsBoundaries { v0, v1, u0, u1 }, &bad, 1e-12).unwrap_err(),
+        Error::InvalidBlend { .. }
+    ));
+    let error = patches::coons(
+        CoonsBoundaries {
+            v0: v1,
+            v1: v0,
+            u0,
+            u1,
+        },
+        &Blend::Linear,
+        1e-9,
+    )
+    .unwrap_err();
+    assert!(matches!(error, Error::CurvesDoNotMeet { .. }), "{error}");
+}
+
+/// The notes' question 2: the quarter sphere from revolving the xy semicircle 90° about x, and
+/// the Coons patch of the four quarter arcs, at (0.5, 0.5): (0, √2/2, √2/2) and
+/// (0, √2/2 − ¼, √2/2 − ¼) — not equal.
+#[test]
+fn two_semicircle_surfaces() {
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    let semicircle =
+        curves::arc(DVec3::ZERO, 1.0, DVec3::X, DVec3::Y, Interval::new(0.0, PI)).unwrap();
+    let revolved = shapes::revolve(
+        &semicircle,
+        DVec3::ZERO,
+        DVec3::X,
+        Interval::new(0.0, FRAC_PI_2),
+    )
+    .unwrap();
+    assert_close(
+        revolved.point(0.5, 0.5),
+        DVec3::new(0.0, h, h),
+        1.0,
+        "revolution",
+    );
+    let quarter = |y: DVec3, from: f64| {
+        curves::arc(
+            DVec3::ZERO,
+            1.0,
+            DVec3::X,
+            y,
+            Interval::new(from, from + FRAC_PI_2),
+        )
+        .unwrap()
+    };
+    let (v0, u1) = (quarter(DVec3::Y, 0.0), quarter(DVec3::Y, FRAC_PI_2));
+    let (u0, v1) = (quarter(DVec3::Z, 0.0), quarter(DVec3::Z, FRAC_PI_2));
+    let coons = patches::coons(
+        CoonsBoundaries {
+            v0: &v0,
+            v1: &v1,
+            u0: &u0,
+            u1: &u1,
+        },
+        &Blend::Linear,
+        1e-12,
+    )
+    .unwrap();
+    assert_close(
+        coons.point(0.5, 0.5),
+        DVec3::new(0.0, h - 0.25, h - 0.25),
+        1.0,
+        "Coons",
+    );
+    // Every point of the revolved surface is on the unit sphere.
+    for (u, v) in params(9).flat_map(|u| params(9).map(move |v| (u, v))) {
+        assert!((revolved.point(u, v).length() - 1.0).abs() <= EXACT_REL);
+    }
+}
+
+/// The notes' question 1: the line (2,0,0)–(1,2,0) revolved 180° about y is the cone
+/// x² + z² = (2 − y/2)²; its bicubic Hermite approximation from the exact corners, tangents
+/// and twists is exact along v but off in the middle: (0, 1, −3π/8·1.5/… ) = (0, 1, −0.375π)
+/// against the cone's (0, 1, −1.5).
+#[test]
+fn cone_of_revolution_against_its_bicubic_approximation() {
+    let line = shapes::line(DVec3::new(2., 0., 0.), DVec3::new(1., 2., 0.)).unwrap();
+    let cone = shapes::revolve(&line, DVec3::ZERO, DVec3::Y, Interval::new(0.0, PI)).unwrap();
+    for (u, v) in params(8).flat_map(|u| params(4).map(move |v| (u, v))) {
+        let p = cone.point(u, v);
+        let r = 2.0 - p.y / 2.0;
+        assert!(
+            ((p.x * p.x + p.z * p.z).sqrt() - r).abs() <= EXACT_REL * 4.0,
+            "{p}"
+        );
+        assert!(p.z <= EXACT_REL, "the half turn runs through −z: {p}");
+    }
+    assert_close(
+        cone.point(0.5, 0.5),
+        DVec3::new(0.0, 1.0, -1.5),
+        4.0,
+        "cone",
+    );
+    // Exact parametrisation P(u, v) = ((2 − v) cos πu, 2v, −(2 − v) sin πu) and its derivatives.
+    let s = |u: f64, v: f64| {
+        DVec3::new(
+            (2.0 - v) * (PI * u).cos(),
+            2.0 * v,
+            -(2.0 - v) * (PI * u).sin(),
+        )
+    };
+    let su = |u: f64, v: f64| PI * (2.0 - v) * DVec3::new(-(PI * u).sin(), 0.0, -(PI * u).cos());
+    let sv = |u: f64, _v: f64| DVec3::new(-(PI * u).cos(), 2.0, (PI * u).sin());
+    let suv = |u: f64, _v: f64| PI * DVec3::new((PI * u).sin(), 0.0, (PI * u).cos());
+    let corners = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)];
+    let data = HermiteCorners {
+        points: corners.map(|(u, v)| s(u, v)),
+        du: corners.map(|(u, v)| su(u, v)),
+        dv: corners.map(|(u, v)| sv(u, v)),
+        twists: corners.map(|(u, v)| suv(u, v)),
+    };
+    let bicubic = patches::hermite_patch(&data).unwrap();
+    assert_close(
+        bicubic.point(0.5, 0.5),
+        DVec3::new(0.0, 1.0, -0.375 * PI),
+        4.0,
+        "bicubic",
+    );
+}
+
+/// Hermite patch corner values, tangents and twists are the data it was built from.
+#[test]
+fn hermite_patch_corner_data() {
+    let data = HermiteCorners {
+        points: [
+            DVec3::ZERO,
+            DVec3::new(2., 0., 0.),
+            DVec3::new(0., 2., 0.),
+            DVec3::new(2., 2., 1.),
+        ],
+        du: [
+            DVec3::new(2., 0., 1.),
+            DVec3::new(2., 0., -1.),
+            DVec3::new(2., 0.5, 0.),
+            DVec3::new(2., 0., 0.),
+        ],
+        dv: [
+            DVec3::new(0., 2., 0.),
+            DVec3::new(0., 2., 1.),
+            DVec3::new(0.3, 2., 0.),
+            DVec3::new(0., 2., 0.),
+        ],
+        twists: [
+            DVec3::new(0., 0., 0.5),
+            DVec3::ZERO,
+            DVec3::new(0.2, 0., 0.),
+            DVec3::new(0., 0., 1.),
+        ],
+    };
+    let patch = patches::hermite_patch(&data).unwrap();
+    for (k, (u, v)) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+        .into_iter()
+        .enumerate()
+    {
+        let sample = patch.evaluate(u, v);
+        assert_close(sample.position, data.points[k], 3.0, "corner");
+        assert_close(sample.du, data.du[k], 3.0, "S_u");
+        assert_close(sample.dv, data.dv[k], 3.0, "S_v");
+        assert_close(sample.duv, data.twists[k], 3.0, "S_uv");
+    }
+}
+
+/// The notes' bicubic example S = (0.5 + 2v + v³ − uv² − 4u³v³, 3v² + 5u²v, 1 + 2.5u − 1.5u²v³)
+/// from its algebraic coefficients.
+#[test]
+fn algebraic_bicubic_of_the_notes() {
+    let z = DVec3::ZERO;
+    let a = |x: f64, y: f64, w: f64| DVec3::new(x, y, w);
+    let coefficients = vec![
+        vec![a(0.5, 0., 1.), a(2., 0., 0.), a(0., 3., 0.), a(1., 0., 0.)],
+        vec![a(0., 0., 2.5), z, a(-1., 0., 0.), z],
+        vec![z, a(0., 5., 0.), z, a(0., 0., -1.5)],
+        vec![z, z, z, a(-4., 0., 0.)],
+    ];
+    let patch = patches::algebraic(&coefficients).unwrap();
+    for (u, v) in params(6).flat_map(|u| params(6).map(move |v| (u, v))) {
+        let want = DVec3::new(
+            0.5 + 2.0 * v + v.powi(3) - u * v * v - 4.0 * u.powi(3) * v.powi(3),
+            3.0 * v * v + 5.0 * u * u * v,
+            1.0 + 2.5 * u - 1.5 * u * u * v.powi(3),
+        );
+        assert_close(patch.point(u, v), want, 10.0, "bicubic");
+    }
+}
+
+/// Largest |implicit(p)| over a grid of the surface.
+fn worst_residual(surface: &BSplineSurface, implicit: impl Fn(DVec3) -> f64) -> f64 {
+    let (ru, rv) = (surface.range_u(), surface.range_v());
+    params(16)
+        .flat_map(|s| params(16).map(move |t| (s, t)))
+        .map(|(s, t)| implicit(surface.point(ru.lerp(s), rv.lerp(t))).abs())
+        .fold(0.0, f64::max)
+}
+
+/// Every quadric lies on its implicit surface to ≤ 1e-12 (relative), over its parameter
+/// ranges, and its range ends land on the requested angles and heights.
+#[test]
+fn quadrics_lie_on_their_implicit_surfaces() {
+    let c = DVec3::new(1.0, -2.0, 3.0);
+    let full = shapes::FULL_TURN;
+    let r = DVec3::new(3.0, 2.0, 1.5);
+    let rel = |p: DVec3| (p - c) / r;
+    let ellipsoid =
+        shapes::ellipsoid(c, r, Interval::new(0.3, 4.0), Interval::new(-1.0, 1.2)).unwrap();
+    assert!(worst_residual(&ellipsoid, |p| rel(p).length_squared() - 1.0) <= EXACT_REL);
+    let start = rel(ellipsoid.point(0.0, 0.0));
+    assert!(
+        (start.z - (-1.0f64).sin()).abs() <= EXACT_REL
+            && (start.y.atan2(start.x) - 0.3).abs() <= EXACT_REL
+    );
+
+    let torus = shapes::torus_section(
+        c,
+        2.0,
+        0.5,
+        Interval::new(0.0, PI),
+        Interval::new(-1.0, 2.0),
+    )
+    .unwrap();
+    assert!(
+        worst_residual(&torus, |p| {
+            let q = p - c;
+            let ring = (q.x * q.x + q.y * q.y).sqrt() - 2.0;
+            ring * ring + q.z * q.z - 0.25
+        }) <= EXACT_REL * 4.0
+    );
+
+    let one = shapes::hyperboloid_one_sheet(c, r, full, Interval::new(-2.0, 3.0)).unwrap();
+    assert!(
+        worst_residual(&one, |p| {
+            let q = rel(p);
+            q.x * q.x + q.y * q.y - q.z * q.z - 1.0
+        }) <= EXACT_REL * 10.0
+    );
+    assert!((one.point(0.0, 0.0).z - (c.z - 2.0)).abs() <= EXACT_REL * 10.0);
+    assert!((one.point(0.0, 1.0).z - (c.z + 3.0)).abs() <= EXACT_REL * 10.0);
+
+    let [upper, lower] = shapes::hyperboloid_two_sheets(c, r, full, 4.0).unwrap();
+    for sheet in [&upper, &lower] {
+        assert!(
+            worst_residual(sheet, |p| {
+                let q = rel(p);
+                q.z * q.z - q.x * q.x - q.y * q.y - 1.0
+            }) <= EXACT_REL * 20.0
+        );
+    }
+    // Normals follow the gradient: +z at the upper vertex, −z at the lower.
+    assert!(upper.evaluate(0.3, 1.0).normal.z > 0.999);
+    assert!(lower.evaluate(0.3, 0.0).normal.z < -0.999);
+
+    let cylinder = shapes::elliptic_cylinder(
+        c,
+        3.0,
+        2.0,
+        Interval::new(0.0, FRAC_PI_2),
+        Interval::new(0.0, 2.0),
+    )
+    .unwrap();
+    assert_eq!(
+        (cylinder.degree_u(), cylinder.degree_v()),
+        (2, 1),
+        "one rational Bezier patch"
+    );
+    assert_eq!(
+        cylinder.count_u(),
+        3,
+        "the quarter cylinder is a single segment"
+    );
+    assert!(
+        worst_residual(&cylinder, |p| {
+            let q = p - c;
+            q.x * q.x / 9.0 + q.y * q.y / 4.0 - 1.0
+        }) <= EXACT_REL
+    );
+
+    let paraboloid =
+        shapes::elliptic_paraboloid(c, 3.0, 2.0, 0.5, full, Interval::new(0.2, 1.5)).unwrap();
+    assert!(
+        worst_residual(&paraboloid, |p| {
+            let q = p - c;
+            q.x * q.x / 9.0 + q.y * q.y / 4.0 - 0.5 * q.z
+        }) <= EXACT_REL * 10.0
+    );
+
+    let saddle = shapes::hyperbolic_paraboloid(
+        c,
+        3.0,
+        2.0,
+        0.5,
+        Interval::new(-1.0, 2.0),
+        Interval::new(-3.0, 1.0),
+    )
+    .unwrap();
+    assert!(
+        worst_residual(&saddle, |p| {
+            let q = p - c;
+            q.x * q.x / 9.0 - q.y * q.y / 4.0 - 0.5 * q.z
+        }) <= EXACT_REL * 10.0
+    );
+
+    let cone = shapes::elliptic_cone(c, 3.0, 2.0, full, Interval::new(-1.0, 2.0)).unwrap();
+    assert!(
+        worst_residual(&cone, |p| {
+            let q = p - c;
+            q.x * q.x / 9.0 + q.y * q.y / 4.0 - q.z * q.z
+        }) <= EXACT_REL * 10.0
+    );
+}
+
+/// Subdividing a patch at u and at v: the halves are the surface.
+#[test]
+fn surface_split_preserves_the_surface() {
+    let torus = shapes::torus(DVec3::ZERO, 2.0, 0.5);
+    let (a, b) = torus.split_u(0.3).unwrap();
+    let (c, d) = torus.split_v(0.55).unwrap();
+    for (u, v) in params(12).flat_map(|u| params(12).map(move |v| (u, v))) {
+        let want = torus.point(u, v);
+        let by_u = if u <= 0.3 { &a } else { &b };
+        let by_v = if v <= 0.55 { &c } else { &d };
+        assert_close(by_u.point(u, v), want, 5.0, "split u");
+        assert_close(by_v.point(u, v), want, 5.0, "split v");
+    }
+    assert!(matches!(
+        torus.split_u(1.0).unwrap_err(),
+        Error::ParameterOutside { .. }
+    ));
+}
+
+/// Degrees of the exact Coons conversion: polynomial boundaries keep deg α + p; rational arcs
+/// multiply weights (cubic blend over arcs: 3 + 2 + 2 = 7).
+#[test]
+fn coons_degrees() {
+    let quarter = |y: DVec3, from: f64| {
+        curves::arc(
+            DVec3::ZERO,
+            1.0,
+            DVec3::X,
+            y,
+            Interval::new(from, from + FRAC_PI_2),
+        )
+        .unwrap()
+    };
+    let (v0, u1) = (quarter(DVec3::Y, 0.0), quarter(DVec3::Y, FRAC_PI_2));
+    let (u0, v1) = (quarter(DVec3::Z, 0.0), quarter(DVec3::Z, FRAC_PI_2));
+    let arcs = CoonsBoundaries {
+        v0: &v0,
+        v1: &v1,
+        u0: &u0,
+        u1: &u1,
+    };
+    let patch = patches::coons(arcs, &Blend::Cubic, 1e-12).unwrap();
+    assert_eq!((patch.degree_u(), patch.degree_v()), (7, 7));
+    let line = |a: DVec3, b: DVec3| shapes::line(a, b).unwrap();
+    let (a, b, c, d) = (DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::new(1.0, 1.0, 0.5));
+    let lines = [line(a, b), line(c, d), line(a, c), line(b, d)];
+    let flat = patches::coons(
+        CoonsBoundaries {
+            v0: &lines[0],
+            v1: &lines[1],
+            u0: &lines[2],
+            u1: &lines[3],
+        },
+        &Blend::Linear,
+        1e-12,
+    )
+    .unwrap();
+    assert_eq!(
+        (flat.degree_u(), flat.degree_v()),
+        (1, 1),
+        "the Coons patch of four lines is bilinear"
+    );
+    assert!(!flat.is_rational());
+}
+
+/// Errors of the forms name what is wrong.
+#[test]
+fn form_errors() {
+    let two = [DVec3::ZERO, DVec3::X];
+    assert!(matches!(
+        curves::catmull_rom(&two, &[0.0]).unwrap_err(),
+        Error::TooFewPoints {
+            found: 2,
+            min: 4,
+            ..
+        }
+    ));
+    assert!(matches!(
+        curves::hermite(&two, &[DVec3::X]).unwrap_err(),
+        Error::ControlPointCount { .. }
+    ));
+    assert!(matches!(
+        shapes::ellipsoid(
+            DVec3::ZERO,
+            DVec3::ONE,
+            shapes::FULL_TURN,
+            Interval::new(-2.0, 1.0)
+        )
+        .unwrap_err(),
+        Error::ParameterOutside {
+            name: "latitude",
+            ..
+        }
+    ));
+    assert!(matches!(
+        shapes::hyperboloid_two_sheets(DVec3::ZERO, DVec3::ONE, shapes::FULL_TURN, 0.5)
+            .unwrap_err(),
+        Error::ParameterOutside { name: "height", .. }
+    ));
+    assert!(matches!(
+        shapes::elliptic_paraboloid(
+            DVec3::ZERO,
+            1.0,
+            1.0,
+            0.0,
+            shapes::FULL_TURN,
+            Interval::new(0.0, 1.0)
+        )
+        .unwrap_err(),
+        Error::InvalidParameter { name: "c", .. }
+    ));
+    assert!(matches!(
+        shapes::unit_arc(Interval::new(0.0, 7.0)).unwrap_err(),
+        Error::ParameterOutside { .. }
+    ));
+}
