@@ -6,7 +6,10 @@
 //! 1. **Input** ([`io`]): OBJ free-form, `.bpt` and JSON scene files, or the API ([`geom`]).
 //!    Every surface is validated at construction and normalised to one canonical form, a
 //!    rational tensor-product [`BSplineSurface`] with homogeneous control points
-//!    (x·w, y·w, z·w, w).
+//!    (x·w, y·w, z·w, w); the classic forms (Hermite, Catmull–Rom and natural splines,
+//!    bilinear, ruled, Coons and Hermite patches, surfaces of revolution, the quadrics)
+//!    convert to it exactly ([`geom::curves`], [`geom::patches`], [`geom::shapes`]). Curves
+//!    become [`Polyline`]s.
 //! 2. **Tessellation** ([`Tessellator`]): each surface is sampled on a grid uniform in
 //!    parameter over its evaluation range and turned into a [`Mesh`] — by [`CpuTessellator`]
 //!    (f64) or [`GpuTessellator`] (WGSL compute kernels, f32); [`GpuBatch`] fills vertex and
