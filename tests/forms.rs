@@ -835,3 +835,61 @@ fn form_errors() {
         Error::ParameterOutside { .. }
     ));
 }
+
+/// Two bicubic Bezier patches joined along u: sharing the boundary column gives C⁰; mirroring
+/// the last inner column through it (P₀ʲ of the second = 2P₃ʲ − P₂ʲ of the first) gives C¹;
+/// a shorter mirror keeps G¹ only; a bent one loses G¹.
+#[test]
+fn patch_join_continuity() {
+    let first: Vec<DVec3> = (0..16)
+        .map(|k| {
+            DVec3::new(
+                (k % 4) as f64,
+                (k / 4) as f64,
+                (((k % 4) * (k / 4)) as f64 * 0.3).sin(),
+            )
+        })
+        .collect();
+    let second = |scale: f64, bend: f64| {
+        let mut points = Vec::with_capacity(16);
+        for j in 0..4 {
+            let (p2, p3) = (first[j * 4 + 2], first[j * 4 + 3]);
+            let q1 = p3 + scale * (p3 - p2) + DVec3::new(0.0, 0.0, bend * j as f64);
+            points.extend([
+                p3,
+                q1,
+                q1 + DVec3::new(1.0, 0.1, 0.2),
+                q1 + DVec3::new(2.0, 0.0, -0.3),
+            ]);
+        }
+        bezier_surface(3, 3, &points, None).unwrap()
+    };
+    let a = bezier_surface(3, 3, &first, None).unwrap();
+    let measure =
+        |b: &BSplineSurface| patches::continuity(&a, b, patches::JoinDirection::U, 9, 1e-9);
+    assert_eq!(measure(&second(1.0, 0.0)).parametric, Some(1));
+    assert!(measure(&second(1.0, 0.0)).geometric_tangent);
+    assert_eq!(
+        measure(&second(0.5, 0.0)),
+        Continuity {
+            parametric: Some(0),
+            geometric_tangent: true
+        }
+    );
+    assert_eq!(
+        measure(&second(1.0, 0.4)),
+        Continuity {
+            parametric: Some(0),
+            geometric_tangent: false
+        }
+    );
+    // Along v, the transposed patches join the same way.
+    let c1 = patches::continuity(
+        &a.transposed(),
+        &second(1.0, 0.0).transposed(),
+        patches::JoinDirection::V,
+        9,
+        1e-9,
+    );
+    assert_eq!(c1.parametric, Some(1));
+}

@@ -308,3 +308,73 @@ pub fn hermite_patch(corners: &HermiteCorners) -> Result<BSplineSurface> {
     }
     bezier_surface(3, 3, &points, None)
 }
+
+/// Which edge two patches share: `U` — the u = end edge of the first and the u = start edge of
+/// the second (they follow each other along u); `V` — likewise along v.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JoinDirection {
+    U,
+    V,
+}
+
+/// Measures the continuity across the edge two patches share, at `samples` (≥ 2) points
+/// along it matched by their fraction of each edge's range: positions (C⁰), cross-edge
+/// derivatives of orders 1 and 2 (C¹, C²) and normals (G¹), each equal within `relative`
+/// × its size (positions: × the larger control box diagonal).
+pub fn continuity(
+    a: &BSplineSurface,
+    b: &BSplineSurface,
+    direction: JoinDirection,
+    samples: usize,
+    relative: f64,
+) -> super::curves::Continuity {
+    let size = a.control_box_diagonal().max(b.control_box_diagonal());
+    let close = |x: DVec3, y: DVec3, scale: f64| (x - y).length() <= relative * scale;
+    let mut parametric = Some(2u8);
+    let mut geometric_tangent = true;
+    for k in 0..samples.max(2) {
+        let t = k as f64 / (samples.max(2) - 1) as f64;
+        let (sa, sb, cross) = match direction {
+            JoinDirection::U => {
+                let (ea, eb) = (
+                    a.evaluate(a.range_u().end, a.range_v().lerp(t)),
+                    b.evaluate(b.range_u().start, b.range_v().lerp(t)),
+                );
+                (ea, eb, [(ea.du, eb.du), (ea.duu, eb.duu)])
+            }
+            JoinDirection::V => {
+                let (ea, eb) = (
+                    a.evaluate(a.range_u().lerp(t), a.range_v().end),
+                    b.evaluate(b.range_u().lerp(t), b.range_v().start),
+                );
+                (ea, eb, [(ea.dv, eb.dv), (ea.dvv, eb.dvv)])
+            }
+        };
+        let mut order = if close(sa.position, sb.position, size) {
+            Some(0u8)
+        } else {
+            None
+        };
+        if order.is_some() {
+            for (k, (da, db)) in cross.iter().enumerate() {
+                if close(
+                    *da,
+                    *db,
+                    da.length().max(db.length()).max(f64::MIN_POSITIVE),
+                ) {
+                    order = Some(k as u8 + 1);
+                } else {
+                    break;
+                }
+            }
+        }
+        parametric = parametric.min(order);
+        let parallel =
+            sa.normal.cross(sb.normal).length() <= relative && sa.normal.dot(sb.normal) > 0.0;
+        geometric_tangent &= order.is_some() && parallel;
+    }
+    super::curves::Continuity {
+        parametric,
+        geometric_tangent,
+    }
+}
