@@ -32,16 +32,35 @@ impl BSplineCurve {
         })
     }
 
-    /// Builds from homogeneous points (x·w, y·w, z·w, w), checking count, finiteness and
-    /// weights; the range is the whole domain.
+    /// Builds from homogeneous points (x·w, y·w, z·w, w) as they are (no round trip through
+    /// Cartesian), checking count, finiteness and weights; the range is the whole domain.
     pub(crate) fn from_homogeneous(
         knots: KnotVector,
         points: Vec<DVec4>,
         rational: bool,
     ) -> Result<Self> {
-        let cartesian: Vec<DVec3> = points.iter().map(|p| p.truncate() / p.w).collect();
-        let weights: Vec<f64> = points.iter().map(|p| p.w).collect();
-        Self::try_new(knots, &cartesian, Some(&weights)).map(|c| Self { rational, ..c })
+        if points.len() != knots.control_count() {
+            return Err(Error::ControlPointCount {
+                expected: knots.control_count(),
+                found: points.len(),
+                what: "knots − degree − 1",
+            });
+        }
+        for (index, p) in points.iter().enumerate() {
+            if !(p.w.is_finite() && p.w > 0.0) {
+                return Err(Error::InvalidWeight { index, value: p.w });
+            }
+            if !p.is_finite() {
+                return Err(Error::ControlPointNotFinite { index });
+            }
+        }
+        let (start, end) = knots.domain();
+        Ok(Self {
+            knots,
+            points,
+            rational,
+            range: Interval::new(start, end),
+        })
     }
 
     /// Restricts evaluation to `range`, which must lie inside the knot domain.

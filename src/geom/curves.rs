@@ -4,6 +4,7 @@
 //! segment k runs over [k, k + 1].
 
 use super::piecewise::{Piecewise, split_polygon};
+use super::surface::cartesian_box;
 use super::{BSplineCurve, KnotVector, homogeneous};
 use crate::error::{Error, Result};
 use glam::{DVec3, DVec4};
@@ -203,7 +204,7 @@ pub fn join(curves: &[BSplineCurve], tolerance: f64) -> Result<BSplineCurve> {
     let mut joined = pieces[0].elevated(degree);
     for (k, piece) in pieces.iter().enumerate().skip(1) {
         let end = *joined.coeffs.last().expect("a non-empty curve");
-        let mut next = piece.elevated(degree);
+        let next = piece.elevated(degree);
         let start = next.coeffs[0];
         let gap = (end.truncate() / end.w - start.truncate() / start.w).length();
         if gap.is_nan() || gap > tolerance {
@@ -218,7 +219,6 @@ pub fn join(curves: &[BSplineCurve], tolerance: f64) -> Result<BSplineCurve> {
         joined
             .breaks
             .extend(next.breaks.iter().skip(1).map(|b| b + offset));
-        next.coeffs[0] = end / scale;
         joined
             .coeffs
             .extend(next.coeffs.iter().skip(1).map(|&c| c * scale));
@@ -307,13 +307,7 @@ impl BSplineCurve {
 
     /// Largest extent (bounding-box diagonal) of the Cartesian control points.
     pub fn control_extent(&self) -> f64 {
-        let (lo, hi) = self.homogeneous_points().iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(lo, hi), p| {
-                let c = p.truncate() / p.w;
-                (lo.min(c), hi.max(c))
-            },
-        );
+        let (lo, hi) = cartesian_box(self.homogeneous_points());
         (hi - lo).length()
     }
 
@@ -322,9 +316,11 @@ impl BSplineCurve {
     pub fn elevated(&self, degree: usize) -> Result<Self> {
         super::check_degree(degree)?;
         if degree < self.degree() {
-            return Err(Error::DegreeOutOfRange {
-                degree,
-                max: self.degree(),
+            return Err(Error::ParameterOutside {
+                name: "elevated degree",
+                value: degree as f64,
+                start: self.degree() as f64,
+                end: super::MAX_DEGREE as f64,
             });
         }
         Self::from_piecewise(&self.bezier_form().elevated(degree), self.is_rational())

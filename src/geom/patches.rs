@@ -3,7 +3,7 @@
 //! bilinear, ruled, Coons (bilinear or polynomial blends), algebraic (power basis) and
 //! Hermite patches. Curves are reparametrised onto [0, 1] first; so are the patches.
 
-use super::piecewise::{Piecewise, merged_breaks};
+use super::piecewise::{Piecewise, Value, merged_breaks};
 use super::{BSplineCurve, BSplineSurface, KnotVector, bezier_surface};
 use crate::error::{Error, Result};
 use glam::{DVec3, DVec4};
@@ -26,21 +26,47 @@ fn numerator_and_weight(curve: &BSplineCurve) -> (Piecewise<DVec3>, Piecewise<f6
     (pieces.map(DVec4::truncate), weight)
 }
 
-/// Degree and breakpoints that every listed function can be raised and refined to.
-fn common_form(degrees: &[usize], breaks: &[&[f64]]) -> (usize, Vec<f64>) {
-    let degree = degrees.iter().copied().max().unwrap_or(1).max(1);
-    (degree, merged_breaks(breaks.iter().copied()))
+/// A degree and breakpoints that several piecewise polynomials are raised and refined to, so
+/// that their Bernstein coefficients share one basis.
+struct CommonForm {
+    degree: usize,
+    breaks: Vec<f64>,
+}
+
+impl CommonForm {
+    /// The highest degree (at least 1) and the union of the breakpoints of `functions`, given
+    /// as (degree, breakpoints).
+    fn of<'a>(functions: impl IntoIterator<Item = (usize, &'a [f64])>) -> Self {
+        let (degrees, breaks): (Vec<usize>, Vec<&[f64]>) = functions.into_iter().unzip();
+        Self {
+            degree: degrees.into_iter().max().unwrap_or(1).max(1),
+            breaks: merged_breaks(breaks),
+        }
+    }
+
+    /// The coefficients of each function in this form.
+    fn apply<T: Value, const N: usize>(&self, functions: [Piecewise<T>; N]) -> [Vec<T>; N] {
+        functions.map(|f| f.conformed(self.degree, &self.breaks).coeffs)
+    }
+
+    fn knots(&self) -> Result<KnotVector> {
+        KnotVector::from_breakpoints(self.degree, &self.breaks)
+    }
+}
+
+fn shape<T>(f: &Piecewise<T>) -> (usize, &[f64]) {
+    (f.degree, &f.breaks)
 }
 
 fn surface(
-    (degree_u, breaks_u): (usize, Vec<f64>),
-    (degree_v, breaks_v): (usize, Vec<f64>),
+    form_u: &CommonForm,
+    form_v: &CommonForm,
     points: Vec<DVec4>,
     rational: bool,
 ) -> Result<BSplineSurface> {
     Ok(BSplineSurface::from_homogeneous(
-        KnotVector::from_breakpoints(degree_u, &breaks_u)?,
-        KnotVector::from_breakpoints(degree_v, &breaks_v)?,
+        form_u.knots()?,
+        form_v.knots()?,
         points,
         rational,
     ))
@@ -53,29 +79,22 @@ pub fn ruled(c0: &BSplineCurve, c1: &BSplineCurve) -> Result<BSplineSurface> {
     let (n0, w0) = numerator_and_weight(c0);
     let (n1, w1) = numerator_and_weight(c1);
     let (a, b, weight) = (w1.times(&n0), w0.times(&n1), w0.times(&w1));
-    let (degree, breaks) = common_form(
-        &[a.degree, b.degree, weight.degree],
-        &[&a.breaks, &b.breaks, &weight.breaks],
-    );
-    let (a, b, weight) = (
-        a.conformed(degree, &breaks),
-        b.conformed(degree, &breaks),
-        weight.conformed(degree, &breaks),
-    );
-    let mut points: Vec<DVec4> = a
-        .coeffs
+    let form = CommonForm::of([shape(&a), shape(&b), shape(&weight)]);
+    let [a, b] = form.apply([a, b]);
+    let [weight] = form.apply([weight]);
+    // Row v = 0 is c0's numerator, row v = 1 c1's, both over the weight W0·W1.
+    let points: Vec<DVec4> = a
         .iter()
-        .zip(&weight.coeffs)
+        .chain(&b)
+        .zip(weight.iter().cycle())
         .map(|(n, &w)| n.extend(w))
         .collect();
-    points.extend(
-        b.coeffs
-            .iter()
-            .zip(&weight.coeffs)
-            .map(|(n, &w)| n.extend(w)),
-    );
     let rational = c0.is_rational() || c1.is_rational();
-    surface((degree, breaks), (1, vec![0.0, 1.0]), points, rational)
+    let linear = CommonForm {
+        degree: 1,
+        breaks: vec![0.0, 1.0],
+    };
+    surface(&form, &linear, points, rational)
 }
 
 /// A Coons blending function α on [0, 1] with α(0) = 1 and α(1) = 0; its partner is 1 − α.
@@ -147,36 +166,18 @@ pub fn coons(curves: CoonsBoundaries<'_>, blend: &Blend, tolerance: f64) -> Resu
     let (np1, wp1) = numerator_and_weight(curves.u1);
     // Along u: the v-boundaries' numerators and the u-blends, all over W_v0·W_v1.
     let du = wq0.times(&wq1);
-    let along_u = [alpha.times(&du), one_minus_alpha.times(&du), du.clone()];
+    let along_u = [alpha.times(&du), one_minus_alpha.times(&du), du];
     let curves_u = [wq1.times(&nq0), wq0.times(&nq1)];
     // Along v: the same with the u-boundaries.
     let dv = wp0.times(&wp1);
-    let along_v = [alpha.times(&dv), one_minus_alpha.times(&dv), dv.clone()];
+    let along_v = [alpha.times(&dv), one_minus_alpha.times(&dv), dv];
     let curves_v = [wp1.times(&np0), wp0.times(&np1)];
-    let form = |scalars: &[Piecewise<f64>; 3], vectors: &[Piecewise<DVec3>; 2]| {
-        let degrees: Vec<usize> = scalars
-            .iter()
-            .map(|f| f.degree)
-            .chain(vectors.iter().map(|f| f.degree))
-            .collect();
-        let breaks: Vec<&[f64]> = scalars
-            .iter()
-            .map(|f| &f.breaks[..])
-            .chain(vectors.iter().map(|f| &f.breaks[..]))
-            .collect();
-        common_form(&degrees, &breaks)
-    };
-    let (form_u, form_v) = (form(&along_u, &curves_u), form(&along_v, &curves_v));
-    let conform_s = |fs: &[Piecewise<f64>; 3], (d, b): &(usize, Vec<f64>)| {
-        fs.clone().map(|f| f.conformed(*d, b).coeffs)
-    };
-    let conform_v = |fs: &[Piecewise<DVec3>; 2], (d, b): &(usize, Vec<f64>)| {
-        fs.clone().map(|f| f.conformed(*d, b).coeffs)
-    };
-    let [au, bu, wu] = conform_s(&along_u, &form_u);
-    let [q0, q1] = conform_v(&curves_u, &form_u);
-    let [av, bv, wv] = conform_s(&along_v, &form_v);
-    let [p0, p1] = conform_v(&curves_v, &form_v);
+    let form_u = CommonForm::of(along_u.iter().map(shape).chain(curves_u.iter().map(shape)));
+    let form_v = CommonForm::of(along_v.iter().map(shape).chain(curves_v.iter().map(shape)));
+    let [au, bu, wu] = form_u.apply(along_u);
+    let [q0, q1] = form_u.apply(curves_u);
+    let [av, bv, wv] = form_v.apply(along_v);
+    let [p0, p1] = form_v.apply(curves_v);
     let [c00, c10, c01, c11] = corners;
     let mut points = Vec::with_capacity(au.len() * av.len());
     for j in 0..av.len() {
@@ -192,7 +193,7 @@ pub fn coons(curves: CoonsBoundaries<'_>, blend: &Blend, tolerance: f64) -> Resu
     let rational = [curves.v0, curves.v1, curves.u0, curves.u1]
         .iter()
         .any(|c| c.is_rational());
-    surface(form_u, form_v, points, rational)
+    surface(&form_u, &form_v, points, rational)
 }
 
 /// The corners S(0,0), S(1,0), S(0,1), S(1,1) from the v-boundaries, checked against the

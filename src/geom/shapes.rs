@@ -6,7 +6,7 @@
 
 use super::{BSplineCurve, BSplineSurface, Interval, KnotVector, patches};
 use crate::error::{Error, Result};
-use glam::{DVec3, DVec4};
+use glam::DVec3;
 use std::f64::consts::{FRAC_PI_2, TAU};
 
 /// cos and sin with the rounding noise of multiples of π/2 removed, so quarter points of
@@ -79,7 +79,9 @@ pub fn revolve(
         });
     }
     let (arc_knots, arc) = unit_arc(angles)?;
-    let (profile_knots, profile_points) = if profile.range() == profile.domain_interval() {
+    let (start, end) = profile.knots().domain();
+    let whole = profile.range() == Interval::new(start, end);
+    let (profile_knots, profile_points) = if whole {
         (
             profile.knots().clone(),
             profile.homogeneous_points().to_vec(),
@@ -132,6 +134,11 @@ fn revolve_scaled(
 ) -> Result<BSplineSurface> {
     let surface = revolve(&profile(knots, points)?, DVec3::ZERO, DVec3::Z, around)?;
     Ok(surface.mapped(|p| centre + p * scale))
+}
+
+/// The x, y scale of the elliptic forms (semi-axes a, b), z unscaled.
+fn elliptic_scale(a: f64, b: f64) -> Result<DVec3> {
+    Ok(DVec3::new(positive("a", a)?, positive("b", b)?, 1.0))
 }
 
 fn positive(name: &'static str, value: f64) -> Result<f64> {
@@ -305,7 +312,7 @@ pub fn elliptic_cylinder(
     around: Interval,
     height: Interval,
 ) -> Result<BSplineSurface> {
-    let scale = DVec3::new(positive("a", a)?, positive("b", b)?, 1.0);
+    let scale = elliptic_scale(a, b)?;
     increasing("height", height)?;
     let knots = KnotVector::from_breakpoints(1, &[0.0, 1.0])?;
     let line = [(1.0, height.start, 1.0), (1.0, height.end, 1.0)];
@@ -323,7 +330,7 @@ pub fn elliptic_paraboloid(
     around: Interval,
     rho: Interval,
 ) -> Result<BSplineSurface> {
-    let scale = DVec3::new(positive("a", a)?, positive("b", b)?, 1.0);
+    let scale = elliptic_scale(a, b)?;
     nonzero("c", c)?;
     increasing("rho", rho)?;
     if rho.start < 0.0 {
@@ -393,7 +400,7 @@ pub fn elliptic_cone(
     around: Interval,
     height: Interval,
 ) -> Result<BSplineSurface> {
-    let scale = DVec3::new(positive("a", a)?, positive("b", b)?, 1.0);
+    let scale = elliptic_scale(a, b)?;
     increasing("height", height)?;
     let (z0, z1) = (height.start, height.end);
     let (knots, line) = if z0 < 0.0 && z1 > 0.0 {
@@ -411,45 +418,11 @@ pub fn elliptic_cone(
     revolve_scaled(knots, &line, around, scale, centre)
 }
 
-impl BSplineSurface {
-    /// The surface with every Cartesian control point moved by the affine map `f` (weights
-    /// kept): exact, since rational B-splines are affinely invariant.
-    pub fn mapped(&self, f: impl Fn(DVec3) -> DVec3) -> BSplineSurface {
-        let points: Vec<DVec4> = self
-            .homogeneous_points()
-            .iter()
-            .map(|h| (f(h.truncate() / h.w) * h.w).extend(h.w))
-            .collect();
-        let surface = BSplineSurface::from_homogeneous(
-            self.knots_u().clone(),
-            self.knots_v().clone(),
-            points,
-            self.is_rational(),
-        );
-        surface
-            .with_range(self.range_u(), self.range_v())
-            .expect("same knots, same range")
-    }
-}
-
-impl BSplineCurve {
-    /// The knot domain as an interval.
-    pub fn domain_interval(&self) -> Interval {
-        let (a, b) = self.knots().domain();
-        Interval::new(a, b)
-    }
-}
-
-/// Straight line from `a` to `b` on [0, 1], as a degree-1 curve (profiles of cones, ruled
-/// rails).
-pub fn line(a: DVec3, b: DVec3) -> Result<BSplineCurve> {
-    BSplineCurve::try_new(KnotVector::from_breakpoints(1, &[0.0, 1.0])?, &[a, b], None)
-}
-
 #[cfg(test)]
 mod tests {
     use super::super::piecewise::Piecewise;
     use super::*;
+    use glam::DVec4;
 
     #[test]
     fn hyperbola_arc_lies_on_the_hyperbola() {

@@ -229,6 +229,25 @@ impl BSplineSurface {
         ))
     }
 
+    /// The surface with every Cartesian control point moved by the affine map `f` (weights
+    /// kept): exact, since rational B-splines are affinely invariant.
+    pub fn mapped(&self, f: impl Fn(DVec3) -> DVec3) -> Self {
+        let points = self
+            .points
+            .iter()
+            .map(|h| (f(h.truncate() / h.w) * h.w).extend(h.w))
+            .collect();
+        let mut surface = Self::from_homogeneous(
+            self.knots_u.clone(),
+            self.knots_v.clone(),
+            points,
+            self.rational,
+        );
+        surface.range_u = self.range_u;
+        surface.range_v = self.range_v;
+        surface
+    }
+
     /// The same surface with u and v exchanged (the normal flips).
     pub fn transposed(&self) -> Self {
         let (nu, nv) = (self.count_u(), self.count_v());
@@ -249,7 +268,7 @@ impl BSplineSurface {
 }
 
 /// Bounding box (min, max) of homogeneous points, taken in Cartesian space.
-fn cartesian_box(points: &[DVec4]) -> (DVec3, DVec3) {
+pub(crate) fn cartesian_box(points: &[DVec4]) -> (DVec3, DVec3) {
     points.iter().fold(
         (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
         |(lo, hi), p| {

@@ -74,15 +74,7 @@ pub fn write_glb(mesh: &Mesh, groups: &[SurfaceGroup], w: &mut dyn Write) -> Res
         .iter()
         .map(|p| p.as_vec3().to_array())
         .collect();
-    let (lo, hi) = positions.iter().fold(
-        ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
-        |(lo, hi), p| {
-            (
-                std::array::from_fn(|k| lo[k].min(p[k])),
-                std::array::from_fn(|k| hi[k].max(p[k])),
-            )
-        },
-    );
+    let (lo, hi) = bounds_of(&positions);
     bin.extend_from_slice(bytemuck::cast_slice(&positions));
     let normals: Vec<[f32; 3]> = mesh
         .normals
@@ -260,15 +252,7 @@ pub fn write_glb(mesh: &Mesh, groups: &[SurfaceGroup], w: &mut dyn Write) -> Res
         for polyline in &mesh.polylines {
             let count = polyline.positions.len();
             let points = &curve_points[first..first + count];
-            let bounds = points.iter().fold(
-                ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
-                |(lo, hi), p| {
-                    (
-                        std::array::from_fn(|k| lo[k].min(p[k])),
-                        std::array::from_fn(|k| hi[k].max(p[k])),
-                    )
-                },
-            );
+            let bounds = bounds_of(points);
             let position = accessor(
                 &mut root,
                 point_view,
@@ -335,4 +319,17 @@ pub fn write_glb(mesh: &Mesh, groups: &[SurfaceGroup], w: &mut dyn Write) -> Res
         bin: Some(bin.into()),
     };
     glb.to_writer(w).map_err(std::io::Error::other)
+}
+
+/// Component-wise (min, max) of `points`: the bounds glTF requires on POSITION accessors.
+fn bounds_of(points: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
+    points.iter().fold(
+        ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+        |(lo, hi), p| {
+            (
+                std::array::from_fn(|k| lo[k].min(p[k])),
+                std::array::from_fn(|k| hi[k].max(p[k])),
+            )
+        },
+    )
 }

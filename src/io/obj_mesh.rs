@@ -1,6 +1,7 @@
 //! Writer for OBJ triangle meshes (`v`, `vt`, `vn`, `f a/a/a`), keeping every f64 exact.
 
 use crate::mesh::Mesh;
+use glam::DVec3;
 use std::io::{Result, Write};
 
 /// Formats `x` in the shortest form that parses back to the same f64: plain decimal for
@@ -24,25 +25,13 @@ pub fn write_obj_mesh(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
         mesh.triangle_count()
     )?;
     for p in &mesh.positions {
-        writeln!(
-            w,
-            "v {} {} {}",
-            format_f64(p.x),
-            format_f64(p.y),
-            format_f64(p.z)
-        )?;
+        write_vector(w, "v", *p)?;
     }
     for t in &mesh.uvs {
         writeln!(w, "vt {} {}", format_f64(t.x), format_f64(t.y))?;
     }
     for n in &mesh.normals {
-        writeln!(
-            w,
-            "vn {} {} {}",
-            format_f64(n.x),
-            format_f64(n.y),
-            format_f64(n.z)
-        )?;
+        write_vector(w, "vn", *n)?;
     }
     for triangle in mesh.indices.chunks_exact(3) {
         let [a, b, c] = [triangle[0] + 1, triangle[1] + 1, triangle[2] + 1];
@@ -52,13 +41,7 @@ pub fn write_obj_mesh(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
     let mut next = mesh.vertex_count() + 1;
     for polyline in &mesh.polylines {
         for p in &polyline.positions {
-            writeln!(
-                w,
-                "v {} {} {}",
-                format_f64(p.x),
-                format_f64(p.y),
-                format_f64(p.z)
-            )?;
+            write_vector(w, "v", *p)?;
         }
         let references: Vec<String> = (next..next + polyline.positions.len())
             .map(|k| k.to_string())
@@ -67,4 +50,15 @@ pub fn write_obj_mesh(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
         next += polyline.positions.len();
     }
     Ok(())
+}
+
+/// One `tag x y z` line, every coordinate exact.
+fn write_vector(w: &mut dyn Write, tag: &str, v: DVec3) -> Result<()> {
+    writeln!(
+        w,
+        "{tag} {} {} {}",
+        format_f64(v.x),
+        format_f64(v.y),
+        format_f64(v.z)
+    )
 }
