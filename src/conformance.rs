@@ -1,10 +1,13 @@
-//! GPU-vs-CPU conformance: a suite of surfaces that exercise every feature of the evaluator,
-//! and the comparison of a mesh from any backend against the f64 reference, with the bars
-//! the GPU path promises.
+//! GPU-vs-CPU conformance: suites of surfaces and of curves that exercise every feature of
+//! the evaluators, and the comparison of a mesh or polylines from any backend against the f64
+//! reference, with the bars the GPU path promises.
 
 use crate::error::Result;
-use crate::geom::{BSplineSurface, Interval, KnotVector, bezier_surface, shapes};
-use crate::mesh::{Mesh, TessOptions};
+use crate::geom::{
+    BSplineCurve, BSplineSurface, Interval, KnotVector, bezier_curve, bezier_surface, curves,
+    shapes,
+};
+use crate::mesh::{Mesh, Polyline, TessOptions};
 use crate::{CpuTessellator, Tessellator};
 use glam::DVec3;
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -21,6 +24,10 @@ pub const DEGENERATE_NORMAL_BAR: f64 = 1e-2;
 /// A vertex is regular when |S_u × S_v| ≥ this × (size / parameter width)²; closer to a
 /// degenerate point the f32 cross product loses digits and the looser bar applies.
 pub const REGULAR_REL: f64 = 1e-3;
+
+/// Tangent bar: the error of C′ relative to the curve's scale of C′, the larger of
+/// (control extent / parameter width) and the largest |C′| of the reference polyline.
+pub const TANGENT_REL_BAR: f64 = 1e-5;
 
 /// One case: surfaces and the grid to tessellate them on.
 pub struct Case {
@@ -106,6 +113,77 @@ pub fn compare_each(
             }
             if !normal_error.is_finite() || !mesh.positions[k].is_finite() {
                 report.worst_normal = f64::INFINITY;
+            }
+        }
+    }
+    Ok(report)
+}
+
+/// One curve case: curves and the samples per curve.
+pub struct CurveCase {
+    pub name: String,
+    pub curves: Vec<BSplineCurve>,
+    pub samples: u32,
+}
+
+/// What a comparison of polylines measured.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CurveReport {
+    /// Largest position error minus the f32 rounding allowance, over the curve's control
+    /// extent.
+    pub worst_position: f64,
+    /// Largest tangent (C′) error over the curve's scale of C′ (see [`TANGENT_REL_BAR`]).
+    pub worst_tangent: f64,
+    /// Samples compared.
+    pub samples: usize,
+    /// As many polylines and samples per polyline as the reference.
+    pub layout_equal: bool,
+}
+
+impl CurveReport {
+    pub fn passes(&self) -> bool {
+        self.layout_equal
+            && self.worst_position <= POSITION_REL_BAR
+            && self.worst_tangent <= TANGENT_REL_BAR
+    }
+}
+
+/// Compares `polylines` (from any backend) with the f64 reference for `curves`, curve k
+/// sampled `samples[k]` times.
+pub fn compare_curves(
+    curves: &[BSplineCurve],
+    samples: &[u32],
+    polylines: &[Polyline],
+) -> Result<CurveReport> {
+    let reference = CpuTessellator.tessellate_curves(curves, samples)?;
+    let layout_equal = reference.len() == polylines.len()
+        && reference.iter().zip(polylines).all(|(r, p)| {
+            r.positions.len() == p.positions.len() && r.tangents.len() == p.tangents.len()
+        });
+    let mut report = CurveReport {
+        worst_position: 0.0,
+        worst_tangent: 0.0,
+        samples: reference.iter().map(|r| r.positions.len()).sum(),
+        layout_equal,
+    };
+    if !layout_equal {
+        report.worst_position = f64::INFINITY;
+        return Ok(report);
+    }
+    for ((curve, expected), found) in curves.iter().zip(&reference).zip(polylines) {
+        let size = curve.control_extent();
+        let tangent_scale = expected
+            .tangents
+            .iter()
+            .fold(size / curve.range().width(), |m, t| m.max(t.length()));
+        for k in 0..expected.positions.len() {
+            let p = expected.positions[k];
+            let error = (found.positions[k] - p).length() - F32_ROUNDING * p.length();
+            report.worst_position = report.worst_position.max(error.max(0.0) / size);
+            let tangent_error = (found.tangents[k] - expected.tangents[k]).length();
+            report.worst_tangent = report.worst_tangent.max(tangent_error / tangent_scale);
+            if !(found.positions[k].is_finite() && found.tangents[k].is_finite()) {
+                report.worst_position = f64::INFINITY;
             }
         }
     }
@@ -453,4 +531,121 @@ fn classic_forms() -> Vec<BSplineSurface> {
         )
         .unwrap(),
     ]
+}
+
+/// The curve suite: every degree, rational weights over four decades, unclamped, repeated
+/// and tiny knot spans, sub-ranges, large offsets, and the classic curves.
+pub fn curve_suite() -> Vec<CurveCase> {
+    let wavy = |n: usize, size: f64| -> Vec<DVec3> {
+        wavy_net(n, 2, size)[..n]
+            .iter()
+            .enumerate()
+            .map(|(k, p)| *p + DVec3::Y * size * (0.9 * k as f64).cos())
+            .collect()
+    };
+    let clamped = |p: usize, points: &[DVec3], weights: Option<&[f64]>| {
+        BSplineCurve::try_new(
+            KnotVector::clamped_uniform(p, points.len()).unwrap(),
+            points,
+            weights,
+        )
+        .unwrap()
+    };
+    let mut cases = vec![CurveCase {
+        name: "Bezier curves, degrees 1..=20".into(),
+        curves: (1..=20)
+            .map(|d| bezier_curve(d, &wavy(d + 1, 3.0), None).unwrap())
+            .collect(),
+        samples: 101,
+    }];
+    let points = wavy(14, 5.0);
+    cases.push(CurveCase {
+        name: "NURBS, degrees 2..=5, weights 0.01..100".into(),
+        curves: (2..=5)
+            .map(|d| clamped(d, &points, Some(&spread_weights(14, 0.01, 100.0))))
+            .collect(),
+        samples: 257,
+    });
+    let knotted = |degree, knots: Vec<f64>| {
+        let knots = KnotVector::try_new(degree, knots).unwrap();
+        let n = knots.control_count();
+        BSplineCurve::try_new(knots, &wavy(n, 2.0), Some(&spread_weights(n, 0.3, 3.0))).unwrap()
+    };
+    cases.push(CurveCase {
+        name: "unclamped, repeated and tiny spans, sub-range".into(),
+        curves: vec![
+            knotted(3, (0..14).map(f64::from).collect()),
+            knotted(
+                3,
+                vec![
+                    0.0, 0.0, 0.0, 0.0, 0.3, 0.3, 0.3, 0.6, 0.6, 1.0, 1.0, 1.0, 1.0,
+                ],
+            ),
+            knotted(
+                3,
+                vec![
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.5,
+                    0.5 + 1e-6,
+                    0.5 + 2e-6,
+                    1.0,
+                    1.0,
+                    1.0,
+                    1.0,
+                ],
+            ),
+            knotted(4, (0..16).map(f64::from).collect())
+                .with_range(Interval::new(5.3, 9.1))
+                .unwrap(),
+        ],
+        samples: 97,
+    });
+    let shifted = |shift: DVec3, scale: f64| {
+        let points: Vec<DVec3> = wavy(9, scale).into_iter().map(|p| p + shift).collect();
+        clamped(3, &points, Some(&spread_weights(9, 0.5, 2.0)))
+    };
+    cases.push(CurveCase {
+        name: "offset 1e5, scales 1e-3 and 1e4".into(),
+        curves: vec![
+            shifted(DVec3::new(1e5, -2e5, 3e4), 10.0),
+            shifted(DVec3::ZERO, 1e-3),
+            shifted(DVec3::splat(5e4), 1e4),
+        ],
+        samples: 129,
+    });
+    let ring: Vec<DVec3> = (0..7)
+        .map(|k| f64::from(k) * std::f64::consts::TAU / 7.0)
+        .map(|a| DVec3::new(a.cos(), a.sin(), 0.2 * (3.0 * a).sin()))
+        .collect();
+    let tangents: Vec<DVec3> = ring.iter().map(|p| p.cross(DVec3::Z) * -2.0).collect();
+    cases.push(CurveCase {
+        name: "classic: arcs, periodic, natural, C-R, Hermite".into(),
+        curves: vec![
+            curves::arc(
+                DVec3::new(2.0, 1.0, 0.0),
+                1.5,
+                DVec3::X,
+                DVec3::Z,
+                Interval::new(0.0, std::f64::consts::TAU),
+            )
+            .unwrap(),
+            curves::arc(
+                DVec3::ZERO,
+                3.0,
+                DVec3::Y,
+                DVec3::X,
+                Interval::new(PI, -0.25 * PI),
+            )
+            .unwrap(),
+            curves::periodic_cubic(&ring, 0.4).unwrap(),
+            curves::natural_cubic(&ring).unwrap(),
+            curves::catmull_rom(&ring, &[0.5; 7]).unwrap(),
+            curves::hermite(&ring, &tangents).unwrap(),
+        ],
+        samples: 200,
+    });
+    cases
 }

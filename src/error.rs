@@ -91,6 +91,8 @@ pub enum Error {
     GridTooSmall { nu: u32, nv: u32 },
     #[error("{found} sets of tessellation options for {expected} surfaces")]
     OptionsCount { expected: usize, found: usize },
+    #[error("{found} sample counts for {expected} curves")]
+    SampleCounts { expected: usize, found: usize },
     #[error("surface {index}: {source}")]
     InSurface { index: usize, source: Box<Error> },
     #[error("curve {index}: {source}")]

@@ -76,6 +76,9 @@ pub trait Tessellator {
         options: &[TessOptions],
         mesh: &mut Mesh,
     ) -> Result<()>;
+    /// Samples curve k at `samples[k]` (≥ 2) parameters uniform over its range into a
+    /// polyline (positions and first derivatives), in input order; errors name the curve.
+    fn tessellate_curves(&self, curves: &[BSplineCurve], samples: &[u32]) -> Result<Vec<Polyline>>;
     /// A human-readable name of the backend (and adapter), for summaries.
     fn name(&self) -> String;
 }

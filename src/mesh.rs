@@ -62,8 +62,8 @@ pub struct Mesh {
     pub indices: Vec<u32>,
     /// One entry per input surface, in input order.
     pub parts: Vec<MeshPart>,
-    /// Tessellated curves, in input order. Surface tessellators leave them alone; fill them
-    /// with [`crate::BSplineCurve::polyline`].
+    /// Tessellated curves, in input order. Surface tessellation leaves them alone; fill them
+    /// with [`crate::Tessellator::tessellate_curves`].
     pub polylines: Vec<Polyline>,
 }
 
@@ -81,6 +81,18 @@ impl Mesh {
     }
     pub fn triangle_count(&self) -> usize {
         self.indices.len() / 3
+    }
+}
+
+/// Checks that every curve has a sample count.
+pub(crate) fn check_sample_counts(curves: &[crate::BSplineCurve], samples: &[u32]) -> Result<()> {
+    if samples.len() == curves.len() {
+        Ok(())
+    } else {
+        Err(crate::Error::SampleCounts {
+            expected: curves.len(),
+            found: samples.len(),
+        })
     }
 }
 

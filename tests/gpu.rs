@@ -9,8 +9,8 @@ use glam::DVec3;
 use knotwork::conformance::{self, NORMAL_BAR, POSITION_REL_BAR};
 use knotwork::gpu::Limits;
 use knotwork::{
-    BSplineSurface, Error, GpuBatch, GpuContext, GpuTessellator, KnotVector, TessOptions,
-    Tessellator,
+    BSplineCurve, BSplineSurface, Error, GpuBatch, GpuContext, GpuTessellator, KnotVector,
+    TessOptions, Tessellator,
 };
 use std::sync::OnceLock;
 
@@ -74,9 +74,7 @@ fn adapter_is_reported() {
 #[test]
 fn conformance_suite_passes_on_this_adapter() {
     let Some(context) = gpu() else { return };
-    let tessellator = GpuTessellator::from_context(
-        GpuContext::from_device(context.device().clone(), context.queue().clone()).unwrap(),
-    );
+    let tessellator = tessellator_on(context);
     let mut failures = Vec::new();
     println!(
         "{:<48} {:>14} {:>14} {:>14}",
@@ -144,9 +142,7 @@ fn negative_control_one_perturbed_weight_fails() {
     weights[14] = 1.02;
     let perturbed = BSplineSurface::try_new(knots(nu), knots(nv), &points, Some(&weights)).unwrap();
     let options = TessOptions::DEFAULT.with_grid(20, 20);
-    let tessellator = GpuTessellator::from_context(
-        GpuContext::from_device(context.device().clone(), context.queue().clone()).unwrap(),
-    );
+    let tessellator = tessellator_on(context);
     let honest = conformance::compare(
         std::slice::from_ref(&original),
         &options,
@@ -416,7 +412,11 @@ fn cli_conformance_prints_a_table_and_a_verdict() {
     let text = String::from_utf8_lossy(&run.stdout);
     assert!(run.status.success(), "{text}");
     let rows = text.lines().filter(|l| l.ends_with(" pass")).count();
-    assert_eq!(rows, knotwork::conformance::suite().len(), "{text}");
+    assert_eq!(
+        rows,
+        conformance::suite().len() + conformance::curve_suite().len(),
+        "{text}"
+    );
     assert!(text.contains("verdict: this adapter conforms"), "{text}");
 }
 
@@ -427,9 +427,7 @@ fn per_surface_grids_conform() {
     let Some(context) = gpu() else { return };
     let scene = knotwork::io::read_scene(std::path::Path::new("data/scene.json")).unwrap();
     let options = scene.options_or(TessOptions::DEFAULT.with_grid(13, 7));
-    let tessellator = GpuTessellator::from_context(
-        GpuContext::from_device(context.device().clone(), context.queue().clone()).unwrap(),
-    );
+    let tessellator = tessellator_on(context);
     let mut mesh = knotwork::Mesh::default();
     tessellator
         .tessellate_each_into(&scene.surfaces, &options, &mut mesh)
@@ -447,9 +445,7 @@ fn per_surface_grids_conform() {
 fn classic_forms_conform_surface_by_surface() {
     let Some(context) = gpu() else { return };
     let scene = knotwork::io::read_scene(std::path::Path::new("data/forms.json")).unwrap();
-    let tessellator = GpuTessellator::from_context(
-        GpuContext::from_device(context.device().clone(), context.queue().clone()).unwrap(),
-    );
+    let tessellator = tessellator_on(context);
     let options = TessOptions::DEFAULT.with_grid(29, 23);
     assert_eq!(scene.surfaces.len(), 17);
     for (k, surface) in scene.surfaces.iter().enumerate() {
@@ -466,6 +462,91 @@ fn classic_forms_conform_surface_by_surface() {
         );
         assert!(report.passes(), "surface {k}: {report:?}");
     }
+    let samples = scene.samples_or(65);
+    let polylines = tessellator
+        .tessellate_curves(&scene.curves, &samples)
+        .unwrap();
+    let report = conformance::compare_curves(&scene.curves, &samples, &polylines).unwrap();
+    println!(
+        "{} curves: position {:.2e} of size, tangent {:.2e} of scale",
+        scene.curves.len(),
+        report.worst_position,
+        report.worst_tangent
+    );
+    assert!(scene.curves.len() == 9 && report.passes(), "{report:?}");
+}
+
+fn tessellator_on(context: &GpuContext) -> GpuTessellator {
+    GpuTessellator::from_context(
+        GpuContext::from_device(context.device().clone(), context.queue().clone()).unwrap(),
+    )
+}
+
+/// Every case of the curve suite conforms on the GPU; one weight perturbed by 2% in the
+/// GPU's input makes the comparison fail.
+#[test]
+fn curve_suite_conforms_and_a_perturbed_weight_fails() {
+    let Some(context) = gpu() else { return };
+    let tessellator = tessellator_on(context);
+    let mut failures = Vec::new();
+    for case in conformance::curve_suite() {
+        let samples = vec![case.samples; case.curves.len()];
+        let polylines = tessellator
+            .tessellate_curves(&case.curves, &samples)
+            .unwrap();
+        let report = conformance::compare_curves(&case.curves, &samples, &polylines).unwrap();
+        println!(
+            "{:<48} position {:.3e} of size, tangent {:.3e} of scale ({} samples)",
+            case.name, report.worst_position, report.worst_tangent, report.samples
+        );
+        if !report.passes() {
+            failures.push((case.name, report));
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+    let points: Vec<DVec3> = (0..7)
+        .map(|k| DVec3::new(k as f64, ((k * 5) % 3) as f64, 0.5 * k as f64))
+        .collect();
+    let knots = KnotVector::clamped_uniform(3, 7).unwrap();
+    let mut weights = vec![1.0; 7];
+    let original = BSplineCurve::try_new(knots.clone(), &points, Some(&weights)).unwrap();
+    weights[3] = 1.02;
+    let perturbed = BSplineCurve::try_new(knots, &points, Some(&weights)).unwrap();
+    let wrong = tessellator.tessellate_curves(&[perturbed], &[50]).unwrap();
+    let report = conformance::compare_curves(&[original], &[50], &wrong).unwrap();
+    println!(
+        "negative control (curve): position {:.3e}",
+        report.worst_position
+    );
+    assert!(!report.passes() && report.worst_position > 10.0 * POSITION_REL_BAR);
+}
+
+/// Limits small enough to split the curves into several chunks give exactly the result of
+/// one chunk; a curve larger than a binding is refused, naming the curve.
+#[test]
+fn chunked_curves_match_one_chunk_and_oversized_curves_are_refused() {
+    let Some(context) = gpu() else { return };
+    let curves = conformance::curve_suite().swap_remove(0).curves;
+    let samples: Vec<u32> = (0..curves.len() as u32).map(|k| 40 + 7 * k).collect();
+    let whole = knotwork::gpu::sample_curves(context, &curves, &samples, context.limits()).unwrap();
+    let small = Limits {
+        binding_bytes: 64 << 10,
+        ..context.limits()
+    };
+    let chunked = knotwork::gpu::sample_curves(context, &curves, &samples, small).unwrap();
+    assert_eq!(chunked, whole);
+    let report = conformance::compare_curves(&curves, &samples, &chunked).unwrap();
+    assert!(report.passes(), "{report:?}");
+    let mut too_many = samples.clone();
+    too_many[4] = 1000;
+    let err = knotwork::gpu::sample_curves(context, &curves, &too_many, small).unwrap_err();
+    assert!(
+        matches!(
+            &err,
+            Error::InCurve { index: 4, source } if matches!(**source, Error::GpuJobTooLarge { .. })
+        ),
+        "{err}"
+    );
 }
 
 /// The teapot's render is not blank: in the middle of the image, where the model is, most

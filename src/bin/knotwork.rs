@@ -275,7 +275,8 @@ fn process(
         let (welded, report) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
         (mesh, merged) = (welded, report.merged_vertices);
     }
-    mesh.polylines = scene.polylines(job.samples)?;
+    mesh.polylines =
+        tessellator.tessellate_curves(&scene.curves, &scene.samples_or(job.samples))?;
     knotwork::io::write_mesh_as(output, &mesh, &scene.groups, job.format)?;
     Ok(Tally {
         surfaces: scene.surfaces.len(),
@@ -414,11 +415,13 @@ fn tessellate(
 
 /// Runs the conformance suite on the default adapter; prints a table and a verdict.
 fn conformance() -> knotwork::Result<bool> {
-    use knotwork::conformance::{self, DEGENERATE_NORMAL_BAR, NORMAL_BAR, POSITION_REL_BAR};
+    use knotwork::conformance::{
+        self, DEGENERATE_NORMAL_BAR, NORMAL_BAR, POSITION_REL_BAR, TANGENT_REL_BAR,
+    };
     let gpu = GpuTessellator::new()?;
     println!("adapter: {}", gpu.context().adapter_summary());
     println!(
-        "bars: position {POSITION_REL_BAR:e} of the diagonal (+ f32 rounding), normal {NORMAL_BAR:e} rad ({DEGENERATE_NORMAL_BAR:e} near degenerate points)"
+        "bars: position {POSITION_REL_BAR:e} of the diagonal (+ f32 rounding), normal {NORMAL_BAR:e} rad ({DEGENERATE_NORMAL_BAR:e} near degenerate points), curve tangent {TANGENT_REL_BAR:e} of its scale"
     );
     println!(
         "{:<48} {:>14} {:>14} {:>14}  result",
@@ -435,6 +438,23 @@ fn conformance() -> knotwork::Result<bool> {
             report.worst_position,
             report.worst_normal,
             report.worst_degenerate_normal,
+            if report.passes() { "pass" } else { "FAIL" }
+        );
+    }
+    println!(
+        "{:<48} {:>14} {:>14}  result",
+        "curve case", "position/size", "tangent (rel)"
+    );
+    for case in conformance::curve_suite() {
+        let samples = vec![case.samples; case.curves.len()];
+        let polylines = gpu.tessellate_curves(&case.curves, &samples)?;
+        let report = conformance::compare_curves(&case.curves, &samples, &polylines)?;
+        all_pass &= report.passes();
+        println!(
+            "{:<48} {:>14.3e} {:>14.3e}  {}",
+            case.name,
+            report.worst_position,
+            report.worst_tangent,
             if report.passes() { "pass" } else { "FAIL" }
         );
     }

@@ -9,9 +9,10 @@ pub use eval::SurfaceSample;
 pub use grid::{evaluate_grid_into, tessellate_grid_into};
 
 use crate::Tessellator;
-use crate::error::Result;
-use crate::geom::BSplineSurface;
-use crate::mesh::{Mesh, TessOptions};
+use crate::error::{Error, Result};
+use crate::geom::{BSplineCurve, BSplineSurface};
+use crate::mesh::{Mesh, Polyline, TessOptions, check_sample_counts};
+use rayon::prelude::*;
 
 /// The CPU tessellator: f64 throughout, parallel over rows and surfaces on rayon's current
 /// pool (run it inside `ThreadPool::install` to choose the thread count).
@@ -26,6 +27,21 @@ impl Tessellator for CpuTessellator {
         mesh: &mut Mesh,
     ) -> Result<()> {
         tessellate_grid_into(surfaces, options, mesh)
+    }
+
+    fn tessellate_curves(&self, curves: &[BSplineCurve], samples: &[u32]) -> Result<Vec<Polyline>> {
+        check_sample_counts(curves, samples)?;
+        curves
+            .par_iter()
+            .zip(samples)
+            .enumerate()
+            .map(|(index, (curve, &count))| {
+                curve.polyline(count).map_err(|e| Error::InCurve {
+                    index,
+                    source: Box::new(e),
+                })
+            })
+            .collect()
     }
 
     fn name(&self) -> String {

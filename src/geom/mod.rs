@@ -19,6 +19,7 @@ pub use bezier::{
 pub use curve::BSplineCurve;
 pub(crate) use knots::check_degree;
 pub use knots::{KnotVector, MAX_DEGREE};
+pub(crate) use surface::cartesian_box;
 pub use surface::{BSplineSurface, Interval};
 
 use crate::error::{Error, Result};

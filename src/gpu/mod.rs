@@ -22,20 +22,24 @@
 //! and dispatched in the same submission; a batch whose buffers exceed `max_buffer_size` is
 //! refused with [`Error::GpuJobTooLarge`].
 
+mod curves;
 mod pack;
 
+pub use curves::{CurveJob, sample_curves};
 pub use pack::{ChunkParams, Limits, Piece, Tile, VERTEX_BYTES};
 
 use crate::Tessellator;
 use crate::error::{Error, Result};
-use crate::geom::BSplineSurface;
-use crate::mesh::{Mesh, MeshPart, TessOptions};
+use crate::geom::{BSplineCurve, BSplineSurface};
+use crate::mesh::{Mesh, MeshPart, Polyline, TessOptions};
 use glam::{DVec2, DVec3};
 use pack::{PASSES, Packed};
 use std::num::NonZeroU64;
 
 /// The WGSL source of the tessellation kernels.
 pub const TESSELLATE_WGSL: &str = include_str!("../../shaders/tessellate.wgsl");
+/// The WGSL source of the curve sampling kernel.
+pub const CURVES_WGSL: &str = include_str!("../../shaders/curves.wgsl");
 
 const ENTRY_POINTS: [&str; PASSES] = ["contract_rows", "evaluate_vertices", "connect_cells"];
 /// Index of `connect_cells` in [`ENTRY_POINTS`].
@@ -53,6 +57,8 @@ pub struct GpuContext {
     adapter: Option<wgpu::AdapterInfo>,
     layout: wgpu::BindGroupLayout,
     pipelines: Vec<wgpu::ComputePipeline>,
+    curve_layout: wgpu::BindGroupLayout,
+    curve_pipeline: wgpu::ComputePipeline,
 }
 
 /// A headless wgpu instance on the primary backends (Vulkan, Metal, DX12, WebGPU), or on
@@ -96,7 +102,7 @@ impl GpuContext {
 
     /// Wraps a renderer's device and queue; the buffers knotwork fills live on this device.
     pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Result<Self> {
-        let (layout, pipelines) = scoped(&device, || {
+        let (layout, pipelines, curve_layout, curve_pipeline) = scoped(&device, || {
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("knotwork tessellate.wgsl"),
                 source: wgpu::ShaderSource::Wgsl(TESSELLATE_WGSL.into()),
@@ -127,25 +133,27 @@ impl GpuContext {
                 label: Some("knotwork"),
                 entries: &entries,
             });
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("knotwork"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
             let pipelines = ENTRY_POINTS
                 .iter()
-                .map(|entry| {
-                    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                        label: Some(entry),
-                        layout: Some(&pipeline_layout),
-                        module: &module,
-                        entry_point: Some(entry),
-                        compilation_options: Default::default(),
-                        cache: None,
-                    })
-                })
+                .map(|entry| compute_pipeline(&device, &module, &layout, entry))
                 .collect::<Vec<_>>();
-            (layout, pipelines)
+            let curve_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("knotwork curves.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(CURVES_WGSL.into()),
+            });
+            let curve_entries = [
+                storage(0, true),
+                storage(1, true),
+                storage(2, true),
+                storage(3, false),
+            ];
+            let curve_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("knotwork curves"),
+                entries: &curve_entries,
+            });
+            let curve_pipeline =
+                compute_pipeline(&device, &curve_module, &curve_layout, curves::ENTRY_POINT);
+            (layout, pipelines, curve_layout, curve_pipeline)
         })?;
         Ok(Self {
             device,
@@ -153,6 +161,8 @@ impl GpuContext {
             adapter: None,
             layout,
             pipelines,
+            curve_layout,
+            curve_pipeline,
         })
     }
 
@@ -189,6 +199,28 @@ impl GpuContext {
             offset_alignment: u64::from(l.min_storage_buffer_offset_alignment),
         }
     }
+}
+
+/// A compute pipeline of `entry` in `module` with the one bind group `layout`.
+fn compute_pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    layout: &wgpu::BindGroupLayout,
+    entry: &str,
+) -> wgpu::ComputePipeline {
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(entry),
+        bind_group_layouts: &[Some(layout)],
+        immediate_size: 0,
+    });
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(entry),
+        layout: Some(&pipeline_layout),
+        module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    })
 }
 
 /// Runs `work` inside out-of-memory and validation error scopes and turns what they caught
@@ -559,7 +591,7 @@ impl GpuBatch {
         }
         let slot = self.packed.surfaces[index];
         let mut local = Vec::with_capacity(slot.point_count);
-        pack::local_points(surface, slot.origin, &mut local);
+        pack::local_points(surface.homogeneous_points(), slot.origin, &mut local);
         self.packed.points[slot.first_point..slot.first_point + slot.point_count]
             .copy_from_slice(&local);
         context.queue.write_buffer(
@@ -589,47 +621,16 @@ impl GpuBatch {
         let (vertices, indices) = if self.mappable {
             (&self.mesh.vertices, &self.mesh.indices)
         } else {
-            staged = scoped(device, || {
-                let staging = |label, size| {
-                    device.create_buffer(&wgpu::BufferDescriptor {
-                        label: Some(label),
-                        size,
-                        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                        mapped_at_creation: false,
-                    })
-                };
-                let (vertices, indices) = (
-                    staging("knotwork vertex readback", vertex_bytes),
-                    staging("knotwork index readback", index_bytes),
-                );
-                let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("knotwork readback"),
-                });
-                encoder.copy_buffer_to_buffer(&self.mesh.vertices, 0, &vertices, 0, vertex_bytes);
-                encoder.copy_buffer_to_buffer(&self.mesh.indices, 0, &indices, 0, index_bytes);
-                context.queue.submit([encoder.finish()]);
-                (vertices, indices)
-            })?;
-            (&staged.0, &staged.1)
+            staged = staged_copies(
+                context,
+                &[
+                    (&self.mesh.vertices, vertex_bytes),
+                    (&self.mesh.indices, index_bytes),
+                ],
+            )?;
+            (&staged[0], &staged[1])
         };
-        let (sender, receiver) = std::sync::mpsc::channel();
-        for buffer in [vertices, indices] {
-            let sender = sender.clone();
-            buffer.map_async(wgpu::MapMode::Read, .., move |result| {
-                let _ = sender.send(result);
-            });
-        }
-        drop(sender);
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Gpu {
-                message: e.to_string(),
-            })?;
-        for result in receiver.iter() {
-            result.map_err(|e| Error::Gpu {
-                message: e.to_string(),
-            })?;
-        }
+        map_for_reading(device, &[vertices, indices])?;
         let gpu_error = |e: wgpu::MapRangeError| Error::Gpu {
             message: e.to_string(),
         };
@@ -657,6 +658,57 @@ impl GpuBatch {
         indices.unmap();
         Ok(mesh)
     }
+}
+
+/// Copies the first `bytes` of each source into a new mappable buffer, in one submission.
+fn staged_copies(
+    context: &GpuContext,
+    sources: &[(&wgpu::Buffer, u64)],
+) -> Result<Vec<wgpu::Buffer>> {
+    let device = &context.device;
+    scoped(device, || {
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("knotwork readback"),
+        });
+        let staged = sources
+            .iter()
+            .map(|&(source, bytes)| {
+                let staging = device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("knotwork readback"),
+                    size: bytes,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                encoder.copy_buffer_to_buffer(source, 0, &staging, 0, bytes);
+                staging
+            })
+            .collect();
+        context.queue.submit([encoder.finish()]);
+        staged
+    })
+}
+
+/// Maps every buffer for reading and waits until all are mapped (or one failed).
+fn map_for_reading(device: &wgpu::Device, buffers: &[&wgpu::Buffer]) -> Result<()> {
+    let (sender, receiver) = std::sync::mpsc::channel();
+    for buffer in buffers {
+        let sender = sender.clone();
+        buffer.map_async(wgpu::MapMode::Read, .., move |result| {
+            let _ = sender.send(result);
+        });
+    }
+    drop(sender);
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| Error::Gpu {
+            message: e.to_string(),
+        })?;
+    for result in receiver.iter() {
+        result.map_err(|e| Error::Gpu {
+            message: e.to_string(),
+        })?;
+    }
+    Ok(())
 }
 
 /// The GPU tessellator: uploads, dispatches and reads back on its own context.
@@ -694,6 +746,10 @@ impl Tessellator for GpuTessellator {
         Ok(())
     }
 
+    fn tessellate_curves(&self, curves: &[BSplineCurve], samples: &[u32]) -> Result<Vec<Polyline>> {
+        sample_curves(&self.context, curves, samples, self.context.limits())
+    }
+
     fn name(&self) -> String {
         format!("gpu: {}", self.context.adapter_summary())
     }
@@ -729,8 +785,8 @@ mod tests {
     /// The host structs match the WGSL structs byte for byte.
     #[test]
     fn host_mirrors_have_the_shader_layout() {
-        let module = naga::front::wgsl::parse_str(TESSELLATE_WGSL).expect("tessellate.wgsl parses");
-        let layout = |name: &str| {
+        let layout = |source: &str, name: &str| {
+            let module = naga::front::wgsl::parse_str(source).expect("the shader parses");
             let (handle, _) = module
                 .types
                 .iter()
@@ -743,9 +799,22 @@ mod tests {
                 layouter[handle].alignment.round_up(1),
             )
         };
-        assert_eq!(layout("Piece"), (size_of::<Piece>() as u32, 4));
-        assert_eq!(layout("ChunkParams"), (size_of::<ChunkParams>() as u32, 4));
-        assert_eq!(layout("Tile"), (size_of::<Tile>() as u32, 4));
+        assert_eq!(
+            layout(TESSELLATE_WGSL, "Piece"),
+            (size_of::<Piece>() as u32, 4)
+        );
+        assert_eq!(
+            layout(TESSELLATE_WGSL, "ChunkParams"),
+            (size_of::<ChunkParams>() as u32, 4)
+        );
+        assert_eq!(
+            layout(TESSELLATE_WGSL, "Tile"),
+            (size_of::<Tile>() as u32, 4)
+        );
+        assert_eq!(
+            layout(CURVES_WGSL, "CurveJob"),
+            (size_of::<CurveJob>() as u32, 4)
+        );
         assert_eq!(size_of::<Piece>(), 80);
         assert_eq!(size_of::<ChunkParams>(), 32);
         assert_eq!(pack::TILE, 64);

@@ -8,7 +8,7 @@ use crate::error::{Error, Result};
 use crate::geom::{BSplineSurface, Interval, KnotVector};
 use crate::mesh::{MeshPart, TessOptions, plan_parts};
 use bytemuck::{Pod, Zeroable};
-use glam::DVec3;
+use glam::{DVec3, DVec4};
 
 /// Work items per workgroup (`TILE` in the shader).
 pub(crate) const TILE: u32 = 64;
@@ -136,10 +136,9 @@ pub(crate) struct SurfaceSlot {
     pub tables: (usize, usize),
 }
 
-/// Control points of `surface` relative to `origin`, homogeneous, weights scaled so the
-/// largest is 1 (the surface does not change), rounded to f32.
-pub(crate) fn local_points(surface: &BSplineSurface, origin: DVec3, out: &mut Vec<[f32; 4]>) {
-    let points = surface.homogeneous_points();
+/// Homogeneous control points relative to `origin`, weights scaled so the largest is 1 (the
+/// curve or surface does not change), rounded to f32.
+pub(crate) fn local_points(points: &[DVec4], origin: DVec3, out: &mut Vec<[f32; 4]>) {
     let scale = 1.0 / points.iter().fold(0.0f64, |m, p| m.max(p.w));
     out.extend(points.iter().map(|h| {
         let local = (h.truncate() / h.w - origin) * (h.w * scale);
@@ -153,7 +152,7 @@ pub(crate) fn local_points(surface: &BSplineSurface, origin: DVec3, out: &mut Ve
 }
 
 /// Table entries (see tessellate.wgsl) of `samples` uniform samples of `range`.
-fn push_table(knots: &KnotVector, range: Interval, samples: u32, out: &mut Vec<f32>) {
+pub(crate) fn push_table(knots: &KnotVector, range: Interval, samples: u32, out: &mut Vec<f32>) {
     let p = knots.degree();
     let mut ders: BasisDers = [[0.0; MAX_ORDER]; 3];
     for i in 0..samples {
@@ -169,7 +168,7 @@ fn push_table(knots: &KnotVector, range: Interval, samples: u32, out: &mut Vec<f
     }
 }
 
-fn too_large(what: &'static str, bytes: u64, limit: u64) -> Error {
+pub(crate) fn too_large(what: &'static str, bytes: u64, limit: u64) -> Error {
     Error::GpuJobTooLarge { what, bytes, limit }
 }
 
@@ -232,7 +231,7 @@ pub(crate) fn pack(
             0.5 * (lo + hi)
         };
         let first_point = packed.points.len();
-        local_points(surface, origin, &mut packed.points);
+        local_points(surface.homogeneous_points(), origin, &mut packed.points);
         let point_bytes = (packed.points.len() - first_point) as u64 * 16;
         if point_bytes > budget {
             return Err(too_large(

@@ -74,15 +74,15 @@ impl Scene {
             .collect()
     }
 
-    /// Every curve sampled into a polyline: with its own sample count where the file gave
-    /// one, else `default_samples`.
-    pub fn polylines(&self, default_samples: u32) -> Result<Vec<crate::mesh::Polyline>> {
-        self.curves
-            .iter()
-            .enumerate()
-            .map(|(k, curve)| {
-                let samples = self.curve_samples.get(k).copied().flatten();
-                curve.polyline(samples.unwrap_or(default_samples))
+    /// The sample count of every curve: its own where the file gave one, else `default`.
+    pub fn samples_or(&self, default: u32) -> Vec<u32> {
+        (0..self.curves.len())
+            .map(|k| {
+                self.curve_samples
+                    .get(k)
+                    .copied()
+                    .flatten()
+                    .unwrap_or(default)
             })
             .collect()
     }
