@@ -3,13 +3,14 @@
 //! reference, with the bars the GPU path promises.
 
 use crate::error::Result;
+use crate::geom::patches::CoonsPatch;
 use crate::geom::{
     BSplineCurve, BSplineSurface, Interval, KnotVector, bezier_curve, bezier_surface, curves,
     shapes,
 };
 use crate::mesh::{Mesh, Polyline, TessOptions};
 use crate::{CpuTessellator, Tessellator};
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// Position bar, relative to the surface's bounding-box diagonal.
@@ -79,6 +80,42 @@ pub fn compare_each(
 ) -> Result<Report> {
     let mut reference = Mesh::default();
     CpuTessellator.tessellate_each_into(surfaces, options, &mut reference)?;
+    Ok(compare_with_reference(&reference, mesh, |part, uv| {
+        let surface = &surfaces[part];
+        let size = surface.control_box_diagonal();
+        let (du, dv) = (surface.knots_u().domain(), surface.knots_v().domain());
+        let regular = REGULAR_REL * size * size / ((du.1 - du.0) * (dv.1 - dv.0));
+        let sample = surface.evaluate(surface.range_u().lerp(uv.x), surface.range_v().lerp(uv.y));
+        (size, sample.du.cross(sample.dv).length() >= regular)
+    }))
+}
+
+/// Compares `mesh` (from any backend) with the f64 reference for directly evaluated Coons
+/// patches, patch k on the grid of `options[k]`.
+pub fn compare_coons(
+    patches: &[CoonsPatch],
+    options: &[TessOptions],
+    mesh: &Mesh,
+) -> Result<Report> {
+    let mut reference = Mesh::default();
+    CpuTessellator.tessellate_coons_into(patches, options, &mut reference)?;
+    Ok(compare_with_reference(&reference, mesh, |part, uv| {
+        let size = patches[part].size();
+        let sample = patches[part].evaluate(uv.x, uv.y);
+        (
+            size,
+            sample.du.cross(sample.dv).length() >= REGULAR_REL * size * size,
+        )
+    }))
+}
+
+/// Compares `mesh` with `reference` vertex by vertex; `measure(part, uv)` gives the size of
+/// part `part` and whether the point at `uv` is regular (away from degenerate points).
+fn compare_with_reference(
+    reference: &Mesh,
+    mesh: &Mesh,
+    measure: impl Fn(usize, DVec2) -> (f64, bool),
+) -> Report {
     let mut report = Report {
         worst_position: 0.0,
         worst_normal: 0.0,
@@ -91,21 +128,16 @@ pub fn compare_each(
     };
     if reference.vertex_count() != mesh.vertex_count() {
         report.worst_position = f64::INFINITY;
-        return Ok(report);
+        return report;
     }
-    for (surface, part) in surfaces.iter().zip(&reference.parts) {
-        let size = surface.control_box_diagonal();
-        let (du, dv) = (surface.knots_u().domain(), surface.knots_v().domain());
-        let regular = REGULAR_REL * size * size / ((du.1 - du.0) * (dv.1 - dv.0));
+    for (index, part) in reference.parts.iter().enumerate() {
         for k in part.first_vertex as usize..(part.first_vertex + part.vertex_count) as usize {
+            let (size, regular) = measure(index, reference.uvs[k]);
             let expected = reference.positions[k];
             let error = (mesh.positions[k] - expected).length() - F32_ROUNDING * expected.length();
             report.worst_position = report.worst_position.max(error.max(0.0) / size);
-            let uv = reference.uvs[k];
-            let sample =
-                surface.evaluate(surface.range_u().lerp(uv.x), surface.range_v().lerp(uv.y));
             let normal_error = angle(mesh.normals[k], reference.normals[k]);
-            if sample.du.cross(sample.dv).length() >= regular {
+            if regular {
                 report.worst_normal = report.worst_normal.max(normal_error);
             } else {
                 report.degenerate_vertices += 1;
@@ -116,7 +148,7 @@ pub fn compare_each(
             }
         }
     }
-    Ok(report)
+    report
 }
 
 /// One curve case: curves and the samples per curve.
@@ -648,4 +680,90 @@ pub fn curve_suite() -> Vec<CurveCase> {
         samples: 200,
     });
     cases
+}
+
+/// Directly evaluated Coons patches and the grid to tessellate them on.
+pub struct CoonsCase {
+    pub name: String,
+    pub patches: Vec<CoonsPatch>,
+    pub options: TessOptions,
+}
+
+/// The Coons suite: non-polynomial blends (cosine, a rational function) over rational and
+/// polynomial boundaries, a polynomial blend (also convertible exactly), a patch with a
+/// collapsed boundary (degenerate normals) and one 1e5 from the origin.
+pub fn coons_suite() -> Vec<CoonsCase> {
+    use crate::geom::patches::{Blend, CoonsBoundaries, coons_patch};
+    let arc = |centre: DVec3, x: DVec3, y: DVec3, a: f64, b: f64| {
+        curves::arc(centre, 2.0, x, y, Interval::new(a, b)).unwrap()
+    };
+    let cubic = |points: [DVec3; 4]| bezier_curve(3, &points, None).unwrap();
+    let make = |shift: DVec3, blend: Blend| {
+        let o = shift;
+        let v0 = arc(o, DVec3::X, DVec3::Y, 0.0, FRAC_PI_2);
+        let v1 = cubic([
+            o + DVec3::new(2.0, 0.0, 3.0),
+            o + DVec3::new(2.5, 1.0, 3.5),
+            o + DVec3::new(1.0, 2.5, 2.5),
+            o + DVec3::new(0.0, 2.0, 3.0),
+        ]);
+        let u0 = cubic([
+            o + DVec3::new(2.0, 0.0, 0.0),
+            o + DVec3::new(3.0, 0.0, 1.0),
+            o + DVec3::new(3.0, -0.5, 2.0),
+            o + DVec3::new(2.0, 0.0, 3.0),
+        ]);
+        let u1 = cubic([
+            o + DVec3::new(0.0, 2.0, 0.0),
+            o + DVec3::new(0.5, 2.5, 1.0),
+            o + DVec3::new(-0.5, 2.0, 2.0),
+            o + DVec3::new(0.0, 2.0, 3.0),
+        ]);
+        let boundaries = CoonsBoundaries {
+            v0: &v0,
+            v1: &v1,
+            u0: &u0,
+            u1: &u1,
+        };
+        coons_patch(boundaries, blend, 1e-9 * (1.0 + shift.length())).unwrap()
+    };
+    let rational: fn(f64) -> [f64; 3] = |t| {
+        // α = (1−t)² / ((1−t)² + t²), differentiated by the quotient rule.
+        let (n, n1, n2) = ((1.0 - t) * (1.0 - t), -2.0 * (1.0 - t), 2.0);
+        let (d, d1, d2) = (n + t * t, 4.0 * t - 2.0, 4.0);
+        let a = n / d;
+        let a1 = (n1 - a * d1) / d;
+        let a2 = (n2 - 2.0 * a1 * d1 - a * d2) / d;
+        [a, a1, a2]
+    };
+    // A quarter disc whose u = 0 boundary collapses to the centre.
+    let fan = {
+        let centre = DVec3::new(1.0, -1.0, 0.5);
+        let spoke = |to: DVec3| bezier_curve(1, &[centre, centre + to], None).unwrap();
+        let point = bezier_curve(1, &[centre, centre], None).unwrap();
+        let rim = arc(centre, DVec3::X, DVec3::Y, 0.0, FRAC_PI_2);
+        let boundaries = CoonsBoundaries {
+            v0: &spoke(DVec3::X * 2.0),
+            v1: &spoke(DVec3::Y * 2.0),
+            u0: &point,
+            u1: &rim,
+        };
+        coons_patch(boundaries, Blend::Cosine, 1e-12).unwrap()
+    };
+    vec![
+        CoonsCase {
+            name: "Coons: cosine, rational and cubic blends".into(),
+            patches: vec![
+                make(DVec3::ZERO, Blend::Cosine),
+                make(DVec3::ZERO, Blend::Function(rational)),
+                make(DVec3::ZERO, Blend::Cubic),
+            ],
+            options: TessOptions::DEFAULT.with_grid(37, 29),
+        },
+        CoonsCase {
+            name: "Coons: collapsed boundary, offset 1e5".into(),
+            patches: vec![fan, make(DVec3::new(1e5, -2e5, 3e4), Blend::Cosine)],
+            options: TessOptions::DEFAULT.with_grid(33, 33),
+        },
+    ]
 }

@@ -83,6 +83,10 @@ pub enum Error {
         required: u8,
         measured: String,
     },
+    #[error(
+        "the blend is not a polynomial: the Coons patch has no exact B-spline form (tessellate it as a CoonsPatch)"
+    )]
+    BlendNotPolynomial,
     #[error("a blending function must be 1 at 0 and 0 at 1; this one is {at_zero} and {at_one}")]
     InvalidBlend { at_zero: f64, at_one: f64 },
     #[error("{format} files cannot hold curves (polylines): write .obj or .glb")]

@@ -76,6 +76,15 @@ pub trait Tessellator {
         options: &[TessOptions],
         mesh: &mut Mesh,
     ) -> Result<()>;
+    /// Tessellates Coons patches evaluated directly (any blend, see [`geom::patches::CoonsPatch`])
+    /// into `mesh`, patch k on the grid of `options[k]` over (u, v) ∈ [0, 1]², in the same
+    /// layout as surfaces; `mesh` is replaced (its allocations reused).
+    fn tessellate_coons_into(
+        &self,
+        patches: &[geom::patches::CoonsPatch],
+        options: &[TessOptions],
+        mesh: &mut Mesh,
+    ) -> Result<()>;
     /// Samples curve k at `samples[k]` (≥ 2) parameters uniform over its range into a
     /// polyline (positions and first derivatives), in input order; errors name the curve.
     fn tessellate_curves(&self, curves: &[BSplineCurve], samples: &[u32]) -> Result<Vec<Polyline>>;

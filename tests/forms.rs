@@ -424,6 +424,93 @@ fn coons_patches_interpolate_their_boundaries() {
     assert!(matches!(error, Error::CurvesDoNotMeet { .. }), "{error}");
 }
 
+/// The directly evaluated Coons patch: with polynomial blends it equals the exact B-spline
+/// conversion (positions, first and second derivatives, normals); with the cosine blend (no
+/// B-spline form) it interpolates all four boundaries, equals the Coons formula evaluated
+/// from the curves, and its derivatives match central differences of its positions.
+#[test]
+fn direct_coons_evaluation() {
+    let curves = boundaries();
+    let [v0, v1, u0, u1] = &curves;
+    let size = 4.0;
+    let bounds = || CoonsBoundaries { v0, v1, u0, u1 };
+    let grid = || params(9).flat_map(|u| params(9).map(move |v| (u, v)));
+    for blend in [Blend::Linear, Blend::Cubic, Blend::Quintic] {
+        let exact = patches::coons(bounds(), &blend, 1e-12).unwrap();
+        let direct = patches::coons_patch(bounds(), blend, 1e-12).unwrap();
+        for (u, v) in grid() {
+            let (a, b) = (direct.evaluate(u, v), exact.evaluate(u, v));
+            for (x, y, what) in [
+                (a.position, b.position, "S"),
+                (a.du, b.du, "S_u"),
+                (a.dv, b.dv, "S_v"),
+                (a.duu, b.duu, "S_uu"),
+                (a.duv, b.duv, "S_uv"),
+                (a.dvv, b.dvv, "S_vv"),
+            ] {
+                // Derivatives scale with the blend's slope (up to 15/8 for the quintic).
+                assert!(
+                    (x - y).length() <= 1e-10 * size,
+                    "{what} at ({u}, {v}): {x} vs {y}"
+                );
+            }
+            assert!(
+                (a.normal - b.normal).length() < 1e-9,
+                "normal at ({u}, {v})"
+            );
+        }
+    }
+    let cosine = patches::coons_patch(bounds(), Blend::Cosine, 1e-12).unwrap();
+    let at = |c: &BSplineCurve, t: f64| c.point(c.range().lerp(t));
+    for t in params(24) {
+        assert_close(cosine.evaluate(t, 0.0).position, at(v0, t), size, "S(u, 0)");
+        assert_close(cosine.evaluate(t, 1.0).position, at(v1, t), size, "S(u, 1)");
+        assert_close(cosine.evaluate(0.0, t).position, at(u0, t), size, "S(0, v)");
+        assert_close(cosine.evaluate(1.0, t).position, at(u1, t), size, "S(1, v)");
+    }
+    let h = 1e-5;
+    for (u, v) in grid().filter(|&(u, v)| u > 0.0 && u < 1.0 && v > 0.0 && v < 1.0) {
+        let s = cosine.evaluate(u, v);
+        assert_close(
+            s.position,
+            coons_direct(&curves, &Blend::Cosine, u, v),
+            size,
+            "interior",
+        );
+        let p = |u, v| cosine.evaluate(u, v).position;
+        let su = (p(u + h, v) - p(u - h, v)) / (2.0 * h);
+        let sv = (p(u, v + h) - p(u, v - h)) / (2.0 * h);
+        let suv =
+            (p(u + h, v + h) - p(u + h, v - h) - p(u - h, v + h) + p(u - h, v - h)) / (4.0 * h * h);
+        assert!((s.du - su).length() < 1e-8 * size, "S_u at ({u}, {v})");
+        assert!((s.dv - sv).length() < 1e-8 * size, "S_v at ({u}, {v})");
+        assert!((s.duv - suv).length() < 1e-4 * size, "S_uv at ({u}, {v})");
+    }
+    // The cosine blend and its derivatives, against the closed form.
+    for t in params(11) {
+        let [a, a1, a2] = Blend::Cosine.derivatives(t);
+        assert!((a - 0.5 * (1.0 + (PI * t).cos())).abs() < 1e-15);
+        assert!((a1 + 0.5 * PI * (PI * t).sin()).abs() < 1e-14);
+        assert!((a2 + 0.5 * PI * PI * (PI * t).cos()).abs() < 1e-14);
+    }
+    // Polynomial blends: the notes' cubic α = 1 − 3t² + 2t³, α′ = 6t² − 6t, α″ = 12t − 6.
+    for t in params(11) {
+        let [a, a1, a2] = Blend::Cubic.derivatives(t);
+        assert!((a - (1.0 - 3.0 * t * t + 2.0 * t * t * t)).abs() < 1e-15);
+        assert!((a1 - (6.0 * t * t - 6.0 * t)).abs() < 1e-14);
+        assert!((a2 - (12.0 * t - 6.0)).abs() < 1e-14);
+    }
+    assert!(matches!(
+        patches::coons(bounds(), &Blend::Cosine, 1e-12).unwrap_err(),
+        Error::BlendNotPolynomial
+    ));
+    let not_a_blend: fn(f64) -> [f64; 3] = |t| [t, 1.0, 0.0];
+    assert!(matches!(
+        patches::coons_patch(bounds(), Blend::Function(not_a_blend), 1e-12).unwrap_err(),
+        Error::InvalidBlend { .. }
+    ));
+}
+
 /// The four quarter arcs of the notes' two semicircles (xy- and xz-plane, unit radius) as the
 /// boundaries S(u,0), S(u,1), S(0,v), S(1,v) of a Coons patch with corners (1,0,0), (0,1,0),
 /// (0,0,1), (−1,0,0).

@@ -623,3 +623,33 @@ fn teapot_render_is_not_blank() {
         .to_rgba8();
     assert_eq!(decoded.dimensions(), (64, 48));
 }
+
+/// Coons patches evaluated directly on the GPU — blends with no B-spline form, a collapsed
+/// boundary, a far offset — conform with the CPU path, triangles identical.
+#[test]
+fn coons_patches_with_general_blends_conform() {
+    let Some(context) = gpu() else { return };
+    let tessellator = tessellator_on(context);
+    let mut failures = Vec::new();
+    for case in conformance::coons_suite() {
+        let options = vec![case.options; case.patches.len()];
+        let mut mesh = knotwork::Mesh::default();
+        tessellator
+            .tessellate_coons_into(&case.patches, &options, &mut mesh)
+            .unwrap();
+        let report = conformance::compare_coons(&case.patches, &options, &mesh).unwrap();
+        println!(
+            "{:<48} position {:.3e}, normal {:.3e} rad, degenerate {:.3e} rad ({} of {} vertices)",
+            case.name,
+            report.worst_position,
+            report.worst_normal,
+            report.worst_degenerate_normal,
+            report.degenerate_vertices,
+            report.vertices
+        );
+        if !report.passes() {
+            failures.push((case.name, report));
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}

@@ -3,7 +3,7 @@
 
 use super::basis::{BasisDers, MAX_ORDER, basis_ders};
 use crate::error::{Error, Result};
-use crate::geom::{BSplineCurve, BSplineSurface};
+use crate::geom::{BSplineCurve, BSplineSurface, Interval};
 use crate::mesh::Polyline;
 use glam::{DVec3, DVec4};
 
@@ -21,9 +21,50 @@ pub struct SurfaceSample {
     pub normal: DVec3,
 }
 
+/// The normal at (u, v) of a sample `s` over the parameter ranges: unit(S_u × S_v), or where
+/// |S_u × S_v|² ≤ `threshold` its limit toward the centre of the ranges (the contract of
+/// [`BSplineSurface::evaluate`]); `first_derivatives` gives [S_u, S_v] at nearby points for
+/// when the first-order term vanishes too.
+pub(crate) fn limit_normal(
+    s: &SurfaceSample,
+    (u, v): (f64, f64),
+    (ru, rv): (Interval, Interval),
+    threshold: f64,
+    first_derivatives: impl Fn(f64, f64) -> [DVec3; 2],
+) -> DVec3 {
+    let n = s.du.cross(s.dv);
+    if n.length_squared() > threshold {
+        return n.normalize();
+    }
+    let step_u = if u > 0.5 * (ru.start + ru.end) {
+        -ru.width()
+    } else {
+        ru.width()
+    };
+    let step_v = if v > 0.5 * (rv.start + rv.end) {
+        -rv.width()
+    } else {
+        rv.width()
+    };
+    let first_order = step_u * (s.du.cross(s.duv) + s.duu.cross(s.dv))
+        + step_v * (s.du.cross(s.dvv) + s.duv.cross(s.dv));
+    if first_order.length_squared() > threshold {
+        return first_order.normalize();
+    }
+    for fraction in [1e-6, 1e-4, 1e-2] {
+        let (hu, hv) = (u + step_u * fraction, v + step_v * fraction);
+        let [du, dv] = first_derivatives(hu, hv);
+        let n = du.cross(dv);
+        if n.length_squared() > threshold {
+            return n.normalize();
+        }
+    }
+    DVec3::Z
+}
+
 /// Cross products below this fraction of (model size / parameter width)² count as zero:
 /// rounding noise at a genuinely degenerate point, not a tangent plane.
-const DEGENERATE_REL: f64 = 1e-12;
+pub(crate) const DEGENERATE_REL: f64 = 1e-12;
 
 impl BSplineSurface {
     /// Evaluates position, derivatives and normal at (u, v); parameters outside the knot
@@ -76,36 +117,13 @@ impl BSplineSurface {
     }
 
     fn normal_of(&self, s: &SurfaceSample, u: f64, v: f64) -> DVec3 {
-        let threshold = self.degenerate_cross_sq();
-        let n = s.du.cross(s.dv);
-        if n.length_squared() > threshold {
-            return n.normalize();
-        }
-        let (ru, rv) = (self.range_u(), self.range_v());
-        let step_u = if u > 0.5 * (ru.start + ru.end) {
-            -ru.width()
-        } else {
-            ru.width()
-        };
-        let step_v = if v > 0.5 * (rv.start + rv.end) {
-            -rv.width()
-        } else {
-            rv.width()
-        };
-        let first_order = step_u * (s.du.cross(s.duv) + s.duu.cross(s.dv))
-            + step_v * (s.du.cross(s.dvv) + s.duv.cross(s.dv));
-        if first_order.length_squared() > threshold {
-            return first_order.normalize();
-        }
-        for fraction in [1e-6, 1e-4, 1e-2] {
-            let (hu, hv) = (u + step_u * fraction, v + step_v * fraction);
-            let (_, [du, dv]) = self.rational_first_derivatives(hu, hv);
-            let n = du.cross(dv);
-            if n.length_squared() > threshold {
-                return n.normalize();
-            }
-        }
-        DVec3::Z
+        limit_normal(
+            s,
+            (u, v),
+            (self.range_u(), self.range_v()),
+            self.degenerate_cross_sq(),
+            |u, v| self.rational_first_derivatives(u, v).1,
+        )
     }
 
     /// Position and first derivatives [S_u, S_v] at (u, v).

@@ -22,6 +22,18 @@ pub fn tessellate_grid_into(
     options: &[TessOptions],
     mesh: &mut Mesh,
 ) -> Result<()> {
+    fill_grids(surfaces, options, mesh, tessellate_surface)
+}
+
+/// Lays out `mesh` for one grid per item (`options[k]` for item k), fills the vertices of
+/// each item's grid with `fill` (item, its part, positions, normals, uvs), in parallel, and
+/// writes the triangles. The mesh's buffers are reused.
+pub(crate) fn fill_grids<T: Sync>(
+    surfaces: &[T],
+    options: &[TessOptions],
+    mesh: &mut Mesh,
+    fill: impl Fn(&T, &MeshPart, &mut [DVec3], &mut [DVec3], &mut [DVec2]) + Sync,
+) -> Result<()> {
     if options.len() != surfaces.len() {
         return Err(Error::OptionsCount {
             expected: surfaces.len(),
@@ -58,7 +70,7 @@ pub fn tessellate_grid_into(
     }
     jobs.into_par_iter()
         .for_each(|(surface, part, positions, normals, uvs)| {
-            tessellate_surface(surface, &part, positions, normals, uvs);
+            fill(surface, &part, positions, normals, uvs);
         });
     fill_grid_indices(&mesh.parts, &mut mesh.indices);
     Ok(())

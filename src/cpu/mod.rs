@@ -1,15 +1,18 @@
 //! The f64 reference path: basis functions, point evaluation and grid tessellation.
 
 pub(crate) mod basis;
+mod coons;
 mod eval;
 mod grid;
 mod lanes;
 
+pub use coons::tessellate_coons_into;
 pub use eval::SurfaceSample;
 pub use grid::{evaluate_grid_into, tessellate_grid_into};
 
 use crate::Tessellator;
 use crate::error::{Error, Result};
+use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
 use crate::mesh::{Mesh, Polyline, TessOptions, check_sample_counts};
 use rayon::prelude::*;
@@ -27,6 +30,15 @@ impl Tessellator for CpuTessellator {
         mesh: &mut Mesh,
     ) -> Result<()> {
         tessellate_grid_into(surfaces, options, mesh)
+    }
+
+    fn tessellate_coons_into(
+        &self,
+        patches: &[CoonsPatch],
+        options: &[TessOptions],
+        mesh: &mut Mesh,
+    ) -> Result<()> {
+        tessellate_coons_into(patches, options, mesh)
     }
 
     fn tessellate_curves(&self, curves: &[BSplineCurve], samples: &[u32]) -> Result<Vec<Polyline>> {

@@ -5,7 +5,7 @@
 
 use super::piecewise::{Piecewise, split_polygon};
 use super::surface::cartesian_box;
-use super::{BSplineCurve, KnotVector, homogeneous};
+use super::{BSplineCurve, Interval, KnotVector, homogeneous};
 use crate::error::{Error, Result};
 use glam::{DVec3, DVec4};
 
@@ -303,6 +303,25 @@ impl BSplineCurve {
     pub(crate) fn from_piecewise(pieces: &Piecewise<DVec4>, rational: bool) -> Result<Self> {
         let knots = KnotVector::from_breakpoints(pieces.degree, &pieces.breaks)?;
         Self::from_homogeneous(knots, pieces.coeffs.clone(), rational)
+    }
+
+    /// The same curve with its range mapped onto [0, 1] (the knots mapped affinely).
+    pub fn unit_parametrized(&self) -> Result<Self> {
+        let range = self.range();
+        let knots = self
+            .knots()
+            .knots()
+            .iter()
+            .map(|t| (t - range.start) / range.width());
+        let knots = KnotVector::try_new(self.degree(), knots.collect())?;
+        let start = knots.domain().0.max(0.0);
+        let end = knots.domain().1.min(1.0);
+        Self::from_homogeneous(
+            knots,
+            self.homogeneous_points().to_vec(),
+            self.is_rational(),
+        )?
+        .with_range(Interval::new(start, end))
     }
 
     /// Largest extent (bounding-box diagonal) of the Cartesian control points.

@@ -7,6 +7,7 @@ use super::piecewise::{Piecewise, Value, merged_breaks};
 use super::{BSplineCurve, BSplineSurface, KnotVector, bezier_surface};
 use crate::error::{Error, Result};
 use glam::{DVec3, DVec4};
+use std::f64::consts::PI;
 
 /// The bilinear patch with corners S(0,0) = p00, S(1,0) = p10, S(0,1) = p01, S(1,1) = p11:
 /// (1−u)(1−v)p00 + u(1−v)p10 + (1−u)v·p01 + uv·p11.
@@ -98,7 +99,7 @@ pub fn ruled(c0: &BSplineCurve, c1: &BSplineCurve) -> Result<BSplineSurface> {
 }
 
 /// A Coons blending function α on [0, 1] with α(0) = 1 and α(1) = 0; its partner is 1 − α.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub enum Blend {
     /// α(t) = 1 − t: the bilinearly blended Coons patch.
     Linear,
@@ -109,33 +110,78 @@ pub enum Blend {
     Quintic,
     /// α(t) = Σ cᵢ tⁱ, coefficients from the constant term up.
     Polynomial(Vec<f64>),
+    /// α(t) = (1 + cos πt) / 2: smooth, zero slope at both ends. Not a polynomial, so no
+    /// exact B-spline form: a [`CoonsPatch`] evaluates it directly, on both paths.
+    Cosine,
+    /// Any α, given as t ↦ [α(t), α′(t), α″(t)]; evaluated directly like [`Blend::Cosine`].
+    Function(fn(f64) -> [f64; 3]),
 }
 
 impl Blend {
-    /// Power-basis coefficients of α, checked: finite, α(0) = 1 and α(1) = 0 (within 1e-12).
+    /// Power-basis coefficients of a polynomial blend (unchecked); `None` for the others.
+    fn coefficients(&self) -> Option<Vec<f64>> {
+        match self {
+            Blend::Linear => Some(vec![1.0, -1.0]),
+            Blend::Cubic => Some(vec![1.0, 0.0, -3.0, 2.0]),
+            Blend::Quintic => Some(vec![1.0, 0.0, 0.0, -10.0, 15.0, -6.0]),
+            Blend::Polynomial(c) => Some(c.clone()),
+            Blend::Cosine | Blend::Function(_) => None,
+        }
+    }
+
+    /// Power-basis coefficients of α, checked (see [`Blend::check`]); a blend that is not a
+    /// polynomial is refused with [`Error::BlendNotPolynomial`].
     pub fn power_coefficients(&self) -> Result<Vec<f64>> {
-        let coefficients = match self {
-            Blend::Linear => vec![1.0, -1.0],
-            Blend::Cubic => vec![1.0, 0.0, -3.0, 2.0],
-            Blend::Quintic => vec![1.0, 0.0, 0.0, -10.0, 15.0, -6.0],
-            Blend::Polynomial(c) => c.clone(),
-        };
-        let at_zero = coefficients.first().copied().unwrap_or(0.0);
-        let at_one: f64 = coefficients.iter().sum();
-        let finite = coefficients.iter().all(|c| c.is_finite());
+        self.check()?;
+        self.coefficients().ok_or(Error::BlendNotPolynomial)
+    }
+
+    /// Checks that α is finite at both ends with α(0) = 1 and α(1) = 0 (within 1e-12).
+    pub fn check(&self) -> Result<()> {
+        let ends = [self.derivatives(0.0), self.derivatives(1.0)];
+        let (at_zero, at_one) = (ends[0][0], ends[1][0]);
+        let finite = ends.iter().flatten().all(|x| x.is_finite())
+            && self
+                .coefficients()
+                .is_none_or(|c| c.iter().all(|x| x.is_finite()));
         if !finite || (at_zero - 1.0).abs() > 1e-12 || at_one.abs() > 1e-12 {
             return Err(Error::InvalidBlend { at_zero, at_one });
         }
-        Ok(coefficients)
+        Ok(())
     }
 
-    /// α(t), for callers evaluating the Coons formula directly.
+    /// [α(t), α′(t), α″(t)] (unchecked).
+    pub fn derivatives(&self, t: f64) -> [f64; 3] {
+        match (self, self.coefficients()) {
+            (_, Some(c)) => c
+                .iter()
+                .enumerate()
+                .rev()
+                .fold([0.0; 3], |[a, a1, a2], (i, &c)| {
+                    // Horner on α, α′ = Σ i cᵢ tⁱ⁻¹ and α″ = Σ i(i−1) cᵢ tⁱ⁻² together.
+                    let i = i as f64;
+                    [
+                        a * t + c,
+                        if i >= 1.0 { a1 * t + i * c } else { a1 },
+                        if i >= 2.0 {
+                            a2 * t + i * (i - 1.0) * c
+                        } else {
+                            a2
+                        },
+                    ]
+                }),
+            (Blend::Function(f), None) => f(t),
+            (_, None) => {
+                let (sin, cos) = (PI * t).sin_cos();
+                [0.5 * (1.0 + cos), -0.5 * PI * sin, -0.5 * PI * PI * cos]
+            }
+        }
+    }
+
+    /// α(t), checked.
     pub fn value(&self, t: f64) -> Result<f64> {
-        Ok(self
-            .power_coefficients()?
-            .iter()
-            .rev()
-            .fold(0.0, |acc, c| acc * t + c))
+        self.check()?;
+        Ok(self.derivatives(t)[0])
     }
 }
 
@@ -194,6 +240,68 @@ pub fn coons(curves: CoonsBoundaries<'_>, blend: &Blend, tolerance: f64) -> Resu
         .iter()
         .any(|c| c.is_rational());
     surface(&form_u, &form_v, points, rational)
+}
+
+/// A Coons patch evaluated directly from its four boundary curves and its blend, on (u, v) ∈
+/// [0, 1]² — the form of blends with no exact B-spline conversion ([`Blend::Cosine`],
+/// [`Blend::Function`]); polynomial blends work too (and convert exactly with [`coons`]).
+/// Tessellated by [`crate::Tessellator::tessellate_coons_into`] on either path.
+#[derive(Debug, Clone)]
+pub struct CoonsPatch {
+    boundaries: [BSplineCurve; 4],
+    corners: [DVec3; 4],
+    blend: Blend,
+}
+
+/// The directly evaluated Coons patch of `curves` (corners within `tolerance`, model units)
+/// with any checked `blend`; the formula is that of [`coons`].
+pub fn coons_patch(
+    curves: CoonsBoundaries<'_>,
+    blend: Blend,
+    tolerance: f64,
+) -> Result<CoonsPatch> {
+    blend.check()?;
+    let corners = check_corners(&curves, tolerance)?;
+    let unit = |c: &BSplineCurve| c.unit_parametrized();
+    Ok(CoonsPatch {
+        boundaries: [
+            unit(curves.v0)?,
+            unit(curves.v1)?,
+            unit(curves.u0)?,
+            unit(curves.u1)?,
+        ],
+        corners,
+        blend,
+    })
+}
+
+impl CoonsPatch {
+    /// S(u, 0), S(u, 1), S(0, v), S(1, v), each reparametrized to the range [0, 1].
+    pub fn boundaries(&self) -> &[BSplineCurve; 4] {
+        &self.boundaries
+    }
+    /// S(0,0), S(1,0), S(0,1), S(1,1).
+    pub fn corners(&self) -> [DVec3; 4] {
+        self.corners
+    }
+    pub fn blend(&self) -> &Blend {
+        &self.blend
+    }
+    /// Bounding box (min, max) of the boundaries' control points.
+    pub fn control_box(&self) -> (DVec3, DVec3) {
+        self.boundaries
+            .iter()
+            .map(|c| super::cartesian_box(c.homogeneous_points()))
+            .fold(
+                (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+                |(lo, hi), (a, b)| (lo.min(a), hi.max(b)),
+            )
+    }
+    /// Diagonal of [`CoonsPatch::control_box`]: the size relative tolerances refer to.
+    pub fn size(&self) -> f64 {
+        let (lo, hi) = self.control_box();
+        (hi - lo).length()
+    }
 }
 
 /// The corners S(0,0), S(1,0), S(0,1), S(1,1) from the v-boundaries, checked against the

@@ -4,7 +4,7 @@
 //! [`Polyline`]s. Curves are grouped into chunks whose buffers each fit one binding.
 
 use super::pack::{Limits, local_points, push_table, too_large};
-use super::{GpuContext, MAX_GROUPS_PER_DIMENSION, map_for_reading, scoped, staged_copies};
+use super::{GpuContext, map_for_reading, scoped, staged_copies};
 use crate::error::{Error, Result};
 use crate::geom::{BSplineCurve, cartesian_box};
 use crate::mesh::{Polyline, check_sample_counts};
@@ -16,7 +16,7 @@ pub(crate) const ENTRY_POINT: &str = "sample_curves";
 /// Invocations per workgroup (`@workgroup_size` in curves.wgsl), one per sample.
 const WORKGROUP: u32 = 64;
 /// Output bytes per sample: position, C′, C″ as vec4<f32>.
-const SAMPLE_BYTES: u64 = 48;
+pub(crate) const SAMPLE_BYTES: u64 = 48;
 
 /// One curve as the kernel reads it (`CurveJob` in curves.wgsl).
 #[repr(C)]
@@ -32,11 +32,85 @@ pub struct CurveJob {
 
 /// Curves dispatched with one set of buffers; offsets in `jobs` are chunk-relative.
 #[derive(Debug, Default)]
-struct CurveChunk {
+pub(crate) struct CurveChunk {
     jobs: Vec<CurveJob>,
     points: Vec<[f32; 4]>,
     tables: Vec<f32>,
-    sample_count: u64,
+    pub sample_count: u64,
+}
+
+impl CurveChunk {
+    /// Bytes the chunk's buffers (samples, points, tables, jobs) would take with `curve`
+    /// sampled `count` times added.
+    pub fn bytes_with(&self, curve: &BSplineCurve, count: u32) -> [(&'static str, u64); 4] {
+        let entry_floats = 2 + 3 * (curve.degree() as u64 + 1);
+        [
+            (
+                "the curve samples",
+                (self.sample_count + u64::from(count)) * SAMPLE_BYTES,
+            ),
+            (
+                "the curve control points",
+                (self.points.len() + curve.homogeneous_points().len()) as u64 * 16,
+            ),
+            (
+                "the curve basis tables",
+                (self.tables.len() as u64 + u64::from(count) * entry_floats) * 4,
+            ),
+            (
+                "the curve list",
+                (self.jobs.len() as u64 + 1) * size_of::<CurveJob>() as u64,
+            ),
+        ]
+    }
+
+    /// Adds `curve` sampled `count` times, its points stored relative to `origin`; the
+    /// kernel adds `output_origin` to the positions (`origin` for world coordinates, zero
+    /// to keep them relative).
+    pub fn push(&mut self, curve: &BSplineCurve, count: u32, origin: DVec3, output_origin: DVec3) {
+        self.jobs.push(CurveJob {
+            origin: output_origin.as_vec3().to_array(),
+            degree: curve.degree() as u32,
+            first_sample: self.sample_count as u32,
+            samples: count,
+            points: self.points.len() as u32,
+            table: self.tables.len() as u32,
+        });
+        local_points(curve.homogeneous_points(), origin, &mut self.points);
+        push_table(curve.knots(), curve.range(), count, &mut self.tables);
+        self.sample_count += u64::from(count);
+    }
+
+    /// Uploads the chunk and records its dispatch, writing the samples into `output`
+    /// (`sample_count` × 48 bytes: position, C′, C″ as vec4<f32> each).
+    pub fn encode(
+        &self,
+        context: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        output: &wgpu::Buffer,
+    ) {
+        let device = &context.device;
+        let input = |label, bytes: &[u8]| {
+            super::storage_buffer(device, label, bytes, wgpu::BufferUsages::empty())
+        };
+        let buffers = [
+            input("knotwork curve jobs", bytemuck::cast_slice(&self.jobs)),
+            input("knotwork curve points", bytemuck::cast_slice(&self.points)),
+            input("knotwork curve tables", bytemuck::cast_slice(&self.tables)),
+        ];
+        let bind_group = super::bind_buffers(
+            context,
+            &context.kernels.curve_layout,
+            &[&buffers[0], &buffers[1], &buffers[2], output],
+        );
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("knotwork curves"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&context.kernels.curve_pipeline);
+        pass.set_bind_group(0, &bind_group, &[]);
+        super::dispatch_flat(&mut pass, self.sample_count, WORKGROUP);
+    }
 }
 
 /// Groups consecutive curves into chunks whose every buffer fits one binding of `limits`;
@@ -57,46 +131,22 @@ fn pack_curves(
         if count < 2 {
             return Err(in_curve(Error::GridTooSmall { nu: count, nv: 1 }));
         }
-        let points = curve.homogeneous_points();
-        let entry_floats = 2 + 3 * (curve.degree() as u64 + 1);
-        let needs = [
-            ("the samples of one curve", u64::from(count) * SAMPLE_BYTES),
-            ("the control points of one curve", points.len() as u64 * 16),
-            (
-                "the basis table of one curve",
-                u64::from(count) * entry_floats * 4,
-            ),
-        ];
-        for (what, bytes) in needs {
-            if bytes > budget {
-                return Err(in_curve(too_large(what, bytes, budget)));
-            }
+        let alone = CurveChunk::default().bytes_with(curve, count);
+        if let Some(&(what, bytes)) = alone.iter().find(|(_, bytes)| *bytes > budget) {
+            return Err(in_curve(too_large(what, bytes, budget)));
         }
-        let chunk = chunks.last_mut().expect("one chunk at least");
-        let used = [
-            chunk.sample_count * SAMPLE_BYTES,
-            chunk.points.len() as u64 * 16,
-            chunk.tables.len() as u64 * 4,
-        ];
-        let fits = used.iter().zip(&needs).all(|(u, (_, n))| u + n <= budget)
-            && (chunk.jobs.len() as u64 + 1) * size_of::<CurveJob>() as u64 <= budget;
-        if !fits {
+        let last = chunks.last().expect("one chunk at least");
+        if last
+            .bytes_with(curve, count)
+            .iter()
+            .any(|(_, b)| *b > budget)
+        {
             chunks.push(CurveChunk::default());
         }
+        let (lo, hi) = cartesian_box(curve.homogeneous_points());
+        let origin = 0.5 * (lo + hi);
         let chunk = chunks.last_mut().expect("one chunk at least");
-        let (lo, hi) = cartesian_box(points);
-        let origin: DVec3 = 0.5 * (lo + hi);
-        chunk.jobs.push(CurveJob {
-            origin: origin.as_vec3().to_array(),
-            degree: curve.degree() as u32,
-            first_sample: chunk.sample_count as u32,
-            samples: count,
-            points: chunk.points.len() as u32,
-            table: chunk.tables.len() as u32,
-        });
-        local_points(points, origin, &mut chunk.points);
-        push_table(curve.knots(), curve.range(), count, &mut chunk.tables);
-        chunk.sample_count += u64::from(count);
+        chunk.push(curve, count, origin, origin);
     }
     chunks.retain(|chunk| !chunk.jobs.is_empty());
     Ok(chunks)
@@ -124,44 +174,13 @@ pub fn sample_curves(
         });
         let mut outputs = Vec::with_capacity(chunks.len());
         for chunk in &chunks {
-            let input = |label, bytes: &[u8]| {
-                super::storage_buffer(device, label, bytes, wgpu::BufferUsages::empty())
-            };
-            let buffers = [
-                input("knotwork curve jobs", bytemuck::cast_slice(&chunk.jobs)),
-                input("knotwork curve points", bytemuck::cast_slice(&chunk.points)),
-                input("knotwork curve tables", bytemuck::cast_slice(&chunk.tables)),
-            ];
             let output = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("knotwork curve samples"),
                 size: chunk.sample_count * SAMPLE_BYTES,
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
                 mapped_at_creation: false,
             });
-            let entries: Vec<wgpu::BindGroupEntry> = buffers
-                .iter()
-                .chain([&output])
-                .enumerate()
-                .map(|(binding, buffer)| wgpu::BindGroupEntry {
-                    binding: binding as u32,
-                    resource: buffer.as_entire_binding(),
-                })
-                .collect();
-            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("knotwork curves"),
-                layout: &context.curve_layout,
-                entries: &entries,
-            });
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("knotwork curves"),
-                timestamp_writes: None,
-            });
-            pass.set_pipeline(&context.curve_pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            let groups = chunk.sample_count.div_ceil(u64::from(WORKGROUP)) as u32;
-            let x = groups.min(MAX_GROUPS_PER_DIMENSION);
-            pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
-            drop(pass);
+            chunk.encode(context, &mut encoder, &output);
             outputs.push(output);
         }
         context.queue.submit([encoder.finish()]);

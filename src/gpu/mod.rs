@@ -22,14 +22,17 @@
 //! and dispatched in the same submission; a batch whose buffers exceed `max_buffer_size` is
 //! refused with [`Error::GpuJobTooLarge`].
 
+mod coons;
 mod curves;
 mod pack;
 
+pub use coons::CoonsJob;
 pub use curves::{CurveJob, sample_curves};
 pub use pack::{ChunkParams, Limits, Piece, Tile, VERTEX_BYTES};
 
 use crate::Tessellator;
 use crate::error::{Error, Result};
+use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
 use crate::mesh::{Mesh, MeshPart, Polyline, TessOptions};
 use glam::{DVec2, DVec3};
@@ -40,6 +43,8 @@ use std::num::NonZeroU64;
 pub const TESSELLATE_WGSL: &str = include_str!("../../shaders/tessellate.wgsl");
 /// The WGSL source of the curve sampling kernel.
 pub const CURVES_WGSL: &str = include_str!("../../shaders/curves.wgsl");
+/// The WGSL source of the direct Coons kernel.
+pub const COONS_WGSL: &str = include_str!("../../shaders/coons.wgsl");
 
 const ENTRY_POINTS: [&str; PASSES] = ["contract_rows", "evaluate_vertices", "connect_cells"];
 /// Index of `connect_cells` in [`ENTRY_POINTS`].
@@ -55,10 +60,20 @@ pub struct GpuContext {
     device: wgpu::Device,
     queue: wgpu::Queue,
     adapter: Option<wgpu::AdapterInfo>,
+    kernels: Kernels,
+}
+
+/// The compiled kernels and their bind group layouts.
+struct Kernels {
+    /// tessellate.wgsl: surfaces, [`ENTRY_POINTS`] in order.
     layout: wgpu::BindGroupLayout,
     pipelines: Vec<wgpu::ComputePipeline>,
+    /// curves.wgsl.
     curve_layout: wgpu::BindGroupLayout,
     curve_pipeline: wgpu::ComputePipeline,
+    /// coons.wgsl.
+    coons_layout: wgpu::BindGroupLayout,
+    coons_pipeline: wgpu::ComputePipeline,
 }
 
 /// A headless wgpu instance on the primary backends (Vulkan, Metal, DX12, WebGPU), or on
@@ -102,7 +117,7 @@ impl GpuContext {
 
     /// Wraps a renderer's device and queue; the buffers knotwork fills live on this device.
     pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> Result<Self> {
-        let (layout, pipelines, curve_layout, curve_pipeline) = scoped(&device, || {
+        let kernels = scoped(&device, || {
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("knotwork tessellate.wgsl"),
                 source: wgpu::ShaderSource::Wgsl(TESSELLATE_WGSL.into()),
@@ -153,16 +168,37 @@ impl GpuContext {
             });
             let curve_pipeline =
                 compute_pipeline(&device, &curve_module, &curve_layout, curves::ENTRY_POINT);
-            (layout, pipelines, curve_layout, curve_pipeline)
+            let coons_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("knotwork coons.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(COONS_WGSL.into()),
+            });
+            let coons_entries = [
+                storage(0, true),
+                storage(1, true),
+                storage(2, true),
+                storage(3, false),
+                storage(4, false),
+            ];
+            let coons_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("knotwork coons"),
+                entries: &coons_entries,
+            });
+            let coons_pipeline =
+                compute_pipeline(&device, &coons_module, &coons_layout, coons::ENTRY_POINT);
+            Kernels {
+                layout,
+                pipelines,
+                curve_layout,
+                curve_pipeline,
+                coons_layout,
+                coons_pipeline,
+            }
         })?;
         Ok(Self {
             device,
             queue,
             adapter: None,
-            layout,
-            pipelines,
-            curve_layout,
-            curve_pipeline,
+            kernels,
         })
     }
 
@@ -221,6 +257,38 @@ fn compute_pipeline(
         compilation_options: Default::default(),
         cache: None,
     })
+}
+
+/// A bind group of `buffers`, whole, at bindings 0, 1, 2, … of `layout`.
+fn bind_buffers(
+    context: &GpuContext,
+    layout: &wgpu::BindGroupLayout,
+    buffers: &[&wgpu::Buffer],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = buffers
+        .iter()
+        .enumerate()
+        .map(|(binding, buffer)| wgpu::BindGroupEntry {
+            binding: binding as u32,
+            resource: buffer.as_entire_binding(),
+        })
+        .collect();
+    context
+        .device
+        .create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout,
+            entries: &entries,
+        })
+}
+
+/// Dispatches `items` invocations of a one-dimensional kernel with `workgroup` invocations
+/// per group, folding the groups into two dimensions past the per-dimension limit (the
+/// kernel's index is x + y · groups_x · workgroup).
+fn dispatch_flat(pass: &mut wgpu::ComputePass<'_>, items: u64, workgroup: u32) {
+    let groups = items.div_ceil(u64::from(workgroup)) as u32;
+    let x = groups.min(MAX_GROUPS_PER_DIMENSION);
+    pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
 }
 
 /// Runs `work` inside out-of-memory and validation error scopes and turns what they caught
@@ -490,7 +558,7 @@ impl GpuBatch {
                         .collect();
                     device.create_bind_group(&wgpu::BindGroupDescriptor {
                         label: Some("knotwork chunk"),
-                        layout: &context.layout,
+                        layout: &context.kernels.layout,
                         entries: &entries,
                     })
                 })
@@ -539,7 +607,7 @@ impl GpuBatch {
         for (chunk_index, (chunk, bind_group)) in
             self.packed.chunks.iter().zip(&self.bind_groups).enumerate()
         {
-            for (pass_index, pipeline) in context.pipelines.iter().enumerate() {
+            for (pass_index, pipeline) in context.kernels.pipelines.iter().enumerate() {
                 let tile_count = chunk.passes[pass_index].1;
                 if tile_count == 0 || (pass_index == CONNECT_PASS && !connect) {
                     continue;
@@ -638,18 +706,7 @@ impl GpuBatch {
             let view = vertices
                 .get_mapped_range(..vertex_bytes)
                 .map_err(gpu_error)?;
-            let floats: &[f32] = bytemuck::cast_slice(&view);
-            let n = self.packed.vertex_count as usize;
-            mesh.positions.reserve_exact(n);
-            mesh.normals.reserve_exact(n);
-            mesh.uvs.reserve_exact(n);
-            for v in floats.chunks_exact(8) {
-                mesh.positions
-                    .push(DVec3::new(v[0].into(), v[1].into(), v[2].into()));
-                mesh.normals
-                    .push(DVec3::new(v[3].into(), v[4].into(), v[5].into()));
-                mesh.uvs.push(DVec2::new(v[6].into(), v[7].into()));
-            }
+            push_vertices(bytemuck::cast_slice(&view), &mut mesh);
             mesh.indices =
                 bytemuck::cast_slice(&indices.get_mapped_range(..index_bytes).map_err(gpu_error)?)
                     .to_vec();
@@ -657,6 +714,22 @@ impl GpuBatch {
         vertices.unmap();
         indices.unmap();
         Ok(mesh)
+    }
+}
+
+/// Appends the 32-byte vertices in `floats` (position, normal, uv as f32) to `mesh`, widened
+/// to f64.
+fn push_vertices(floats: &[f32], mesh: &mut Mesh) {
+    let n = floats.len() / 8;
+    mesh.positions.reserve_exact(n);
+    mesh.normals.reserve_exact(n);
+    mesh.uvs.reserve_exact(n);
+    for v in floats.chunks_exact(8) {
+        mesh.positions
+            .push(DVec3::new(v[0].into(), v[1].into(), v[2].into()));
+        mesh.normals
+            .push(DVec3::new(v[3].into(), v[4].into(), v[5].into()));
+        mesh.uvs.push(DVec2::new(v[6].into(), v[7].into()));
     }
 }
 
@@ -743,6 +816,16 @@ impl Tessellator for GpuTessellator {
         let batch = GpuBatch::for_readback(&self.context, surfaces, options)?;
         batch.dispatch(&self.context)?;
         *mesh = batch.read_mesh(&self.context)?;
+        Ok(())
+    }
+
+    fn tessellate_coons_into(
+        &self,
+        patches: &[CoonsPatch],
+        options: &[TessOptions],
+        mesh: &mut Mesh,
+    ) -> Result<()> {
+        *mesh = coons::tessellate_coons(&self.context, patches, options, self.context.limits())?;
         Ok(())
     }
 

@@ -21,7 +21,7 @@ const CONTRACTED_BYTES: u64 = 48;
 /// Below this fraction of (size / parameter width)², |S_u × S_v| counts as zero in f32:
 /// vertices that close to a degenerate point take the limit normal (an angle change of the
 /// same order, 1e-5 rad).
-const GPU_DEGENERATE_REL: f64 = 1e-5;
+pub(crate) const GPU_DEGENERATE_REL: f64 = 1e-5;
 
 /// One band of grid rows of one surface, as the shader reads it (`Piece` in tessellate.wgsl).
 #[repr(C)]

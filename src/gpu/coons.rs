@@ -1,0 +1,263 @@
+//! Coons patches evaluated directly on the GPU (`shaders/coons.wgsl`), for blends with no
+//! exact B-spline form: the boundary curves are sampled by `curves.wgsl` relative to the
+//! patch's origin, the blend is tabulated on the host in f64, and one invocation per vertex
+//! combines them. Patches are grouped into chunks whose buffers each fit one binding; the
+//! result is read back into a [`Mesh`] in the layout of surfaces.
+
+use super::curves::{CurveChunk, SAMPLE_BYTES};
+use super::pack::{GPU_DEGENERATE_REL, Limits, too_large};
+use super::{
+    GpuContext, VERTEX_BYTES, bind_buffers, dispatch_flat, map_for_reading, push_vertices, scoped,
+    staged_copies, storage_buffer,
+};
+use crate::error::{Error, Result};
+use crate::geom::patches::CoonsPatch;
+use crate::mesh::{Mesh, TessOptions, plan_parts};
+use bytemuck::{Pod, Zeroable};
+use glam::DVec3;
+
+/// The entry point of `coons.wgsl`.
+pub(crate) const ENTRY_POINT: &str = "blend_coons";
+/// Invocations per workgroup (`@workgroup_size` in coons.wgsl), one per vertex.
+const WORKGROUP: u32 = 64;
+
+/// One patch as the kernel reads it (`CoonsJob` in coons.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct CoonsJob {
+    pub origin: [f32; 3],
+    pub degenerate_sq: f32,
+    /// S(0,0), S(1,0), S(0,1), S(1,1) relative to `origin`.
+    pub corners: [[f32; 3]; 4],
+    pub grid_u: u32,
+    pub grid_v: u32,
+    pub first_vertex: u32,
+    pub first_index: u32,
+    pub mesh_vertex: u32,
+    pub first_sample: u32,
+    pub blend_table: u32,
+    pub pad: u32,
+}
+
+/// Patches dispatched with one set of buffers.
+#[derive(Default)]
+struct CoonsChunk {
+    curves: CurveChunk,
+    jobs: Vec<CoonsJob>,
+    blends: Vec<f32>,
+    vertex_count: u64,
+    index_count: u64,
+    /// Bytes of each buffer, in the order of [`patch_bytes`].
+    bytes: [u64; 8],
+}
+
+/// Bytes a patch on an `nu × nv` grid adds to each buffer of a chunk — vertices, indices,
+/// blend tables, patch list, curve samples, curve points, curve tables, curve list —
+/// computed before anything is allocated for it.
+fn patch_bytes(patch: &CoonsPatch, nu: u32, nv: u32) -> [(&'static str, u64); 8] {
+    let (nu, nv) = (u64::from(nu), u64::from(nv));
+    let counts = [nu, nu, nv, nv];
+    let boundaries = patch.boundaries();
+    let points: u64 = boundaries
+        .iter()
+        .map(|c| c.homogeneous_points().len() as u64 * 16)
+        .sum();
+    let tables: u64 = boundaries
+        .iter()
+        .zip(counts)
+        .map(|(c, n)| n * (2 + 3 * (c.degree() as u64 + 1)) * 4)
+        .sum();
+    [
+        ("the vertices of one patch", nu * nv * VERTEX_BYTES),
+        ("the indices of one patch", 6 * (nu - 1) * (nv - 1) * 4),
+        ("the blend table of one patch", 3 * (nu + nv) * 4),
+        ("a patch record", size_of::<CoonsJob>() as u64),
+        (
+            "the boundary samples of one patch",
+            2 * (nu + nv) * SAMPLE_BYTES,
+        ),
+        ("the boundary control points of one patch", points),
+        ("the boundary basis tables of one patch", tables),
+        (
+            "four curve records",
+            4 * size_of::<super::CurveJob>() as u64,
+        ),
+    ]
+}
+
+/// Groups consecutive patches into chunks within `limits`, patch k on the grid of
+/// `options[k]` (its mesh layout from [`plan_parts`]).
+fn pack_coons(
+    patches: &[CoonsPatch],
+    options: &[TessOptions],
+    limits: &Limits,
+) -> Result<(Vec<CoonsChunk>, Vec<crate::MeshPart>)> {
+    if options.len() != patches.len() {
+        return Err(Error::OptionsCount {
+            expected: patches.len(),
+            found: options.len(),
+        });
+    }
+    let parts = plan_parts(options)?;
+    let budget = limits.binding_bytes.min(limits.buffer_bytes);
+    let mut chunks = vec![CoonsChunk::default()];
+    for (index, (patch, part)) in patches.iter().zip(&parts).enumerate() {
+        let (nu, nv) = (part.grid_u, part.grid_v);
+        let needs = patch_bytes(patch, nu, nv);
+        if let Some(&(what, bytes)) = needs.iter().find(|(_, b)| *b > budget) {
+            return Err(Error::InSurface {
+                index,
+                source: Box::new(too_large(what, bytes, budget)),
+            });
+        }
+        let last = chunks.last().expect("one chunk at least");
+        if last
+            .bytes
+            .iter()
+            .zip(&needs)
+            .any(|(have, (_, add))| have + add > budget)
+        {
+            chunks.push(CoonsChunk::default());
+        }
+        let chunk = chunks.last_mut().expect("one chunk at least");
+        for (have, (_, add)) in chunk.bytes.iter_mut().zip(&needs) {
+            *have += add;
+        }
+        let (lo, hi) = patch.control_box();
+        let origin = 0.5 * (lo + hi);
+        let size = patch.size();
+        let degenerate = GPU_DEGENERATE_REL * size * size;
+        let first_sample = chunk.curves.sample_count as u32;
+        for (curve, count) in patch.boundaries().iter().zip([nu, nu, nv, nv]) {
+            chunk.curves.push(curve, count, origin, DVec3::ZERO);
+        }
+        let blend = patch.blend();
+        let blend_table = chunk.blends.len() as u32;
+        for (k, n) in (0..nu).map(|i| (i, nu)).chain((0..nv).map(|j| (j, nv))) {
+            let t = f64::from(k) / f64::from(n - 1);
+            chunk.blends.extend(blend.derivatives(t).map(|x| x as f32));
+        }
+        chunk.jobs.push(CoonsJob {
+            origin: origin.as_vec3().to_array(),
+            degenerate_sq: (degenerate * degenerate) as f32,
+            corners: patch.corners().map(|c| (c - origin).as_vec3().to_array()),
+            grid_u: nu,
+            grid_v: nv,
+            first_vertex: chunk.vertex_count as u32,
+            first_index: chunk.index_count as u32,
+            mesh_vertex: part.first_vertex,
+            first_sample,
+            blend_table,
+            pad: 0,
+        });
+        chunk.vertex_count += u64::from(part.vertex_count);
+        chunk.index_count += u64::from(part.index_count);
+    }
+    chunks.retain(|chunk| !chunk.jobs.is_empty());
+    Ok((chunks, parts))
+}
+
+/// Tessellates `patches` on the GPU, patch k on the grid of `options[k]`, each chunk within
+/// `limits`, in one submission, and reads the result back.
+pub(crate) fn tessellate_coons(
+    context: &GpuContext,
+    patches: &[CoonsPatch],
+    options: &[TessOptions],
+    limits: Limits,
+) -> Result<Mesh> {
+    let (chunks, parts) = pack_coons(patches, options, &limits)?;
+    let mut mesh = Mesh {
+        parts,
+        ..Mesh::default()
+    };
+    if chunks.is_empty() {
+        return Ok(mesh);
+    }
+    let device = &context.device;
+    let outputs = scoped(device, || {
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("knotwork coons"),
+        });
+        let scratch = |label, size: u64, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size.max(16),
+                usage: wgpu::BufferUsages::STORAGE | usage,
+                mapped_at_creation: false,
+            })
+        };
+        let mut outputs = Vec::with_capacity(chunks.len());
+        for chunk in &chunks {
+            let samples = scratch(
+                "knotwork coons boundary samples",
+                chunk.curves.sample_count * SAMPLE_BYTES,
+                wgpu::BufferUsages::empty(),
+            );
+            chunk.curves.encode(context, &mut encoder, &samples);
+            let copy = wgpu::BufferUsages::COPY_SRC;
+            let vertices = scratch(
+                "knotwork coons vertices",
+                chunk.vertex_count * VERTEX_BYTES,
+                copy,
+            );
+            let indices = scratch("knotwork coons indices", chunk.index_count * 4, copy);
+            let none = wgpu::BufferUsages::empty();
+            let jobs = storage_buffer(
+                device,
+                "knotwork coons jobs",
+                bytemuck::cast_slice(&chunk.jobs),
+                none,
+            );
+            let blends = storage_buffer(
+                device,
+                "knotwork coons blends",
+                bytemuck::cast_slice(&chunk.blends),
+                none,
+            );
+            let bind_group = bind_buffers(
+                context,
+                &context.kernels.coons_layout,
+                &[&jobs, &samples, &blends, &vertices, &indices],
+            );
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("knotwork coons"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&context.kernels.coons_pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            dispatch_flat(&mut pass, chunk.vertex_count, WORKGROUP);
+            drop(pass);
+            outputs.push((vertices, indices));
+        }
+        context.queue.submit([encoder.finish()]);
+        outputs
+    })?;
+    let sources: Vec<(&wgpu::Buffer, u64)> = outputs
+        .iter()
+        .zip(&chunks)
+        .flat_map(|((vertices, indices), chunk)| {
+            [
+                (vertices, chunk.vertex_count * VERTEX_BYTES),
+                (indices, chunk.index_count * 4),
+            ]
+        })
+        .collect();
+    let staged = staged_copies(context, &sources)?;
+    map_for_reading(device, &staged.iter().collect::<Vec<_>>())?;
+    let gpu_error = |e: wgpu::MapRangeError| Error::Gpu {
+        message: e.to_string(),
+    };
+    for pair in staged.chunks_exact(2) {
+        let (vertices, indices) = (&pair[0], &pair[1]);
+        push_vertices(
+            bytemuck::cast_slice(&vertices.get_mapped_range(..).map_err(gpu_error)?),
+            &mut mesh,
+        );
+        mesh.indices.extend_from_slice(bytemuck::cast_slice(
+            &indices.get_mapped_range(..).map_err(gpu_error)?,
+        ));
+        vertices.unmap();
+        indices.unmap();
+    }
+    Ok(mesh)
+}
