@@ -82,6 +82,30 @@ impl Mesh {
     pub fn triangle_count(&self) -> usize {
         self.indices.len() / 3
     }
+
+    /// Appends `other`'s surfaces (vertices, triangles, parts) and polylines after this
+    /// mesh's; fails, leaving `self` unchanged, if the vertex count would leave u32.
+    pub fn append(&mut self, other: Mesh) -> Result<()> {
+        let offset = self.vertex_count() as u64;
+        let total = offset + other.vertex_count() as u64;
+        let total_indices = (self.indices.len() + other.indices.len()) as u64;
+        if total > u64::from(u32::MAX) || total_indices > u64::from(u32::MAX) {
+            return Err(Error::MeshTooLarge { vertices: total });
+        }
+        let (vertices, indices) = (offset as u32, self.indices.len() as u32);
+        self.positions.extend(other.positions);
+        self.normals.extend(other.normals);
+        self.uvs.extend(other.uvs);
+        self.indices
+            .extend(other.indices.iter().map(|i| i + vertices));
+        self.parts.extend(other.parts.iter().map(|p| MeshPart {
+            first_vertex: p.first_vertex + vertices,
+            first_index: p.first_index + indices,
+            ..*p
+        }));
+        self.polylines.extend(other.polylines);
+        Ok(())
+    }
 }
 
 /// Checks that every curve has a sample count.

@@ -414,7 +414,9 @@ fn cli_conformance_prints_a_table_and_a_verdict() {
     let rows = text.lines().filter(|l| l.ends_with(" pass")).count();
     assert_eq!(
         rows,
-        conformance::suite().len() + conformance::curve_suite().len(),
+        conformance::suite().len()
+            + conformance::coons_suite().len()
+            + conformance::curve_suite().len(),
         "{text}"
     );
     assert!(text.contains("verdict: this adapter conforms"), "{text}");
@@ -462,6 +464,22 @@ fn classic_forms_conform_surface_by_surface() {
         );
         assert!(report.passes(), "surface {k}: {report:?}");
     }
+    let options = vec![TessOptions::DEFAULT.with_grid(29, 23); scene.coons_patches.len()];
+    let mut mesh = knotwork::Mesh::default();
+    tessellator
+        .tessellate_coons_into(&scene.coons_patches, &options, &mut mesh)
+        .unwrap();
+    let report = conformance::compare_coons(&scene.coons_patches, &options, &mesh).unwrap();
+    println!(
+        "{} directly evaluated Coons patch(es): position {:.2e} of size, normal {:.2e} rad",
+        scene.coons_patches.len(),
+        report.worst_position,
+        report.worst_normal
+    );
+    assert!(
+        scene.coons_patches.len() == 1 && report.passes(),
+        "{report:?}"
+    );
     let samples = scene.samples_or(65);
     let polylines = tessellator
         .tessellate_curves(&scene.curves, &samples)

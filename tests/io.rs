@@ -987,6 +987,9 @@ fn glb_has_one_mesh_per_surface_group() {
 fn classic_forms_scene_writes_polylines() {
     let scene = read_scene(Path::new("data/forms.json")).unwrap();
     assert_eq!((scene.surfaces.len(), scene.curves.len()), (17, 9));
+    // The cosine-blend Coons patch has no B-spline form: it is evaluated directly and its
+    // triangles follow the surfaces'.
+    assert_eq!(scene.coons_patches.len(), 1);
     let dir = scratch_dir("forms");
     let obj_path = dir.join("forms.obj");
     let run = knotwork(&[
@@ -1006,7 +1009,7 @@ fn classic_forms_scene_writes_polylines() {
         "{}",
         String::from_utf8_lossy(&run.stderr)
     );
-    assert!(String::from_utf8_lossy(&run.stdout).contains("17 surfaces, 9 curves"));
+    assert!(String::from_utf8_lossy(&run.stdout).contains("18 surfaces, 9 curves"));
     let text = std::fs::read_to_string(&obj_path).unwrap();
     let vertices: Vec<&str> = text.lines().filter(|l| l.starts_with("v ")).collect();
     let lines: Vec<Vec<usize>> = text
@@ -1027,7 +1030,13 @@ fn classic_forms_scene_writes_polylines() {
     // The first curve is the notes' Bezier (1,1), (2,3), (4,3), (6,4): sample 4 of 16 is u = 1/4.
     assert_eq!(point(lines[0][0]), DVec3::new(1.0, 1.0, 0.0));
     assert!((point(lines[0][4]) - DVec3::new(123.0 / 64.0, 139.0 / 64.0, 0.0)).length() < 1e-12);
-    assert_eq!(vertices.len(), 17 * 5 * 4 + lengths.iter().sum::<usize>());
+    // The Coons patch keeps the 25x19 grid it asks for.
+    assert_eq!(
+        vertices.len(),
+        17 * 5 * 4 + 25 * 19 + lengths.iter().sum::<usize>()
+    );
+    let faces = text.lines().filter(|l| l.starts_with("f ")).count();
+    assert_eq!(faces, 17 * 2 * 4 * 3 + 2 * 24 * 18);
 
     let glb_path = dir.join("forms.glb");
     let run = knotwork(&[

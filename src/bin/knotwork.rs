@@ -268,8 +268,7 @@ fn process(
     job: &Job,
 ) -> knotwork::Result<Tally> {
     let scene = knotwork::io::read_scene_as(input, job.input_format)?;
-    let mut mesh = knotwork::Mesh::default();
-    tessellator.tessellate_each_into(&scene.surfaces, &scene.options_or(job.options), &mut mesh)?;
+    let mut mesh = scene.tessellate(tessellator, job.options)?;
     let mut merged = 0;
     if job.weld {
         let (welded, report) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
@@ -279,7 +278,7 @@ fn process(
         tessellator.tessellate_curves(&scene.curves, &scene.samples_or(job.samples))?;
     knotwork::io::write_mesh_as(output, &mesh, &scene.groups, job.format)?;
     Ok(Tally {
-        surfaces: scene.surfaces.len(),
+        surfaces: scene.surfaces.len() + scene.coons_patches.len(),
         curves: scene.curves.len(),
         vertices: mesh.vertex_count(),
         triangles: mesh.triangle_count(),
@@ -431,6 +430,21 @@ fn conformance() -> knotwork::Result<bool> {
     for case in conformance::suite() {
         let mesh = gpu.tessellate(&case.surfaces, &case.options)?;
         let report = conformance::compare(&case.surfaces, &case.options, &mesh)?;
+        all_pass &= report.passes();
+        println!(
+            "{:<48} {:>14.3e} {:>14.3e} {:>14.3e}  {}",
+            case.name,
+            report.worst_position,
+            report.worst_normal,
+            report.worst_degenerate_normal,
+            if report.passes() { "pass" } else { "FAIL" }
+        );
+    }
+    for case in conformance::coons_suite() {
+        let options = vec![case.options; case.patches.len()];
+        let mut mesh = knotwork::Mesh::default();
+        gpu.tessellate_coons_into(&case.patches, &options, &mut mesh)?;
+        let report = conformance::compare_coons(&case.patches, &options, &mesh)?;
         all_pass &= report.passes();
         println!(
             "{:<48} {:>14.3e} {:>14.3e} {:>14.3e}  {}",

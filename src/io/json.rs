@@ -23,7 +23,7 @@
 
 use super::Scene;
 use crate::error::{Error, Result};
-use crate::geom::patches::{self, Blend, CoonsBoundaries, HermiteCorners};
+use crate::geom::patches::{self, Blend, CoonsBoundaries, CoonsPatch, HermiteCorners};
 use crate::geom::{
     BSplineCurve, BSplineSurface, Interval, KnotVector, bezier_curve, curves, shapes,
 };
@@ -156,6 +156,8 @@ enum BlendSpec {
     Linear,
     Cubic,
     Quintic,
+    /// (1 + cos πt) / 2: no B-spline form, evaluated directly.
+    Cosine,
     #[serde(untagged)]
     Polynomial(Vec<f64>),
 }
@@ -427,9 +429,55 @@ impl Net {
     }
 }
 
+impl From<BlendSpec> for Blend {
+    fn from(spec: BlendSpec) -> Self {
+        match spec {
+            BlendSpec::Linear => Blend::Linear,
+            BlendSpec::Cubic => Blend::Cubic,
+            BlendSpec::Quintic => Blend::Quintic,
+            BlendSpec::Cosine => Blend::Cosine,
+            BlendSpec::Polynomial(c) => Blend::Polynomial(c),
+        }
+    }
+}
+
+/// The four boundary curves of a Coons entry and the corner tolerance they are held to.
+fn coons_boundaries(curves: [Curve; 4]) -> Result<([BSplineCurve; 4], f64)> {
+    let [v0, v1, u0, u1] = curves;
+    let built = [v0.build()?, v1.build()?, u0.build()?, u1.build()?];
+    let size = built.iter().map(|c| c.control_extent()).fold(0.0, f64::max);
+    Ok((built, JOIN_REL_TOLERANCE * size))
+}
+
+/// What one surface entry becomes.
+enum Built {
+    /// Rational B-splines (two for a two-sheet hyperboloid, else one).
+    Surfaces(Vec<BSplineSurface>),
+    /// A Coons patch whose blend has no B-spline form, evaluated directly.
+    Coons(CoonsPatch),
+}
+
 impl Shape {
-    /// The surfaces of this entry (two for a two-sheet hyperboloid, else one).
-    fn build(self) -> Result<Vec<BSplineSurface>> {
+    fn build(self) -> Result<Built> {
+        match self {
+            Shape::Coons {
+                v0,
+                v1,
+                u0,
+                u1,
+                blend: BlendSpec::Cosine,
+            } => {
+                let (curves, tolerance) = coons_boundaries([v0, v1, u0, u1])?;
+                let [v0, v1, u0, u1] = &curves;
+                let boundaries = CoonsBoundaries { v0, v1, u0, u1 };
+                patches::coons_patch(boundaries, Blend::Cosine, tolerance).map(Built::Coons)
+            }
+            shape => shape.build_surfaces().map(Built::Surfaces),
+        }
+    }
+
+    /// The surfaces of an entry with an exact B-spline form.
+    fn build_surfaces(self) -> Result<Vec<BSplineSurface>> {
         let one = |s: Result<BSplineSurface>| s.map(|s| vec![s]);
         match self {
             Shape::Bspline {
@@ -470,28 +518,10 @@ impl Shape {
                 u1,
                 blend,
             } => {
-                let [v0, v1, u0, u1] = [v0.build()?, v1.build()?, u0.build()?, u1.build()?];
-                let size = [&v0, &v1, &u0, &u1]
-                    .iter()
-                    .map(|c| c.control_extent())
-                    .fold(0.0, f64::max);
-                let blend = match blend {
-                    BlendSpec::Linear => Blend::Linear,
-                    BlendSpec::Cubic => Blend::Cubic,
-                    BlendSpec::Quintic => Blend::Quintic,
-                    BlendSpec::Polynomial(c) => Blend::Polynomial(c),
-                };
-                let boundaries = CoonsBoundaries {
-                    v0: &v0,
-                    v1: &v1,
-                    u0: &u0,
-                    u1: &u1,
-                };
-                one(patches::coons(
-                    boundaries,
-                    &blend,
-                    JOIN_REL_TOLERANCE * size,
-                ))
+                let (curves, tolerance) = coons_boundaries([v0, v1, u0, u1])?;
+                let [v0, v1, u0, u1] = &curves;
+                let boundaries = CoonsBoundaries { v0, v1, u0, u1 };
+                one(patches::coons(boundaries, &blend.into(), tolerance))
             }
             Shape::Algebraic { coefficients } => {
                 let rows: Vec<Vec<DVec3>> = coefficients.iter().map(|r| points(r)).collect();
@@ -639,6 +669,7 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
     let file: SceneFile =
         serde_json::from_str(text).map_err(|e| Error::syntax(format!("{e}")).at_line(e.line()))?;
     let mut scene = Scene::default();
+    let mut coons_names = Vec::new();
     for (index, entry) in file.curves.into_iter().enumerate() {
         let in_curve = |e: Error| Error::InCurve {
             index,
@@ -667,14 +698,32 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
                 }
             })
             .transpose()?;
-        let built = entry.shape.build().map_err(in_surface)?;
-        let first = scene.surfaces.len();
-        scene.options.extend(std::iter::repeat_n(grid, built.len()));
-        scene.surfaces.extend(built);
-        if let Some(name) = entry.name {
+        match entry.shape.build().map_err(in_surface)? {
+            Built::Surfaces(built) => {
+                let first = scene.surfaces.len();
+                scene.options.extend(std::iter::repeat_n(grid, built.len()));
+                scene.surfaces.extend(built);
+                if let Some(name) = entry.name {
+                    scene.groups.push(super::SurfaceGroup {
+                        name,
+                        surfaces: first..scene.surfaces.len(),
+                    });
+                }
+            }
+            Built::Coons(patch) => {
+                coons_names.push(entry.name);
+                scene.coons_patches.push(patch);
+                scene.coons_options.push(grid);
+            }
+        }
+    }
+    // Directly evaluated patches follow the B-spline surfaces in the mesh.
+    let first = scene.surfaces.len();
+    for (k, name) in coons_names.into_iter().enumerate() {
+        if let Some(name) = name {
             scene.groups.push(super::SurfaceGroup {
                 name,
-                surfaces: first..scene.surfaces.len(),
+                surfaces: first + k..first + k + 1,
             });
         }
     }

@@ -15,7 +15,9 @@ pub use json::read_json_scene;
 pub use obj_freeform::read_obj_freeform;
 pub use obj_mesh::{format_f64, write_obj_mesh};
 
+use crate::Tessellator;
 use crate::error::{Error, Result};
+use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
 use crate::mesh::{Mesh, TessOptions};
 use std::io::Write;
@@ -25,6 +27,11 @@ use std::path::Path;
 #[derive(Debug, Clone, Default)]
 pub struct Scene {
     pub surfaces: Vec<BSplineSurface>,
+    /// Coons patches whose blend has no B-spline form (JSON `"blend": "cosine"`), evaluated
+    /// directly; in the mesh they follow `surfaces`.
+    pub coons_patches: Vec<CoonsPatch>,
+    /// Tessellation options a Coons patch asks for itself, by patch index.
+    pub coons_options: Vec<Option<TessOptions>>,
     /// Curves to tessellate into polylines.
     pub curves: Vec<BSplineCurve>,
     /// Polyline samples a curve asks for itself (JSON `samples`), by curve index; empty or
@@ -72,6 +79,29 @@ impl Scene {
         (0..self.surfaces.len())
             .map(|k| self.options.get(k).copied().flatten().unwrap_or(default))
             .collect()
+    }
+
+    /// Every surface and Coons patch tessellated by `tessellator` into one mesh — surfaces
+    /// first, then the patches — each on its own grid where the file gave one, else on the
+    /// grid of `default`. Curves are left to [`crate::Tessellator::tessellate_curves`].
+    pub fn tessellate(&self, tessellator: &dyn Tessellator, default: TessOptions) -> Result<Mesh> {
+        let mut mesh = Mesh::default();
+        tessellator.tessellate_each_into(&self.surfaces, &self.options_or(default), &mut mesh)?;
+        if !self.coons_patches.is_empty() {
+            let options: Vec<TessOptions> = (0..self.coons_patches.len())
+                .map(|k| {
+                    self.coons_options
+                        .get(k)
+                        .copied()
+                        .flatten()
+                        .unwrap_or(default)
+                })
+                .collect();
+            let mut patches = Mesh::default();
+            tessellator.tessellate_coons_into(&self.coons_patches, &options, &mut patches)?;
+            mesh.append(patches)?;
+        }
+        Ok(mesh)
     }
 
     /// The sample count of every curve: its own where the file gave one, else `default`.
