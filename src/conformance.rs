@@ -30,6 +30,25 @@ pub const REGULAR_REL: f64 = 1e-3;
 /// (control extent / parameter width) and the largest |C′| of the reference polyline.
 pub const TANGENT_REL_BAR: f64 = 1e-5;
 
+/// Cubic knots with a triple and a double interior knot (C⁰ and C¹ joints).
+const CREASED_CUBIC_KNOTS: [f64; 13] = [
+    0.0, 0.0, 0.0, 0.0, 0.3, 0.3, 0.3, 0.6, 0.6, 1.0, 1.0, 1.0, 1.0,
+];
+/// Cubic knots with two interior spans 1e-6 wide.
+const TINY_SPAN_CUBIC_KNOTS: [f64; 11] = [
+    0.0,
+    0.0,
+    0.0,
+    0.0,
+    0.5,
+    0.5 + 1e-6,
+    0.5 + 2e-6,
+    1.0,
+    1.0,
+    1.0,
+    1.0,
+];
+
 /// One case: surfaces and the grid to tessellate them on.
 pub struct Case {
     pub name: String,
@@ -344,13 +363,7 @@ pub fn suite() -> Vec<Case> {
         options: grid(48),
     });
     let repeated = {
-        let ku = KnotVector::try_new(
-            3,
-            vec![
-                0.0, 0.0, 0.0, 0.0, 0.3, 0.3, 0.3, 0.6, 0.6, 1.0, 1.0, 1.0, 1.0,
-            ],
-        )
-        .unwrap();
+        let ku = KnotVector::try_new(3, CREASED_CUBIC_KNOTS.to_vec()).unwrap();
         let kv = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 0.5, 0.5, 1.0, 1.0, 1.0]).unwrap();
         surface(
             ku,
@@ -365,23 +378,7 @@ pub fn suite() -> Vec<Case> {
         options: grid(41),
     });
     let tiny = {
-        let ku = KnotVector::try_new(
-            3,
-            vec![
-                0.0,
-                0.0,
-                0.0,
-                0.0,
-                0.5,
-                0.5 + 1e-6,
-                0.5 + 2e-6,
-                1.0,
-                1.0,
-                1.0,
-                1.0,
-            ],
-        )
-        .unwrap();
+        let ku = KnotVector::try_new(3, TINY_SPAN_CUBIC_KNOTS.to_vec()).unwrap();
         let kv = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 1e-5, 1.0, 1.0, 1.0]).unwrap();
         surface(ku, kv, &wavy_net(7, 4, 4.0), None)
     };
@@ -607,28 +604,8 @@ pub fn curve_suite() -> Vec<CurveCase> {
         name: "unclamped, repeated and tiny spans, sub-range".into(),
         curves: vec![
             knotted(3, (0..14).map(f64::from).collect()),
-            knotted(
-                3,
-                vec![
-                    0.0, 0.0, 0.0, 0.0, 0.3, 0.3, 0.3, 0.6, 0.6, 1.0, 1.0, 1.0, 1.0,
-                ],
-            ),
-            knotted(
-                3,
-                vec![
-                    0.0,
-                    0.0,
-                    0.0,
-                    0.0,
-                    0.5,
-                    0.5 + 1e-6,
-                    0.5 + 2e-6,
-                    1.0,
-                    1.0,
-                    1.0,
-                    1.0,
-                ],
-            ),
+            knotted(3, CREASED_CUBIC_KNOTS.to_vec()),
+            knotted(3, TINY_SPAN_CUBIC_KNOTS.to_vec()),
             knotted(4, (0..16).map(f64::from).collect())
                 .with_range(Interval::new(5.3, 9.1))
                 .unwrap(),

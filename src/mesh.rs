@@ -120,9 +120,15 @@ pub(crate) fn check_sample_counts(curves: &[crate::BSplineCurve], samples: &[u32
     }
 }
 
-/// Lays out one surface per entry of `options` (its grid): vertex and index offsets, checked
-/// against the u32 index range before anything is allocated.
-pub(crate) fn plan_parts(options: &[TessOptions]) -> Result<Vec<MeshPart>> {
+/// Lays out one surface per entry of `options` (its grid) for `count` surfaces: vertex and
+/// index offsets, checked against the u32 index range before anything is allocated.
+pub(crate) fn plan_parts(count: usize, options: &[TessOptions]) -> Result<Vec<MeshPart>> {
+    if options.len() != count {
+        return Err(Error::OptionsCount {
+            expected: count,
+            found: options.len(),
+        });
+    }
     let (mut vertices, mut indices) = (0u64, 0u64);
     let mut parts = Vec::with_capacity(options.len());
     for o in options {

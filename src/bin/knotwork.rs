@@ -427,32 +427,31 @@ fn conformance() -> knotwork::Result<bool> {
         "case", "position/diag", "normal (rad)", "degen. (rad)"
     );
     let mut all_pass = true;
-    for case in conformance::suite() {
-        let mesh = gpu.tessellate(&case.surfaces, &case.options)?;
-        let report = conformance::compare(&case.surfaces, &case.options, &mesh)?;
+    let mut surface_row = |name: &str, report: conformance::Report| {
         all_pass &= report.passes();
         println!(
             "{:<48} {:>14.3e} {:>14.3e} {:>14.3e}  {}",
-            case.name,
+            name,
             report.worst_position,
             report.worst_normal,
             report.worst_degenerate_normal,
             if report.passes() { "pass" } else { "FAIL" }
+        );
+    };
+    for case in conformance::suite() {
+        let mesh = gpu.tessellate(&case.surfaces, &case.options)?;
+        surface_row(
+            &case.name,
+            conformance::compare(&case.surfaces, &case.options, &mesh)?,
         );
     }
     for case in conformance::coons_suite() {
         let options = vec![case.options; case.patches.len()];
         let mut mesh = knotwork::Mesh::default();
         gpu.tessellate_coons_into(&case.patches, &options, &mut mesh)?;
-        let report = conformance::compare_coons(&case.patches, &options, &mesh)?;
-        all_pass &= report.passes();
-        println!(
-            "{:<48} {:>14.3e} {:>14.3e} {:>14.3e}  {}",
-            case.name,
-            report.worst_position,
-            report.worst_normal,
-            report.worst_degenerate_normal,
-            if report.passes() { "pass" } else { "FAIL" }
+        surface_row(
+            &case.name,
+            conformance::compare_coons(&case.patches, &options, &mesh)?,
         );
     }
     println!(

@@ -34,13 +34,7 @@ pub(crate) fn fill_grids<T: Sync>(
     mesh: &mut Mesh,
     fill: impl Fn(&T, &MeshPart, &mut [DVec3], &mut [DVec3], &mut [DVec2]) + Sync,
 ) -> Result<()> {
-    if options.len() != surfaces.len() {
-        return Err(Error::OptionsCount {
-            expected: surfaces.len(),
-            found: options.len(),
-        });
-    }
-    let parts = plan_parts(options)?;
+    let parts = plan_parts(surfaces.len(), options)?;
     let total_vertices = parts
         .last()
         .map_or(0, |p| (p.first_vertex + p.vertex_count) as usize);

@@ -119,12 +119,12 @@ pub enum Blend {
 
 impl Blend {
     /// Power-basis coefficients of a polynomial blend (unchecked); `None` for the others.
-    fn coefficients(&self) -> Option<Vec<f64>> {
+    fn coefficients(&self) -> Option<&[f64]> {
         match self {
-            Blend::Linear => Some(vec![1.0, -1.0]),
-            Blend::Cubic => Some(vec![1.0, 0.0, -3.0, 2.0]),
-            Blend::Quintic => Some(vec![1.0, 0.0, 0.0, -10.0, 15.0, -6.0]),
-            Blend::Polynomial(c) => Some(c.clone()),
+            Blend::Linear => Some(&[1.0, -1.0]),
+            Blend::Cubic => Some(&[1.0, 0.0, -3.0, 2.0]),
+            Blend::Quintic => Some(&[1.0, 0.0, 0.0, -10.0, 15.0, -6.0]),
+            Blend::Polynomial(c) => Some(c),
             Blend::Cosine | Blend::Function(_) => None,
         }
     }
@@ -133,7 +133,9 @@ impl Blend {
     /// polynomial is refused with [`Error::BlendNotPolynomial`].
     pub fn power_coefficients(&self) -> Result<Vec<f64>> {
         self.check()?;
-        self.coefficients().ok_or(Error::BlendNotPolynomial)
+        self.coefficients()
+            .map(<[f64]>::to_vec)
+            .ok_or(Error::BlendNotPolynomial)
     }
 
     /// Checks that α is finite at both ends with α(0) = 1 and α(1) = 0 (within 1e-12).

@@ -4,11 +4,11 @@
 //! combines them. Patches are grouped into chunks whose buffers each fit one binding; the
 //! result is read back into a [`Mesh`] in the layout of surfaces.
 
-use super::curves::{CurveChunk, SAMPLE_BYTES};
+use super::curves::{CurveChunk, SAMPLE_BYTES, fits};
 use super::pack::{GPU_DEGENERATE_REL, Limits, too_large};
 use super::{
-    GpuContext, VERTEX_BYTES, bind_buffers, dispatch_flat, map_for_reading, push_vertices, scoped,
-    staged_copies, storage_buffer,
+    GpuContext, VERTEX_BYTES, bind_buffers, dispatch_flat, map_for_reading, mapped, push_vertices,
+    scoped, staged_copies, storage_buffer,
 };
 use crate::error::{Error, Result};
 use crate::geom::patches::CoonsPatch;
@@ -47,41 +47,51 @@ struct CoonsChunk {
     blends: Vec<f32>,
     vertex_count: u64,
     index_count: u64,
-    /// Bytes of each buffer, in the order of [`patch_bytes`].
-    bytes: [u64; 8],
+}
+
+impl CoonsChunk {
+    /// Bytes the chunk's buffers take, in the order of [`patch_bytes`].
+    fn bytes(&self) -> [u64; 8] {
+        let [samples, points, tables, curve_list] = self.curves.bytes();
+        [
+            self.vertex_count * VERTEX_BYTES,
+            self.index_count * 4,
+            self.blends.len() as u64 * 4,
+            self.jobs.len() as u64 * size_of::<CoonsJob>() as u64,
+            samples,
+            points,
+            tables,
+            curve_list,
+        ]
+    }
 }
 
 /// Bytes a patch on an `nu × nv` grid adds to each buffer of a chunk — vertices, indices,
-/// blend tables, patch list, curve samples, curve points, curve tables, curve list —
-/// computed before anything is allocated for it.
+/// blend table, patch list, then the curve buffers of its four boundaries — computed before
+/// anything is allocated for it.
 fn patch_bytes(patch: &CoonsPatch, nu: u32, nv: u32) -> [(&'static str, u64); 8] {
+    let mut curves = [
+        ("the boundary samples of one patch", 0),
+        ("the boundary control points of one patch", 0),
+        ("the boundary basis tables of one patch", 0),
+        ("the boundary curve records of one patch", 0),
+    ];
+    for (curve, count) in patch.boundaries().iter().zip([nu, nu, nv, nv]) {
+        for (total, (_, bytes)) in curves.iter_mut().zip(CurveChunk::curve_bytes(curve, count)) {
+            total.1 += bytes;
+        }
+    }
     let (nu, nv) = (u64::from(nu), u64::from(nv));
-    let counts = [nu, nu, nv, nv];
-    let boundaries = patch.boundaries();
-    let points: u64 = boundaries
-        .iter()
-        .map(|c| c.homogeneous_points().len() as u64 * 16)
-        .sum();
-    let tables: u64 = boundaries
-        .iter()
-        .zip(counts)
-        .map(|(c, n)| n * (2 + 3 * (c.degree() as u64 + 1)) * 4)
-        .sum();
+    let [samples, points, tables, curve_list] = curves;
     [
         ("the vertices of one patch", nu * nv * VERTEX_BYTES),
         ("the indices of one patch", 6 * (nu - 1) * (nv - 1) * 4),
         ("the blend table of one patch", 3 * (nu + nv) * 4),
         ("a patch record", size_of::<CoonsJob>() as u64),
-        (
-            "the boundary samples of one patch",
-            2 * (nu + nv) * SAMPLE_BYTES,
-        ),
-        ("the boundary control points of one patch", points),
-        ("the boundary basis tables of one patch", tables),
-        (
-            "four curve records",
-            4 * size_of::<super::CurveJob>() as u64,
-        ),
+        samples,
+        points,
+        tables,
+        curve_list,
     ]
 }
 
@@ -92,13 +102,7 @@ fn pack_coons(
     options: &[TessOptions],
     limits: &Limits,
 ) -> Result<(Vec<CoonsChunk>, Vec<crate::MeshPart>)> {
-    if options.len() != patches.len() {
-        return Err(Error::OptionsCount {
-            expected: patches.len(),
-            found: options.len(),
-        });
-    }
-    let parts = plan_parts(options)?;
+    let parts = plan_parts(patches.len(), options)?;
     let budget = limits.binding_bytes.min(limits.buffer_bytes);
     let mut chunks = vec![CoonsChunk::default()];
     for (index, (patch, part)) in patches.iter().zip(&parts).enumerate() {
@@ -111,18 +115,10 @@ fn pack_coons(
             });
         }
         let last = chunks.last().expect("one chunk at least");
-        if last
-            .bytes
-            .iter()
-            .zip(&needs)
-            .any(|(have, (_, add))| have + add > budget)
-        {
+        if !fits(last.bytes(), needs, budget) {
             chunks.push(CoonsChunk::default());
         }
         let chunk = chunks.last_mut().expect("one chunk at least");
-        for (have, (_, add)) in chunk.bytes.iter_mut().zip(&needs) {
-            *have += add;
-        }
         let (lo, hi) = patch.control_box();
         let origin = 0.5 * (lo + hi);
         let size = patch.size();
@@ -244,18 +240,14 @@ pub(crate) fn tessellate_coons(
         .collect();
     let staged = staged_copies(context, &sources)?;
     map_for_reading(device, &staged.iter().collect::<Vec<_>>())?;
-    let gpu_error = |e: wgpu::MapRangeError| Error::Gpu {
-        message: e.to_string(),
-    };
     for pair in staged.chunks_exact(2) {
         let (vertices, indices) = (&pair[0], &pair[1]);
         push_vertices(
-            bytemuck::cast_slice(&vertices.get_mapped_range(..).map_err(gpu_error)?),
+            bytemuck::cast_slice(&mapped(vertices, vertices.size())?),
             &mut mesh,
         );
-        mesh.indices.extend_from_slice(bytemuck::cast_slice(
-            &indices.get_mapped_range(..).map_err(gpu_error)?,
-        ));
+        mesh.indices
+            .extend_from_slice(bytemuck::cast_slice(&mapped(indices, indices.size())?));
         vertices.unmap();
         indices.unmap();
     }

@@ -4,7 +4,7 @@
 //! [`Polyline`]s. Curves are grouped into chunks whose buffers each fit one binding.
 
 use super::pack::{Limits, local_points, push_table, too_large};
-use super::{GpuContext, map_for_reading, scoped, staged_copies};
+use super::{GpuContext, map_for_reading, mapped, scoped, staged_copies};
 use crate::error::{Error, Result};
 use crate::geom::{BSplineCurve, cartesian_box};
 use crate::mesh::{Polyline, check_sample_counts};
@@ -40,27 +40,31 @@ pub(crate) struct CurveChunk {
 }
 
 impl CurveChunk {
-    /// Bytes the chunk's buffers (samples, points, tables, jobs) would take with `curve`
-    /// sampled `count` times added.
-    pub fn bytes_with(&self, curve: &BSplineCurve, count: u32) -> [(&'static str, u64); 4] {
+    /// Bytes `curve` sampled `count` times takes in each of a chunk's buffers: samples,
+    /// control points, basis tables, curve list.
+    pub fn curve_bytes(curve: &BSplineCurve, count: u32) -> [(&'static str, u64); 4] {
         let entry_floats = 2 + 3 * (curve.degree() as u64 + 1);
         [
+            ("the samples of a curve", u64::from(count) * SAMPLE_BYTES),
             (
-                "the curve samples",
-                (self.sample_count + u64::from(count)) * SAMPLE_BYTES,
+                "the control points of a curve",
+                curve.homogeneous_points().len() as u64 * 16,
             ),
             (
-                "the curve control points",
-                (self.points.len() + curve.homogeneous_points().len()) as u64 * 16,
+                "the basis table of a curve",
+                u64::from(count) * entry_floats * 4,
             ),
-            (
-                "the curve basis tables",
-                (self.tables.len() as u64 + u64::from(count) * entry_floats) * 4,
-            ),
-            (
-                "the curve list",
-                (self.jobs.len() as u64 + 1) * size_of::<CurveJob>() as u64,
-            ),
+            ("a curve record", size_of::<CurveJob>() as u64),
+        ]
+    }
+
+    /// Bytes the chunk's buffers take, in the order of [`CurveChunk::curve_bytes`].
+    pub fn bytes(&self) -> [u64; 4] {
+        [
+            self.sample_count * SAMPLE_BYTES,
+            self.points.len() as u64 * 16,
+            self.tables.len() as u64 * 4,
+            self.jobs.len() as u64 * size_of::<CurveJob>() as u64,
         ]
     }
 
@@ -113,6 +117,17 @@ impl CurveChunk {
     }
 }
 
+/// Whether a chunk using `have` bytes of each buffer can take `needs` more within `budget`.
+pub(crate) fn fits<const N: usize>(
+    have: [u64; N],
+    needs: [(&'static str, u64); N],
+    budget: u64,
+) -> bool {
+    have.iter()
+        .zip(needs)
+        .all(|(have, (_, add))| have + add <= budget)
+}
+
 /// Groups consecutive curves into chunks whose every buffer fits one binding of `limits`;
 /// curve k is sampled `samples[k]` (≥ 2) times. Sizes are checked before anything is
 /// allocated for them: a curve that alone exceeds a binding is refused.
@@ -131,16 +146,12 @@ fn pack_curves(
         if count < 2 {
             return Err(in_curve(Error::GridTooSmall { nu: count, nv: 1 }));
         }
-        let alone = CurveChunk::default().bytes_with(curve, count);
-        if let Some(&(what, bytes)) = alone.iter().find(|(_, bytes)| *bytes > budget) {
+        let needs = CurveChunk::curve_bytes(curve, count);
+        if let Some(&(what, bytes)) = needs.iter().find(|(_, bytes)| *bytes > budget) {
             return Err(in_curve(too_large(what, bytes, budget)));
         }
         let last = chunks.last().expect("one chunk at least");
-        if last
-            .bytes_with(curve, count)
-            .iter()
-            .any(|(_, b)| *b > budget)
-        {
+        if !fits(last.bytes(), needs, budget) {
             chunks.push(CurveChunk::default());
         }
         let (lo, hi) = cartesian_box(curve.homogeneous_points());
@@ -196,9 +207,7 @@ pub fn sample_curves(
     let mut polylines = Vec::with_capacity(curves.len());
     for (buffer, chunk) in staged.iter().zip(&chunks) {
         {
-            let view = buffer.get_mapped_range(..).map_err(|e| Error::Gpu {
-                message: e.to_string(),
-            })?;
+            let view = mapped(buffer, buffer.size())?;
             let floats: &[f32] = bytemuck::cast_slice(&view);
             let vector = |v: &[f32]| DVec3::new(v[0].into(), v[1].into(), v[2].into());
             for job in &chunk.jobs {

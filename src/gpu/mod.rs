@@ -699,18 +699,11 @@ impl GpuBatch {
             (&staged[0], &staged[1])
         };
         map_for_reading(device, &[vertices, indices])?;
-        let gpu_error = |e: wgpu::MapRangeError| Error::Gpu {
-            message: e.to_string(),
-        };
-        {
-            let view = vertices
-                .get_mapped_range(..vertex_bytes)
-                .map_err(gpu_error)?;
-            push_vertices(bytemuck::cast_slice(&view), &mut mesh);
-            mesh.indices =
-                bytemuck::cast_slice(&indices.get_mapped_range(..index_bytes).map_err(gpu_error)?)
-                    .to_vec();
-        }
+        push_vertices(
+            bytemuck::cast_slice(&mapped(vertices, vertex_bytes)?),
+            &mut mesh,
+        );
+        mesh.indices = bytemuck::cast_slice(&mapped(indices, index_bytes)?).to_vec();
         vertices.unmap();
         indices.unmap();
         Ok(mesh)
@@ -731,6 +724,13 @@ fn push_vertices(floats: &[f32], mesh: &mut Mesh) {
             .push(DVec3::new(v[3].into(), v[4].into(), v[5].into()));
         mesh.uvs.push(DVec2::new(v[6].into(), v[7].into()));
     }
+}
+
+/// The first `bytes` of a buffer mapped for reading.
+fn mapped(buffer: &wgpu::Buffer, bytes: u64) -> Result<wgpu::BufferView> {
+    buffer.get_mapped_range(..bytes).map_err(|e| Error::Gpu {
+        message: e.to_string(),
+    })
 }
 
 /// Copies the first `bytes` of each source into a new mappable buffer, in one submission.

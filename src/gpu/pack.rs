@@ -178,13 +178,7 @@ pub(crate) fn pack(
     options: &[TessOptions],
     limits: &Limits,
 ) -> Result<Packed> {
-    if options.len() != surfaces.len() {
-        return Err(Error::OptionsCount {
-            expected: surfaces.len(),
-            found: options.len(),
-        });
-    }
-    let parts = plan_parts(options)?;
+    let parts = plan_parts(surfaces.len(), options)?;
     let vertex_count = parts
         .last()
         .map_or(0, |p| u64::from(p.first_vertex + p.vertex_count));

@@ -453,8 +453,9 @@ fn coons_boundaries(curves: [Curve; 4]) -> Result<([BSplineCurve; 4], f64)> {
 enum Built {
     /// Rational B-splines (two for a two-sheet hyperboloid, else one).
     Surfaces(Vec<BSplineSurface>),
-    /// A Coons patch whose blend has no B-spline form, evaluated directly.
-    Coons(CoonsPatch),
+    /// A Coons patch whose blend has no B-spline form, evaluated directly (boxed: four
+    /// curves are much larger than the other variant).
+    Coons(Box<CoonsPatch>),
 }
 
 impl Shape {
@@ -470,7 +471,8 @@ impl Shape {
                 let (curves, tolerance) = coons_boundaries([v0, v1, u0, u1])?;
                 let [v0, v1, u0, u1] = &curves;
                 let boundaries = CoonsBoundaries { v0, v1, u0, u1 };
-                patches::coons_patch(boundaries, Blend::Cosine, tolerance).map(Built::Coons)
+                patches::coons_patch(boundaries, Blend::Cosine, tolerance)
+                    .map(|patch| Built::Coons(Box::new(patch)))
             }
             shape => shape.build_surfaces().map(Built::Surfaces),
         }
@@ -712,7 +714,7 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
             }
             Built::Coons(patch) => {
                 coons_names.push(entry.name);
-                scene.coons_patches.push(patch);
+                scene.coons_patches.push(*patch);
                 scene.coons_options.push(grid);
             }
         }

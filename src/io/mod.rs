@@ -76,9 +76,7 @@ pub fn cover_groups(groups: &[SurfaceGroup], count: usize) -> Vec<SurfaceGroup> 
 impl Scene {
     /// The options of every surface: its own where the file gave some, else `default`.
     pub fn options_or(&self, default: TessOptions) -> Vec<TessOptions> {
-        (0..self.surfaces.len())
-            .map(|k| self.options.get(k).copied().flatten().unwrap_or(default))
-            .collect()
+        own_or(&self.options, self.surfaces.len(), default)
     }
 
     /// Every surface and Coons patch tessellated by `tessellator` into one mesh — surfaces
@@ -88,15 +86,7 @@ impl Scene {
         let mut mesh = Mesh::default();
         tessellator.tessellate_each_into(&self.surfaces, &self.options_or(default), &mut mesh)?;
         if !self.coons_patches.is_empty() {
-            let options: Vec<TessOptions> = (0..self.coons_patches.len())
-                .map(|k| {
-                    self.coons_options
-                        .get(k)
-                        .copied()
-                        .flatten()
-                        .unwrap_or(default)
-                })
-                .collect();
+            let options = own_or(&self.coons_options, self.coons_patches.len(), default);
             let mut patches = Mesh::default();
             tessellator.tessellate_coons_into(&self.coons_patches, &options, &mut patches)?;
             mesh.append(patches)?;
@@ -106,16 +96,15 @@ impl Scene {
 
     /// The sample count of every curve: its own where the file gave one, else `default`.
     pub fn samples_or(&self, default: u32) -> Vec<u32> {
-        (0..self.curves.len())
-            .map(|k| {
-                self.curve_samples
-                    .get(k)
-                    .copied()
-                    .flatten()
-                    .unwrap_or(default)
-            })
-            .collect()
+        own_or(&self.curve_samples, self.curves.len(), default)
     }
+}
+
+/// `count` values: entry k of `own` where it is given (`Some`), else `default`.
+fn own_or<T: Copy>(own: &[Option<T>], count: usize, default: T) -> Vec<T> {
+    (0..count)
+        .map(|k| own.get(k).copied().flatten().unwrap_or(default))
+        .collect()
 }
 
 const INPUT_FORMATS: &str = ".obj (free-form), .bpt, .json";
