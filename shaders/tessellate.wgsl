@@ -11,9 +11,18 @@
 //                       the unit normal (limit from second derivatives where S_u × S_v
 //                       vanishes); position = origin + local point, added last;
 //   connect_cells     — per grid cell: two counter-clockwise triangles.
+// Pieces of degree ≤ 3 along u take the Bezier-run path instead of the first two passes:
+//   bezier_rows          — per grid row and knot span along u touched by the grid: the net
+//                          contracted along v, then turned into the span's cubic Bezier form
+//                          (value, ∂v, ∂vv) by a host-computed matrix; the value's forward
+//                          differences too, which keep ∂u exact in f32 over tiny spans;
+//   evaluate_bezier_runs — per run of vertices along a row inside one span: the coefficients
+//                          loaded once into registers, each vertex a cubic in the span-local
+//                          parameter (no per-vertex loads: what decides speed on SIMD-on-CPU
+//                          implementations such as lavapipe, where every load is a gather).
 // Only core WGSL and f32: it runs on WebGPU as well as native adapters.
 
-// Mirrors src/gpu/pack.rs `Piece`: all scalars, 80 bytes.
+// Mirrors src/gpu/pack.rs `Piece`: all scalars, 96 bytes.
 struct Piece {
     origin_x: f32, origin_y: f32, origin_z: f32,
     // |S_u × S_v|² at or below this (model units² per parameter²) counts as degenerate.
@@ -30,6 +39,9 @@ struct Piece {
     // Offsets: control points (vec4 units), column and row tables (f32 units), contracted
     // scratch (vec4 units, relative to the chunk).
     points: u32, columns: u32, row_table: u32, contracted: u32,
+    // Bezier-run path: knot spans along u touched by the grid ("segments", 0 on the general
+    // path), column runs per row, and the offsets of their tables (f32 units).
+    segments: u32, runs: u32, segment_table: u32, run_table: u32,
 }
 
 // Mirrors src/gpu/pack.rs `ChunkParams`: where this chunk's bound ranges begin, so that
@@ -46,6 +58,15 @@ struct Tile { piece: u32, first_item: u32 }
 
 const TILE: u32 = 64u;
 const MAX_ORDER: u32 = 21u;
+// Per segment: [first control column (bits), 1 / knot-span width, M (7 × 4, row-major)]:
+// Σ_c M[j][c] · (value of control column first + c) is the Bezier coefficient b_j (j < 4) or
+// the forward difference b_{j−3} − b_{j−4} (j ≥ 4).
+const SEGMENT_STRIDE: u32 = 30u;
+// Per run: [first grid column, column count, segment (bits each), span-local parameter of the
+// first column, local parameter step].
+const RUN_STRIDE: u32 = 5u;
+// vec4 entries per (row, segment) of the scratch: b0..b3, f1..f3, d0..d3, e0..e3.
+const BEZIER_ENTRIES: u32 = 15u;
 
 @group(0) @binding(0) var<uniform> chunk: ChunkParams;
 @group(0) @binding(1) var<storage, read> pieces: array<Piece>;
@@ -169,17 +190,141 @@ fn limit_normal(piece: Piece, column: u32, base: u32, a: vec4<f32>, au: vec4<f32
         auv += tables[column + 3u + p + k] * t_v;
         avv += tables[column + 2u + k] * t_vv;
     }
+    return limit_normal_from(piece, a, au, av, auu, auv, avv, s, su, sv,
+                             vec2<f32>(tables[column], v_fraction));
+}
+
+// The limit normal from the homogeneous second derivatives; `uv` is the grid fraction.
+fn limit_normal_from(piece: Piece, a: vec4<f32>, au: vec4<f32>, av: vec4<f32>, auu: vec4<f32>,
+                     auv: vec4<f32>, avv: vec4<f32>, s: vec3<f32>, su: vec3<f32>, sv: vec3<f32>,
+                     uv: vec2<f32>) -> vec3<f32> {
     let w = a.w;
     let suu = (auu.xyz - 2.0 * au.w * su - auu.w * s) / w;
     let suv = (auv.xyz - au.w * sv - av.w * su - auv.w * s) / w;
     let svv = (avv.xyz - 2.0 * av.w * sv - avv.w * s) / w;
-    let step_u = select(piece.width_u, -piece.width_u, tables[column] > 0.5);
-    let step_v = select(piece.width_v, -piece.width_v, v_fraction > 0.5);
+    let step_u = select(piece.width_u, -piece.width_u, uv.x > 0.5);
+    let step_v = select(piece.width_v, -piece.width_v, uv.y > 0.5);
     let first = step_u * (cross(su, suv) + cross(suu, sv)) + step_v * (cross(su, svv) + cross(suv, sv));
     if (dot(first, first) <= piece.degenerate_sq) {
         return vec3<f32>(0.0, 0.0, 1.0);
     }
     return first;
+}
+
+@compute @workgroup_size(64)
+fn bezier_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
+               @builtin(local_invocation_index) lid: u32) {
+    if (wid.x + wid.y * groups.x >= chunk.tile_count) { return; }
+    let work = work_item(wid, groups, lid);
+    let piece = pieces[work.x];
+    let item = work.y;
+    if (item >= piece.rows * piece.segments) { return; }
+    let row = item / piece.segments;
+    let segment = piece.segment_table + (item % piece.segments) * SEGMENT_STRIDE - chunk.table_origin;
+    let first_column = bitcast<u32>(tables[segment]);
+    let q = piece.degree_v;
+    let entry = piece.row_table + row * entry_stride(q) - chunk.table_origin;
+    let span = bitcast<u32>(tables[entry + 1u]);
+    let net = piece.points - chunk.point_origin + (span - q) * piece.count_u + first_column;
+    // Bezier coefficients of the value (b0..b3), their forward differences (f1..f3), the
+    // coefficients of ∂v (d0..d3) and ∂vv (e0..e3).
+    var b0 = vec4<f32>(0.0); var b1 = vec4<f32>(0.0); var b2 = vec4<f32>(0.0); var b3 = vec4<f32>(0.0);
+    var f1 = vec4<f32>(0.0); var f2 = vec4<f32>(0.0); var f3 = vec4<f32>(0.0);
+    var d0 = vec4<f32>(0.0); var d1 = vec4<f32>(0.0); var d2 = vec4<f32>(0.0); var d3 = vec4<f32>(0.0);
+    var e0 = vec4<f32>(0.0); var e1 = vec4<f32>(0.0); var e2 = vec4<f32>(0.0); var e3 = vec4<f32>(0.0);
+    for (var c = 0u; c <= piece.degree_u; c++) {
+        var value = vec4<f32>(0.0);
+        var dv = vec4<f32>(0.0);
+        var dvv = vec4<f32>(0.0);
+        for (var k = 0u; k <= q; k++) {
+            let point = points[net + k * piece.count_u + c];
+            value += tables[entry + 2u + k] * point;
+            dv += tables[entry + 3u + q + k] * point;
+            dvv += tables[entry + 4u + 2u * q + k] * point;
+        }
+        let m = segment + 2u + c;
+        let to_bezier = vec4<f32>(tables[m], tables[m + 4u], tables[m + 8u], tables[m + 12u]);
+        let to_differences = vec3<f32>(tables[m + 16u], tables[m + 20u], tables[m + 24u]);
+        b0 += to_bezier.x * value; b1 += to_bezier.y * value;
+        b2 += to_bezier.z * value; b3 += to_bezier.w * value;
+        f1 += to_differences.x * value; f2 += to_differences.y * value; f3 += to_differences.z * value;
+        d0 += to_bezier.x * dv; d1 += to_bezier.y * dv; d2 += to_bezier.z * dv; d3 += to_bezier.w * dv;
+        e0 += to_bezier.x * dvv; e1 += to_bezier.y * dvv;
+        e2 += to_bezier.z * dvv; e3 += to_bezier.w * dvv;
+    }
+    let out = piece.contracted + BEZIER_ENTRIES * item;
+    contracted[out] = b0; contracted[out + 1u] = b1; contracted[out + 2u] = b2; contracted[out + 3u] = b3;
+    contracted[out + 4u] = f1; contracted[out + 5u] = f2; contracted[out + 6u] = f3;
+    contracted[out + 7u] = d0; contracted[out + 8u] = d1; contracted[out + 9u] = d2; contracted[out + 10u] = d3;
+    contracted[out + 11u] = e0; contracted[out + 12u] = e1; contracted[out + 13u] = e2; contracted[out + 14u] = e3;
+}
+
+// Vertices one invocation of `evaluate_bezier_runs` covers at most (runs never cross a span).
+const BEZIER_RUN: u32 = 32u;
+
+@compute @workgroup_size(64)
+fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
+                        @builtin(local_invocation_index) lid: u32) {
+    if (wid.x + wid.y * groups.x >= chunk.tile_count) { return; }
+    let work = work_item(wid, groups, lid);
+    let piece = pieces[work.x];
+    let item = work.y;
+    if (item >= piece.rows * piece.runs) { return; }
+    let row = item / piece.runs;
+    let run = piece.run_table + (item % piece.runs) * RUN_STRIDE - chunk.table_origin;
+    let first = bitcast<u32>(tables[run]);
+    let last_step = bitcast<u32>(tables[run + 1u]) - 1u;
+    let segment = bitcast<u32>(tables[run + 2u]);
+    let t0 = tables[run + 3u];
+    let dt = tables[run + 4u];
+    let inv_width = tables[piece.segment_table + segment * SEGMENT_STRIDE + 1u - chunk.table_origin];
+    let coefficients = piece.contracted + BEZIER_ENTRIES * (row * piece.segments + segment);
+    let b0 = contracted[coefficients];
+    let b1 = contracted[coefficients + 1u];
+    let b2 = contracted[coefficients + 2u];
+    let b3 = contracted[coefficients + 3u];
+    let f1 = contracted[coefficients + 4u];
+    let f2 = contracted[coefficients + 5u];
+    let f3 = contracted[coefficients + 6u];
+    let d0 = contracted[coefficients + 7u];
+    let d1 = contracted[coefficients + 8u];
+    let d2 = contracted[coefficients + 9u];
+    let d3 = contracted[coefficients + 10u];
+    let v_fraction = tables[piece.row_table + row * entry_stride(piece.degree_v) - chunk.table_origin];
+    let origin = vec3<f32>(piece.origin_x, piece.origin_y, piece.origin_z);
+    let row_out = piece.first_vertex + row * piece.grid_u - chunk.vertex_origin;
+    let u_scale = 1.0 / f32(piece.grid_u - 1u);
+    // A fixed trip count (the tail repeats the run's last vertex, same values to the same
+    // place): uniform control flow across SIMD lanes.
+    for (var r = 0u; r < BEZIER_RUN; r++) {
+        let step = min(r, last_step);
+        let i = first + step;
+        let t = t0 + f32(step) * dt;
+        let s1 = 1.0 - t;
+        // Cubic Bernstein weights, and the weights of the differences in the t-derivative.
+        let w = vec4<f32>(s1 * s1 * s1, 3.0 * t * s1 * s1, 3.0 * t * t * s1, t * t * t);
+        let wt = vec3<f32>(3.0 * s1 * s1, 6.0 * t * s1, 3.0 * t * t);
+        // Homogeneous A, A_u, A_v.
+        let a = w.x * b0 + w.y * b1 + w.z * b2 + w.w * b3;
+        let au = (wt.x * f1 + wt.y * f2 + wt.z * f3) * inv_width;
+        let av = w.x * d0 + w.y * d1 + w.z * d2 + w.w * d3;
+        let s = a.xyz / a.w;
+        let su = (au.xyz - au.w * s) / a.w;
+        let sv = (av.xyz - av.w * s) / a.w;
+        let uv = vec2<f32>(f32(i) * u_scale, v_fraction);
+        var normal = cross(su, sv);
+        if (dot(normal, normal) <= piece.degenerate_sq) {
+            let auu = 6.0 * (s1 * (f2 - f1) + t * (f3 - f2)) * (inv_width * inv_width);
+            let auv = (wt.x * (d1 - d0) + wt.y * (d2 - d1) + wt.z * (d3 - d2)) * inv_width;
+            let avv = w.x * contracted[coefficients + 11u] + w.y * contracted[coefficients + 12u]
+                + w.z * contracted[coefficients + 13u] + w.w * contracted[coefficients + 14u];
+            normal = limit_normal_from(piece, a, au, av, auu, auv, avv, s, su, sv, uv);
+        }
+        normal = normalize(normal);
+        let out = 2u * (row_out + i);
+        vertices[out] = vec4<f32>(s + origin, normal.x);
+        vertices[out + 1u] = vec4<f32>(normal.yz, uv);
+    }
 }
 
 @compute @workgroup_size(64)

@@ -46,9 +46,15 @@ pub const CURVES_WGSL: &str = include_str!("../../shaders/curves.wgsl");
 /// The WGSL source of the direct Coons kernel.
 pub const COONS_WGSL: &str = include_str!("../../shaders/coons.wgsl");
 
-const ENTRY_POINTS: [&str; PASSES] = ["contract_rows", "evaluate_vertices", "connect_cells"];
+const ENTRY_POINTS: [&str; PASSES] = [
+    "contract_rows",
+    "bezier_rows",
+    "evaluate_vertices",
+    "evaluate_bezier_runs",
+    "connect_cells",
+];
 /// Index of `connect_cells` in [`ENTRY_POINTS`].
-const CONNECT_PASS: usize = 2;
+const CONNECT_PASS: usize = 4;
 /// Stride of the per-chunk, per-pass uniforms (the WebGPU maximum of
 /// `min_uniform_buffer_offset_alignment`).
 const UNIFORM_STRIDE: u64 = 256;
@@ -898,7 +904,7 @@ mod tests {
             layout(CURVES_WGSL, "CurveJob"),
             (size_of::<CurveJob>() as u32, 4)
         );
-        assert_eq!(size_of::<Piece>(), 80);
+        assert_eq!(size_of::<Piece>(), 96);
         assert_eq!(size_of::<ChunkParams>(), 32);
         assert_eq!(pack::TILE, 64);
     }

@@ -16,8 +16,22 @@ pub(crate) const TILE: u32 = 64;
 pub(crate) const RUN: u32 = 8;
 /// Bytes per output vertex: position, normal (3 × f32 each), uv (2 × f32).
 pub const VERTEX_BYTES: u64 = 32;
-/// Bytes per contracted entry: value, ∂v, ∂vv as vec4<f32>.
-const CONTRACTED_BYTES: u64 = 48;
+/// vec4 entries per (row, control column) of the contracted scratch: value, ∂v, ∂vv.
+const CONTRACTED_ENTRIES: u32 = 3;
+/// Most vertices per invocation of `evaluate_bezier_runs` (`BEZIER_RUN` in the shader).
+const BEZIER_RUN: usize = 32;
+/// Highest degree along u that the Bezier-run kernels take; lower degrees are elevated to it.
+pub(crate) const BEZIER_DEGREE: usize = 3;
+/// vec4 entries per (row, segment) of the scratch on the Bezier-run path: the cubic Bezier
+/// coefficients of the value and their forward differences, the coefficients of ∂v and ∂vv.
+const BEZIER_ENTRIES: u32 = 15;
+/// f32 per segment entry (`SEGMENT_STRIDE` in the shader): first control column (bits),
+/// 1 / knot-span width, the 7 × 4 matrix (row-major) from the B-spline values to the four
+/// cubic Bezier coefficients and their three forward differences.
+const SEGMENT_STRIDE: usize = 30;
+/// f32 per run entry (`RUN_STRIDE` in the shader): first grid column, column count, segment
+/// (bits each), local parameter of the first column, local parameter step.
+const RUN_STRIDE: usize = 5;
 /// Below this fraction of (size / parameter width)², |S_u × S_v| counts as zero in f32:
 /// vertices that close to a degenerate point take the limit normal (an angle change of the
 /// same order, 1e-5 rad).
@@ -45,6 +59,13 @@ pub struct Piece {
     pub columns: u32,
     pub row_table: u32,
     pub contracted: u32,
+    /// Bezier-run path (degree along u ≤ [`BEZIER_DEGREE`]): knot spans the grid columns
+    /// touch, column runs per row, and the offsets of their tables; `segments` = 0 on the
+    /// general path.
+    pub segments: u32,
+    pub runs: u32,
+    pub segment_table: u32,
+    pub run_table: u32,
 }
 
 /// Per-chunk, per-pass uniform (`ChunkParams` in tessellate.wgsl): where the chunk's bound
@@ -70,8 +91,9 @@ pub struct Tile {
     pub first_item: u32,
 }
 
-/// The three kernels, in dispatch order.
-pub(crate) const PASSES: usize = 3;
+/// The kernels, in dispatch order: the general path's two, the Bezier-run path's two, then
+/// the triangles.
+pub(crate) const PASSES: usize = 5;
 
 /// Buffer limits a plan must respect (from the device, or smaller for tests and budgets).
 #[derive(Clone, Copy, Debug)]
@@ -151,6 +173,88 @@ pub(crate) fn local_points(points: &[DVec4], origin: DVec3, out: &mut Vec<[f32; 
     }));
 }
 
+/// The Bezier-run tables (see tessellate.wgsl) of `samples` uniform samples of `range` along
+/// a direction of degree ≤ [`BEZIER_DEGREE`]: one segment per knot span the samples touch,
+/// then runs of at most `BEZIER_RUN` consecutive samples within one segment. Returns the segment
+/// count, the run count and the offsets of both tables in `out`.
+fn push_bezier_columns(
+    knots: &KnotVector,
+    range: Interval,
+    samples: u32,
+    out: &mut Vec<f32>,
+) -> (u32, u32, u32, u32) {
+    let p = knots.degree();
+    let k = knots.knots();
+    let step = range.width() / f64::from(samples - 1);
+    // (sample, span) of every sample: spans never decrease along the samples.
+    let spans: Vec<usize> = (0..samples)
+        .map(|i| knots.find_span(range.lerp(f64::from(i) / f64::from(samples - 1))))
+        .collect();
+    let segment_table = out.len() as u32;
+    let mut segment_spans: Vec<usize> = Vec::new();
+    let mut ders: BasisDers = [[0.0; MAX_ORDER]; 3];
+    for &span in &spans {
+        if segment_spans.last() == Some(&span) {
+            continue;
+        }
+        segment_spans.push(span);
+        // The span's polynomial pieces N_{span-p+c}, c ≤ p, in the cubic Bernstein basis of
+        // the whole knot span (a cubic is fixed by its end values and end derivatives): the
+        // coefficients (non-negative, so values sum without cancellation even for weights
+        // 1e4 apart) and their forward differences (exact in f32 where the coefficients
+        // nearly coincide: derivatives over a tiny span).
+        let (a, b) = (k[span], k[span + 1]);
+        let h = b - a;
+        let mut matrix = [[0.0f64; 4]; 7];
+        basis_ders(knots, span, a, 1, &mut ders);
+        let start: [(f64, f64); MAX_ORDER] =
+            std::array::from_fn(|c| (ders[0][c], ders[1][c] * h / 3.0));
+        basis_ders(knots, span, b, 1, &mut ders);
+        for (c, &(value_a, slope_a)) in start.iter().enumerate().take(p + 1) {
+            let (value_b, slope_b) = (ders[0][c], ders[1][c] * h / 3.0);
+            let middle = (value_b - value_a) - slope_a - slope_b;
+            matrix[0][c] = value_a;
+            matrix[1][c] = value_a + slope_a;
+            matrix[2][c] = value_b - slope_b;
+            matrix[3][c] = value_b;
+            matrix[4][c] = slope_a;
+            matrix[5][c] = middle;
+            matrix[6][c] = slope_b;
+        }
+        out.push(f32::from_bits((span - p) as u32));
+        out.push((1.0 / h) as f32);
+        out.extend(matrix.iter().flatten().map(|&m| m as f32));
+    }
+    let run_table = out.len() as u32;
+    debug_assert_eq!(
+        (run_table - segment_table) as usize,
+        segment_spans.len() * SEGMENT_STRIDE
+    );
+    let (mut runs, mut first, mut segment) = (0, 0usize, 0usize);
+    while first < spans.len() {
+        while segment_spans[segment] != spans[first] {
+            segment += 1;
+        }
+        let count = spans[first..]
+            .iter()
+            .take(BEZIER_RUN)
+            .take_while(|&&s| s == spans[first])
+            .count();
+        let span = spans[first];
+        let h = k[span + 1] - k[span];
+        let u = range.lerp(first as f64 / f64::from(samples - 1));
+        out.push(f32::from_bits(first as u32));
+        out.push(f32::from_bits(count as u32));
+        out.push(f32::from_bits(segment as u32));
+        out.push(((u - k[span]) / h) as f32);
+        out.push((step / h) as f32);
+        runs += 1;
+        first += count;
+    }
+    debug_assert_eq!(out.len() - run_table as usize, runs as usize * RUN_STRIDE);
+    (segment_spans.len() as u32, runs, segment_table, run_table)
+}
+
 /// Table entries (see tessellate.wgsl) of `samples` uniform samples of `range`.
 pub(crate) fn push_table(knots: &KnotVector, range: Interval, samples: u32, out: &mut Vec<f32>) {
     let p = knots.degree();
@@ -210,10 +314,23 @@ pub(crate) fn pack(
     };
     for (surface_index, (surface, part)) in surfaces.iter().zip(&packed.parts).enumerate() {
         let (nu, nv) = (part.grid_u, part.grid_v);
+        let columns = packed.tables.len() as u32;
+        let bezier = surface.degree_u() <= BEZIER_DEGREE;
+        let (segments, runs, segment_table, run_table) = if bezier {
+            push_bezier_columns(surface.knots_u(), surface.range_u(), nu, &mut packed.tables)
+        } else {
+            push_table(surface.knots_u(), surface.range_u(), nu, &mut packed.tables);
+            (0, 0, 0, 0)
+        };
+        let contracted_per_row = if bezier {
+            segments * BEZIER_ENTRIES
+        } else {
+            surface.count_u() as u32 * CONTRACTED_ENTRIES
+        };
         let row_bytes = [
             u64::from(nu) * VERTEX_BYTES,
             u64::from(nu - 1) * 24,
-            surface.count_u() as u64 * CONTRACTED_BYTES,
+            u64::from(contracted_per_row) * 16,
         ];
         let widest = row_bytes.into_iter().max().unwrap_or(1);
         if widest > budget {
@@ -234,8 +351,6 @@ pub(crate) fn pack(
                 budget,
             ));
         }
-        let columns = packed.tables.len() as u32;
-        push_table(surface.knots_u(), surface.range_u(), nu, &mut packed.tables);
         let rows_table = packed.tables.len() as u32;
         push_table(surface.knots_v(), surface.range_v(), nv, &mut packed.tables);
         let tables = (columns as usize, packed.tables.len());
@@ -279,6 +394,10 @@ pub(crate) fn pack(
                 columns,
                 row_table: rows_table + first_row * row_stride,
                 contracted: 0,
+                segments,
+                runs,
+                segment_table,
+                run_table,
             });
             packed.piece_surfaces.push(surface_index);
             first_row += rows;
@@ -288,14 +407,32 @@ pub(crate) fn pack(
     Ok(packed)
 }
 
-/// Work items of `piece` in each pass: (row, control column) pairs, runs of `RUN` vertices
-/// along a row, cells.
+/// Work items of `piece` in each pass: on the general path (row, control column) pairs and
+/// runs of `RUN` vertices along a row; on the Bezier-run path (row, segment) pairs and
+/// (row, run) pairs; then cells.
 fn pass_items(piece: &Piece) -> [u32; PASSES] {
-    [
-        piece.rows * piece.count_u,
-        piece.rows * piece.grid_u.div_ceil(RUN),
-        piece.cell_rows * (piece.grid_u - 1),
-    ]
+    let cells = piece.cell_rows * (piece.grid_u - 1);
+    if piece.segments > 0 {
+        [0, piece.rows * piece.segments, 0, piece.rows * piece.runs, cells]
+    } else {
+        [
+            piece.rows * piece.count_u,
+            0,
+            piece.rows * piece.grid_u.div_ceil(RUN),
+            0,
+            cells,
+        ]
+    }
+}
+
+/// vec4 entries of scratch `piece` needs.
+fn contracted_len(piece: &Piece) -> u64 {
+    let per_row = if piece.segments > 0 {
+        piece.segments * BEZIER_ENTRIES
+    } else {
+        piece.count_u * CONTRACTED_ENTRIES
+    };
+    u64::from(piece.rows) * u64::from(per_row)
 }
 
 /// Groups consecutive pieces into chunks whose bound ranges fit `budget` bytes each, sets
@@ -321,7 +458,7 @@ fn plan_chunks(packed: &mut Packed, limits: &Limits, budget: u64) {
         loop {
             let piece = packed.pieces[end];
             let slot = packed.surfaces[packed.piece_surfaces[end]];
-            let next_contracted = contracted + u64::from(piece.rows) * u64::from(piece.count_u) * 3;
+            let next_contracted = contracted + contracted_len(&piece);
             let next_tiles = tiles + tiles_of(&piece);
             let bytes = [
                 (u64::from(piece.first_vertex + piece.rows * piece.grid_u)
