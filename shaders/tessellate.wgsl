@@ -226,41 +226,36 @@ fn bezier_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) g
     let entry = piece.row_table + row * entry_stride(q) - chunk.table_origin;
     let span = bitcast<u32>(tables[entry + 1u]);
     let net = piece.points - chunk.point_origin + (span - q) * piece.count_u + first_column;
-    // Bezier coefficients of the value (b0..b3), their forward differences (f1..f3), the
-    // coefficients of ∂v (d0..d3) and ∂vv (e0..e3).
-    var b0 = vec4<f32>(0.0); var b1 = vec4<f32>(0.0); var b2 = vec4<f32>(0.0); var b3 = vec4<f32>(0.0);
-    var f1 = vec4<f32>(0.0); var f2 = vec4<f32>(0.0); var f3 = vec4<f32>(0.0);
-    var d0 = vec4<f32>(0.0); var d1 = vec4<f32>(0.0); var d2 = vec4<f32>(0.0); var d3 = vec4<f32>(0.0);
-    var e0 = vec4<f32>(0.0); var e1 = vec4<f32>(0.0); var e2 = vec4<f32>(0.0); var e3 = vec4<f32>(0.0);
-    for (var c = 0u; c <= piece.degree_u; c++) {
-        var value = vec4<f32>(0.0);
-        var dv = vec4<f32>(0.0);
-        var dvv = vec4<f32>(0.0);
-        for (var k = 0u; k <= q; k++) {
-            let point = points[net + k * piece.count_u + c];
-            value += tables[entry + 2u + k] * point;
-            dv += tables[entry + 3u + q + k] * point;
-            dvv += tables[entry + 4u + 2u * q + k] * point;
-        }
-        let m = segment + 2u + c;
-        let to_bezier = vec4<f32>(tables[m], tables[m + 4u], tables[m + 8u], tables[m + 12u]);
-        let to_differences = vec3<f32>(tables[m + 16u], tables[m + 20u], tables[m + 24u]);
-        b0 += to_bezier.x * value; b1 += to_bezier.y * value;
-        b2 += to_bezier.z * value; b3 += to_bezier.w * value;
-        f1 += to_differences.x * value; f2 += to_differences.y * value; f3 += to_differences.z * value;
-        d0 += to_bezier.x * dv; d1 += to_bezier.y * dv; d2 += to_bezier.z * dv; d3 += to_bezier.w * dv;
-        e0 += to_bezier.x * dvv; e1 += to_bezier.y * dvv;
-        e2 += to_bezier.z * dvv; e3 += to_bezier.w * dvv;
+    // The net contracted along v (value, ∂v, ∂vv) at the segment's control columns, four
+    // (columns past the degree repeat the last one; their matrix entries are zero).
+    let last = piece.degree_u;
+    var value0 = vec4<f32>(0.0); var value1 = vec4<f32>(0.0); var value2 = vec4<f32>(0.0); var value3 = vec4<f32>(0.0);
+    var dv0 = vec4<f32>(0.0); var dv1 = vec4<f32>(0.0); var dv2 = vec4<f32>(0.0); var dv3 = vec4<f32>(0.0);
+    var dvv0 = vec4<f32>(0.0); var dvv1 = vec4<f32>(0.0); var dvv2 = vec4<f32>(0.0); var dvv3 = vec4<f32>(0.0);
+    for (var k = 0u; k <= q; k++) {
+        let n = vec3<f32>(tables[entry + 2u + k], tables[entry + 3u + q + k], tables[entry + 4u + 2u * q + k]);
+        let first = net + k * piece.count_u;
+        let p0 = points[first];
+        let p1 = points[first + min(1u, last)];
+        let p2 = points[first + min(2u, last)];
+        let p3 = points[first + last];
+        value0 += n.x * p0; value1 += n.x * p1; value2 += n.x * p2; value3 += n.x * p3;
+        dv0 += n.y * p0; dv1 += n.y * p1; dv2 += n.y * p2; dv3 += n.y * p3;
+        dvv0 += n.z * p0; dvv1 += n.z * p1; dvv2 += n.z * p2; dvv3 += n.z * p3;
     }
+    // Scratch: Bezier coefficients of the value (4), their forward differences (3), the
+    // coefficients of ∂v (4) and ∂vv (4).
     let out = piece.contracted + BEZIER_ENTRIES * item;
-    contracted[out] = b0; contracted[out + 1u] = b1; contracted[out + 2u] = b2; contracted[out + 3u] = b3;
-    contracted[out + 4u] = f1; contracted[out + 5u] = f2; contracted[out + 6u] = f3;
-    contracted[out + 7u] = d0; contracted[out + 8u] = d1; contracted[out + 9u] = d2; contracted[out + 10u] = d3;
-    contracted[out + 11u] = e0; contracted[out + 12u] = e1; contracted[out + 13u] = e2; contracted[out + 14u] = e3;
+    for (var j = 0u; j < 7u; j++) {
+        let m = segment + 2u + 4u * j;
+        let row = vec4<f32>(tables[m], tables[m + 1u], tables[m + 2u], tables[m + 3u]);
+        contracted[out + j] = row.x * value0 + row.y * value1 + row.z * value2 + row.w * value3;
+        if (j < 4u) {
+            contracted[out + 7u + j] = row.x * dv0 + row.y * dv1 + row.z * dv2 + row.w * dv3;
+            contracted[out + 11u + j] = row.x * dvv0 + row.y * dvv1 + row.z * dvv2 + row.w * dvv3;
+        }
+    }
 }
-
-// Vertices one invocation of `evaluate_bezier_runs` covers at most (runs never cross a span).
-const BEZIER_RUN: u32 = 32u;
 
 @compute @workgroup_size(64)
 fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
@@ -273,7 +268,7 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
     let row = item / piece.runs;
     let run = piece.run_table + (item % piece.runs) * RUN_STRIDE - chunk.table_origin;
     let first = bitcast<u32>(tables[run]);
-    let last_step = bitcast<u32>(tables[run + 1u]) - 1u;
+    let count = bitcast<u32>(tables[run + 1u]);
     let segment = bitcast<u32>(tables[run + 2u]);
     let t0 = tables[run + 3u];
     let dt = tables[run + 4u];
@@ -290,14 +285,17 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
     let d1 = contracted[coefficients + 8u];
     let d2 = contracted[coefficients + 9u];
     let d3 = contracted[coefficients + 10u];
+    // ∂vv only feeds the limit normal, but loads inside that rare branch would cost every
+    // vertex on SIMD-on-CPU adapters (lavapipe masks a branch rather than skipping it).
+    let e0 = contracted[coefficients + 11u];
+    let e1 = contracted[coefficients + 12u];
+    let e2 = contracted[coefficients + 13u];
+    let e3 = contracted[coefficients + 14u];
     let v_fraction = tables[piece.row_table + row * entry_stride(piece.degree_v) - chunk.table_origin];
     let origin = vec3<f32>(piece.origin_x, piece.origin_y, piece.origin_z);
     let row_out = piece.first_vertex + row * piece.grid_u - chunk.vertex_origin;
     let u_scale = 1.0 / f32(piece.grid_u - 1u);
-    // A fixed trip count (the tail repeats the run's last vertex, same values to the same
-    // place): uniform control flow across SIMD lanes.
-    for (var r = 0u; r < BEZIER_RUN; r++) {
-        let step = min(r, last_step);
+    for (var step = 0u; step < count; step++) {
         let i = first + step;
         let t = t0 + f32(step) * dt;
         let s1 = 1.0 - t;
@@ -316,8 +314,7 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
         if (dot(normal, normal) <= piece.degenerate_sq) {
             let auu = 6.0 * (s1 * (f2 - f1) + t * (f3 - f2)) * (inv_width * inv_width);
             let auv = (wt.x * (d1 - d0) + wt.y * (d2 - d1) + wt.z * (d3 - d2)) * inv_width;
-            let avv = w.x * contracted[coefficients + 11u] + w.y * contracted[coefficients + 12u]
-                + w.z * contracted[coefficients + 13u] + w.w * contracted[coefficients + 14u];
+            let avv = w.x * e0 + w.y * e1 + w.z * e2 + w.w * e3;
             normal = limit_normal_from(piece, a, au, av, auu, auv, avv, s, su, sv, uv);
         }
         normal = normalize(normal);

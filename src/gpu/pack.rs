@@ -18,8 +18,8 @@ pub(crate) const RUN: u32 = 8;
 pub const VERTEX_BYTES: u64 = 32;
 /// vec4 entries per (row, control column) of the contracted scratch: value, ∂v, ∂vv.
 const CONTRACTED_ENTRIES: u32 = 3;
-/// Most vertices per invocation of `evaluate_bezier_runs` (`BEZIER_RUN` in the shader).
-const BEZIER_RUN: usize = 32;
+/// Most vertices per invocation of `evaluate_bezier_runs` (the runs of its table).
+const BEZIER_RUN: usize = 64;
 /// Highest degree along u that the Bezier-run kernels take; lower degrees are elevated to it.
 pub(crate) const BEZIER_DEGREE: usize = 3;
 /// vec4 entries per (row, segment) of the scratch on the Bezier-run path: the cubic Bezier
@@ -230,26 +230,25 @@ fn push_bezier_columns(
         (run_table - segment_table) as usize,
         segment_spans.len() * SEGMENT_STRIDE
     );
-    let (mut runs, mut first, mut segment) = (0, 0usize, 0usize);
-    while first < spans.len() {
-        while segment_spans[segment] != spans[first] {
-            segment += 1;
-        }
-        let count = spans[first..]
-            .iter()
-            .take(BEZIER_RUN)
-            .take_while(|&&s| s == spans[first])
-            .count();
-        let span = spans[first];
+    // A segment's samples split into runs of nearly equal length: neighbouring runs run
+    // side by side in SIMD lanes, and a group takes as long as its longest run.
+    let mut runs = 0;
+    let mut first = 0usize;
+    for (segment, &span) in segment_spans.iter().enumerate() {
+        let samples_in_span = spans[first..].iter().take_while(|&&s| s == span).count();
+        let parts = samples_in_span.div_ceil(BEZIER_RUN);
         let h = k[span + 1] - k[span];
-        let u = range.lerp(first as f64 / f64::from(samples - 1));
-        out.push(f32::from_bits(first as u32));
-        out.push(f32::from_bits(count as u32));
-        out.push(f32::from_bits(segment as u32));
-        out.push(((u - k[span]) / h) as f32);
-        out.push((step / h) as f32);
-        runs += 1;
-        first += count;
+        for part in 0..parts {
+            let count = samples_in_span / parts + usize::from(part < samples_in_span % parts);
+            let u = range.lerp(first as f64 / f64::from(samples - 1));
+            out.push(f32::from_bits(first as u32));
+            out.push(f32::from_bits(count as u32));
+            out.push(f32::from_bits(segment as u32));
+            out.push(((u - k[span]) / h) as f32);
+            out.push((step / h) as f32);
+            runs += 1;
+            first += count;
+        }
     }
     debug_assert_eq!(out.len() - run_table as usize, runs as usize * RUN_STRIDE);
     (segment_spans.len() as u32, runs, segment_table, run_table)
