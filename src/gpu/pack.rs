@@ -412,7 +412,13 @@ pub(crate) fn pack(
 fn pass_items(piece: &Piece) -> [u32; PASSES] {
     let cells = piece.cell_rows * (piece.grid_u - 1);
     if piece.segments > 0 {
-        [0, piece.rows * piece.segments, 0, piece.rows * piece.runs, cells]
+        [
+            0,
+            piece.rows * piece.segments,
+            0,
+            piece.rows * piece.runs,
+            cells,
+        ]
     } else {
         [
             piece.rows * piece.count_u,
@@ -541,6 +547,109 @@ fn gcd(a: u64, b: u64) -> u64 {
 mod tests {
     use super::*;
     use crate::geom::KnotVector;
+
+    /// The Bezier-run tables: every sample in exactly one run, runs within one knot span and
+    /// at most `BEZIER_RUN` long, their local parameters those of the samples; each segment's
+    /// matrix turns the B-spline basis into Bezier coefficients that reproduce the basis
+    /// functions (to f32 rounding), and its difference rows are the coefficients' differences
+    /// (to f32 rounding of the differences themselves, also over a 1e-6 span, where
+    /// subtracting rounded coefficients would not be).
+    #[test]
+    fn bezier_tables_reproduce_the_basis() {
+        const F32_BAR: f64 = 1e-6;
+        let mut tiny_spans = 0;
+        for degree in 1..=BEZIER_DEGREE {
+            let mut knots = vec![0.0; degree + 1];
+            // A repeated knot where the degree allows one, a 1e-6 span.
+            knots.extend(
+                [0.1, 0.35]
+                    .iter()
+                    .chain(if degree > 1 { &[0.35][..] } else { &[] }),
+            );
+            knots.extend([0.5, 0.5 + 1e-6, 0.9]);
+            knots.extend(vec![1.0; degree + 1]);
+            let knots = KnotVector::try_new(degree, knots).unwrap();
+            // The second range starts inside the 1e-6 span, so that span has a segment.
+            for range in [Interval::new(0.05, 0.97), Interval::new(0.5 + 5e-7, 0.97)] {
+                let samples = 301;
+                let mut out = Vec::new();
+                let (segments, runs, segment_table, run_table) =
+                    push_bezier_columns(&knots, range, samples, &mut out);
+                let bits = |x: f32| x.to_bits() as usize;
+                let mut next = 0;
+                for run in out[run_table as usize..].chunks(RUN_STRIDE) {
+                    let (first, count, segment) = (bits(run[0]), bits(run[1]), bits(run[2]));
+                    assert!(first == next && (1..=BEZIER_RUN).contains(&count));
+                    assert!(segment < segments as usize);
+                    let entry = &out[segment_table as usize + segment * SEGMENT_STRIDE..];
+                    let span = bits(entry[0]) + degree;
+                    let (a, b) = (knots.knots()[span], knots.knots()[span + 1]);
+                    for step in 0..count {
+                        let u = range.lerp((first + step) as f64 / f64::from(samples - 1));
+                        assert_eq!(knots.find_span(u), span, "sample {}", first + step);
+                        let t = f64::from(run[3]) + step as f64 * f64::from(run[4]);
+                        assert!(
+                            (t - (u - a) / (b - a)).abs() < F32_BAR,
+                            "sample {}",
+                            first + step
+                        );
+                    }
+                    next += count;
+                }
+                assert_eq!(
+                    (next, runs as usize * RUN_STRIDE),
+                    (samples as usize, out.len() - run_table as usize)
+                );
+                for segment in
+                    out[segment_table as usize..run_table as usize].chunks(SEGMENT_STRIDE)
+                {
+                    let span = bits(segment[0]) + degree;
+                    let (a, b) = (knots.knots()[span], knots.knots()[span + 1]);
+                    assert!((f64::from(segment[1]) * (b - a) - 1.0).abs() < F32_BAR);
+                    let m = |j: usize, c: usize| f64::from(segment[2 + 4 * j + c]);
+                    let mut ders: BasisDers = [[0.0; MAX_ORDER]; 3];
+                    for t in [0.0, 0.3, 0.75, 1.0] {
+                        basis_ders(&knots, span, a + t * (b - a), 0, &mut ders);
+                        let bernstein = [
+                            (1.0 - t).powi(3),
+                            3.0 * t * (1.0 - t).powi(2),
+                            3.0 * t * t * (1.0 - t),
+                            t.powi(3),
+                        ];
+                        for c in 0..4 {
+                            let bezier: f64 = (0..4).map(|j| bernstein[j] * m(j, c)).sum();
+                            let expected = if c <= degree { ders[0][c] } else { 0.0 };
+                            assert!((bezier - expected).abs() < F32_BAR, "degree {degree} t {t}");
+                        }
+                    }
+                    // Differences from the end derivatives (independently of the coefficients):
+                    // 3(b1 − b0) = h N'(a), 3(b3 − b2) = h N'(b), 6(b2 − 2b1 + b0) = h² N''(a);
+                    // each within f32 rounding of itself, however small.
+                    let h = b - a;
+                    basis_ders(&knots, span, a, 2, &mut ders);
+                    let start = ders;
+                    basis_ders(&knots, span, b, 1, &mut ders);
+                    for c in 0..=degree {
+                        let first = h * start[1][c] / 3.0;
+                        let expected = [
+                            first,
+                            first + h * h * start[2][c] / 6.0,
+                            h * ders[1][c] / 3.0,
+                        ];
+                        for (j, difference) in expected.into_iter().enumerate() {
+                            let error = (m(4 + j, c) - difference).abs();
+                            assert!(
+                                error <= F32_BAR * difference.abs() + 1e-9 * h,
+                                "degree {degree} span {span}"
+                            );
+                        }
+                    }
+                    tiny_spans += usize::from(h < 1e-5);
+                }
+            }
+        }
+        assert_eq!(tiny_spans, BEZIER_DEGREE);
+    }
 
     /// With WebGPU's usual 256-byte offset alignment and a binding limit small enough to make
     /// many chunks, every bound range starts on an aligned byte offset, and the chunks cover
