@@ -11,8 +11,9 @@
 //!
 //! # Precision
 //! Every surface is evaluated relative to its own origin (the centre of its control box) with
-//! basis values computed on the host in f64, so f32 rounding acts on the surface's size, not on
-//! its distance from the world origin; the origin is added back last. Measured against the f64
+//! basis values (and, for degree ≤ 3 along u, the knot spans' Bezier conversion matrices)
+//! computed on the host in f64, so f32 rounding acts on the surface's size, not on its
+//! distance from the world origin; the origin is added back last. Measured against the f64
 //! reference (tests/gpu.rs): positions within 1e-5 of the bounding-box diagonal plus the
 //! rounding of the f32 result itself (|p|·2⁻²⁴), normals within 1e-4 rad at regular points.
 //! Within ~1e-5 (relative parameter distance) of a degenerate point the normal is the limit
