@@ -1,17 +1,9 @@
 // Grid tessellation of rational tensor-product B-spline surfaces, in f32.
 //
 // The host (src/gpu/pack.rs) splits every surface into pieces (bands of grid rows), computes
-// the basis values of every grid column and row in f64, and uploads them with the control
-// points, which are stored relative to the surface's own origin. Three passes, one
-// workgroup per tile of 64 work items:
-//   contract_rows     — per grid row and control column: the control net contracted along v
-//                       (value, ∂v, ∂vv; homogeneous);
-//   evaluate_vertices — per run of vertices along a row: contraction along u of p+1 of those,
-//                       the quotient rule,
-//                       the unit normal (limit from second derivatives where S_u × S_v
-//                       vanishes); position = origin + local point, added last;
-//   connect_cells     — per grid cell: two counter-clockwise triangles.
-// Pieces of degree ≤ 3 along u take the Bezier-run path instead of the first two passes:
+// basis values in f64 and uploads them with the control points, which are stored relative to
+// the surface's own origin. One workgroup per tile of 64 work items; five passes, of which a
+// piece takes three. Pieces of degree ≤ 3 along u (the Bezier-run path):
 //   bezier_rows          — per grid row and knot span along u touched by the grid: the net
 //                          contracted along v, then turned into the span's cubic Bezier form
 //                          (value, ∂v, ∂vv) by a host-computed matrix; the value's forward
@@ -19,7 +11,16 @@
 //   evaluate_bezier_runs — per run of vertices along a row inside one span: the coefficients
 //                          loaded once into registers, each vertex a cubic in the span-local
 //                          parameter (no per-vertex loads: what decides speed on SIMD-on-CPU
-//                          implementations such as lavapipe, where every load is a gather).
+//                          implementations such as lavapipe, where every storage access is a
+//                          loop over the lanes).
+// Pieces of higher degree along u (the general path), from basis tables of every grid column:
+//   contract_rows        — per grid row and control column: the control net contracted along
+//                          v (value, ∂v, ∂vv; homogeneous);
+//   evaluate_vertices    — per run of vertices along a row: contraction along u of p+1 of
+//                          those.
+// Both evaluations apply the quotient rule and compute the unit normal (the limit from second
+// derivatives where S_u × S_v vanishes); position = origin + local point, added last. Then
+//   connect_cells        — per grid cell: two counter-clockwise triangles.
 // Only core WGSL and f32: it runs on WebGPU as well as native adapters.
 
 // Mirrors src/gpu/pack.rs `Piece`: all scalars, 96 bytes.

@@ -179,11 +179,28 @@ fn peer_and_teapot() -> Vec<BSplineSurface> {
 }
 
 /// Limits small enough to split the peer surface into row bands and the batch into many
-/// chunks give exactly the single-dispatch result.
+/// chunks give exactly the single-dispatch result, on both kernel paths (bicubic: Bezier
+/// runs; a degree-5 × 4 surface: basis tables).
 #[test]
 fn chunked_batches_match_a_single_dispatch() {
     let Some(context) = gpu() else { return };
-    let surfaces = peer_and_teapot();
+    let mut surfaces = peer_and_teapot();
+    let points: Vec<DVec3> = (0..12 * 9)
+        .map(|k| {
+            let (x, y) = ((k % 12) as f64, (k / 12) as f64);
+            DVec3::new(x, y, (0.7 * x).sin() * (0.4 * y).cos())
+        })
+        .collect();
+    let weights: Vec<f64> = (0..12 * 9).map(|k| 0.5 + (k % 7) as f64 * 0.2).collect();
+    surfaces.push(
+        BSplineSurface::try_new(
+            KnotVector::clamped_uniform(5, 12).unwrap(),
+            KnotVector::clamped_uniform(4, 9).unwrap(),
+            &points,
+            Some(&weights),
+        )
+        .unwrap(),
+    );
     let options = TessOptions::DEFAULT.with_grid(70, 50);
     let whole = GpuBatch::new(context, &surfaces, &options).unwrap();
     whole.dispatch(context).unwrap();

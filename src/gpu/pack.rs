@@ -175,8 +175,8 @@ pub(crate) fn local_points(points: &[DVec4], origin: DVec3, out: &mut Vec<[f32; 
 
 /// The Bezier-run tables (see tessellate.wgsl) of `samples` uniform samples of `range` along
 /// a direction of degree ≤ [`BEZIER_DEGREE`]: one segment per knot span the samples touch,
-/// then runs of at most `BEZIER_RUN` consecutive samples within one segment. Returns the segment
-/// count, the run count and the offsets of both tables in `out`.
+/// then runs of at most `BEZIER_RUN` consecutive samples within one segment. Returns the
+/// segment count, the run count and the offsets of both tables in `out`.
 fn push_bezier_columns(
     knots: &KnotVector,
     range: Interval,
@@ -314,22 +314,16 @@ pub(crate) fn pack(
     for (surface_index, (surface, part)) in surfaces.iter().zip(&packed.parts).enumerate() {
         let (nu, nv) = (part.grid_u, part.grid_v);
         let columns = packed.tables.len() as u32;
-        let bezier = surface.degree_u() <= BEZIER_DEGREE;
-        let (segments, runs, segment_table, run_table) = if bezier {
+        let (segments, runs, segment_table, run_table) = if surface.degree_u() <= BEZIER_DEGREE {
             push_bezier_columns(surface.knots_u(), surface.range_u(), nu, &mut packed.tables)
         } else {
             push_table(surface.knots_u(), surface.range_u(), nu, &mut packed.tables);
             (0, 0, 0, 0)
         };
-        let contracted_per_row = if bezier {
-            segments * BEZIER_ENTRIES
-        } else {
-            surface.count_u() as u32 * CONTRACTED_ENTRIES
-        };
         let row_bytes = [
             u64::from(nu) * VERTEX_BYTES,
             u64::from(nu - 1) * 24,
-            u64::from(contracted_per_row) * 16,
+            u64::from(scratch_per_row(segments, surface.count_u() as u32)) * 16,
         ];
         let widest = row_bytes.into_iter().max().unwrap_or(1);
         if widest > budget {
@@ -430,14 +424,14 @@ fn pass_items(piece: &Piece) -> [u32; PASSES] {
     }
 }
 
-/// vec4 entries of scratch `piece` needs.
-fn contracted_len(piece: &Piece) -> u64 {
-    let per_row = if piece.segments > 0 {
-        piece.segments * BEZIER_ENTRIES
+/// vec4 entries of scratch per grid row of a surface with `segments` Bezier segments along u
+/// (0 on the general path) and `count_u` control columns.
+fn scratch_per_row(segments: u32, count_u: u32) -> u32 {
+    if segments > 0 {
+        segments * BEZIER_ENTRIES
     } else {
-        piece.count_u * CONTRACTED_ENTRIES
-    };
-    u64::from(piece.rows) * u64::from(per_row)
+        count_u * CONTRACTED_ENTRIES
+    }
 }
 
 /// Groups consecutive pieces into chunks whose bound ranges fit `budget` bytes each, sets
@@ -463,7 +457,8 @@ fn plan_chunks(packed: &mut Packed, limits: &Limits, budget: u64) {
         loop {
             let piece = packed.pieces[end];
             let slot = packed.surfaces[packed.piece_surfaces[end]];
-            let next_contracted = contracted + contracted_len(&piece);
+            let next_contracted = contracted
+                + u64::from(piece.rows) * u64::from(scratch_per_row(piece.segments, piece.count_u));
             let next_tiles = tiles + tiles_of(&piece);
             let bytes = [
                 (u64::from(piece.first_vertex + piece.rows * piece.grid_u)
