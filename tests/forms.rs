@@ -156,8 +156,8 @@ fn interpolating_curves() {
     let last = (pts.len() - 1) as f64;
     assert!(natural.derivatives(0.0)[2].length() < EXACT_REL * 60.0);
     assert!(natural.derivatives(last)[2].length() < EXACT_REL * 60.0);
-    for k in 1..pts.len() - 1 {
-        assert_close(natural.point(k as f64), pts[k], 6.0, "natural point");
+    for (k, &point) in pts.iter().enumerate().take(pts.len() - 1).skip(1) {
+        assert_close(natural.point(k as f64), point, 6.0, "natural point");
         let (left, right) = natural.split_at(k as f64).unwrap();
         let c = curves::continuity(&left, &right, 1e-10);
         assert_eq!(c.parametric, Some(2), "joint {k}");

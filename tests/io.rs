@@ -242,7 +242,9 @@ fn malformed_obj_gives_errors_with_lines() {
         format!("{NET}{header}surf 0 1 0 1 {refs}\nparm u {parm_u}\nparm v 0 0 1 1\nend\n")
     };
     let bspline = "cstype bspline\ndeg 1 1\n";
-    let cases: Vec<(String, usize, fn(&Error) -> bool)> = vec![
+    // (file text, line the error names, the error expected)
+    type Case = (String, usize, fn(&Error) -> bool);
+    let cases: Vec<Case> = vec![
         ("v 0 zero 0\n".into(), 1, |e| {
             matches!(e, Error::Syntax { .. })
         }),

@@ -78,8 +78,8 @@ pub(crate) fn basis_ders(
         }
     }
     let mut factor = p as f64;
-    for kd in 1..=order {
-        for value in ders[kd].iter_mut().take(p + 1) {
+    for (kd, row) in ders.iter_mut().enumerate().take(order + 1).skip(1) {
+        for value in row.iter_mut().take(p + 1) {
             *value *= factor;
         }
         factor *= p as f64 - kd as f64;

@@ -107,9 +107,9 @@ impl AxisTable {
             let t = range.lerp(fraction);
             let span = knots.find_span(t);
             basis_ders(knots, span, t, 1, &mut ders);
-            for k in 0..=p {
-                table.values[k * (samples + LANES - 1) + i] = ders[0][k];
-                table.derivatives[k * (samples + LANES - 1) + i] = ders[1][k];
+            for (k, (&value, &derivative)) in ders[0].iter().zip(&ders[1]).take(p + 1).enumerate() {
+                table.values[k * (samples + LANES - 1) + i] = value;
+                table.derivatives[k * (samples + LANES - 1) + i] = derivative;
             }
             table.params.push(t);
             table.fractions.push(fraction);

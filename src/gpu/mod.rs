@@ -237,7 +237,7 @@ impl GpuContext {
     pub fn limits(&self) -> Limits {
         let l = self.device.limits();
         Limits {
-            binding_bytes: u64::from(l.max_storage_buffer_binding_size),
+            binding_bytes: l.max_storage_buffer_binding_size,
             buffer_bytes: l.max_buffer_size,
             offset_alignment: u64::from(l.min_storage_buffer_offset_alignment),
         }

@@ -611,9 +611,10 @@ mod tests {
                             3.0 * t * t * (1.0 - t),
                             t.powi(3),
                         ];
-                        for c in 0..4 {
-                            let bezier: f64 = (0..4).map(|j| bernstein[j] * m(j, c)).sum();
-                            let expected = if c <= degree { ders[0][c] } else { 0.0 };
+                        for (c, &basis) in ders[0].iter().enumerate().take(4) {
+                            let bezier: f64 =
+                                bernstein.iter().enumerate().map(|(j, w)| w * m(j, c)).sum();
+                            let expected = if c <= degree { basis } else { 0.0 };
                             assert!((bezier - expected).abs() < F32_BAR, "degree {degree} t {t}");
                         }
                     }
