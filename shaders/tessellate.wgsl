@@ -18,8 +18,9 @@
 //                          v (value, ∂v, ∂vv; homogeneous);
 //   evaluate_vertices    — per run of vertices along a row: contraction along u of p+1 of
 //                          those.
-// Both evaluations apply the quotient rule and compute the unit normal (the limit from second
-// derivatives where S_u × S_v vanishes); position = origin + local point, added last. Then
+// Both evaluations apply the quotient rule and compute the unit normal; where S_u × S_v
+// vanishes, the limit normal from second derivatives, in a second loop over the run that only
+// runs with such a vertex take. Position = origin + local point, added last. Then
 //   connect_cells        — per grid cell: two counter-clockwise triangles.
 // Only core WGSL and f32: it runs on WebGPU as well as native adapters.
 
@@ -120,10 +121,50 @@ fn contract_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
     contracted[out + 2u] = dvv;
 }
 
+// Writes the vertex whose first vec4 is `out`.
+fn store_vertex(out: u32, position: vec3<f32>, normal: vec3<f32>, uv: vec2<f32>) {
+    vertices[out] = vec4<f32>(position, normal.x);
+    vertices[out + 1u] = vec4<f32>(normal.yz, uv);
+}
+
 // Vertices one invocation evaluates: a run along u of one grid row, sharing the row's data
 // (fewer loads per vertex: what decides speed on SIMD-on-CPU implementations such as
 // lavapipe, where every per-invocation load is a gather).
 const RUN: u32 = 8u;
+
+// A point of a rational surface: homogeneous A, A_u, A_v and, by the quotient rule, S, S_u,
+// S_v (relative to the surface origin).
+struct Frame {
+    a: vec4<f32>, au: vec4<f32>, av: vec4<f32>,
+    s: vec3<f32>, su: vec3<f32>, sv: vec3<f32>,
+}
+
+fn frame_from(a: vec4<f32>, au: vec4<f32>, av: vec4<f32>) -> Frame {
+    let s = a.xyz / a.w;
+    return Frame(a, au, av, s, (au.xyz - au.w * s) / a.w, (av.xyz - av.w * s) / a.w);
+}
+
+// Whether S_u × S_v is too short to give the normal (then the limit normal applies).
+fn is_degenerate(piece: Piece, normal: vec3<f32>) -> bool {
+    return dot(normal, normal) <= piece.degenerate_sq;
+}
+
+// The general path's frame at the grid column whose table entry starts at `column`, from the
+// row's contracted control columns starting at `base`.
+fn general_frame(p: u32, column: u32, base: u32) -> Frame {
+    var a = vec4<f32>(0.0);
+    var au = vec4<f32>(0.0);
+    var av = vec4<f32>(0.0);
+    for (var k = 0u; k <= p; k++) {
+        let t = contracted[base + 3u * k];
+        let t_v = contracted[base + 3u * k + 1u];
+        let n = tables[column + 2u + k];
+        a += n * t;
+        au += tables[column + 3u + p + k] * t;
+        av += n * t_v;
+    }
+    return frame_from(a, au, av);
+}
 
 @compute @workgroup_size(64)
 fn evaluate_vertices(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
@@ -140,36 +181,33 @@ fn evaluate_vertices(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgro
     let p = piece.degree_u;
     let stride = entry_stride(p);
     let row_base = piece.contracted + 3u * row * piece.count_u;
-    let v_fraction = tables[piece.row_table + row * entry_stride(piece.degree_v) - chunk.table_origin];
     let origin = vec3<f32>(piece.origin_x, piece.origin_y, piece.origin_z);
-    var out = 2u * (piece.first_vertex + row * piece.grid_u + first - chunk.vertex_origin);
+    let row_out = piece.first_vertex + row * piece.grid_u - chunk.vertex_origin;
+    let v_fraction = tables[piece.row_table + row * entry_stride(piece.degree_v) - chunk.table_origin];
+    var degenerate = false;
     for (var i = first; i < last; i++) {
         let column = piece.columns + i * stride - chunk.table_origin;
         let span = bitcast<u32>(tables[column + 1u]);
+        let frame = general_frame(p, column, row_base + 3u * (span - p));
+        let normal = cross(frame.su, frame.sv);
+        degenerate = degenerate | is_degenerate(piece, normal);
+        let uv = vec2<f32>(tables[column], v_fraction);
+        store_vertex(2u * (row_out + i), frame.s + origin, normalize(normal), uv);
+    }
+    // The run's vertices at degenerate points, again, with the limit normal: a second loop
+    // rather than a branch in the first, because SIMD-on-CPU adapters (lavapipe) execute a
+    // branch that no lane takes but leave a loop once no lane runs it.
+    let redo_last = select(first, last, degenerate);
+    for (var i = first; i < redo_last; i++) {
+        let column = piece.columns + i * stride - chunk.table_origin;
+        let span = bitcast<u32>(tables[column + 1u]);
         let base = row_base + 3u * (span - p);
-        // Homogeneous A, A_u, A_v.
-        var a = vec4<f32>(0.0);
-        var au = vec4<f32>(0.0);
-        var av = vec4<f32>(0.0);
-        for (var k = 0u; k <= p; k++) {
-            let t = contracted[base + 3u * k];
-            let t_v = contracted[base + 3u * k + 1u];
-            let n = tables[column + 2u + k];
-            a += n * t;
-            au += tables[column + 3u + p + k] * t;
-            av += n * t_v;
+        let frame = general_frame(p, column, base);
+        if (is_degenerate(piece, cross(frame.su, frame.sv))) {
+            let uv = vec2<f32>(tables[column], v_fraction);
+            let normal = limit_normal(piece, column, base, frame, uv);
+            store_vertex(2u * (row_out + i), frame.s + origin, normalize(normal), uv);
         }
-        let s = a.xyz / a.w;
-        let su = (au.xyz - au.w * s) / a.w;
-        let sv = (av.xyz - av.w * s) / a.w;
-        var normal = cross(su, sv);
-        if (dot(normal, normal) <= piece.degenerate_sq) {
-            normal = limit_normal(piece, column, base, a, au, av, s, su, sv, v_fraction);
-        }
-        normal = normalize(normal);
-        vertices[out] = vec4<f32>(s + origin, normal.x);
-        vertices[out + 1u] = vec4<f32>(normal.yz, tables[column], v_fraction);
-        out += 2u;
     }
 }
 
@@ -177,8 +215,8 @@ fn evaluate_vertices(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgro
 // (±width_u, ±width_v) pointing to the centre of the range,
 //   du (S_u × S_uv + S_uu × S_v) + dv (S_u × S_vv + S_uv × S_v),
 // from the second derivatives; +Z where that vanishes too (no tangent plane nearby).
-fn limit_normal(piece: Piece, column: u32, base: u32, a: vec4<f32>, au: vec4<f32>, av: vec4<f32>,
-                s: vec3<f32>, su: vec3<f32>, sv: vec3<f32>, v_fraction: f32) -> vec3<f32> {
+// `uv` is the grid fraction.
+fn limit_normal(piece: Piece, column: u32, base: u32, frame: Frame, uv: vec2<f32>) -> vec3<f32> {
     let p = piece.degree_u;
     var auu = vec4<f32>(0.0);
     var auv = vec4<f32>(0.0);
@@ -191,18 +229,19 @@ fn limit_normal(piece: Piece, column: u32, base: u32, a: vec4<f32>, au: vec4<f32
         auv += tables[column + 3u + p + k] * t_v;
         avv += tables[column + 2u + k] * t_vv;
     }
-    return limit_normal_from(piece, a, au, av, auu, auv, avv, s, su, sv,
-                             vec2<f32>(tables[column], v_fraction));
+    return limit_normal_from(piece, frame, auu, auv, avv, uv);
 }
 
 // The limit normal from the homogeneous second derivatives; `uv` is the grid fraction.
-fn limit_normal_from(piece: Piece, a: vec4<f32>, au: vec4<f32>, av: vec4<f32>, auu: vec4<f32>,
-                     auv: vec4<f32>, avv: vec4<f32>, s: vec3<f32>, su: vec3<f32>, sv: vec3<f32>,
+fn limit_normal_from(piece: Piece, frame: Frame, auu: vec4<f32>, auv: vec4<f32>, avv: vec4<f32>,
                      uv: vec2<f32>) -> vec3<f32> {
-    let w = a.w;
-    let suu = (auu.xyz - 2.0 * au.w * su - auu.w * s) / w;
-    let suv = (auv.xyz - au.w * sv - av.w * su - auv.w * s) / w;
-    let svv = (avv.xyz - 2.0 * av.w * sv - avv.w * s) / w;
+    let w = frame.a.w;
+    let s = frame.s;
+    let su = frame.su;
+    let sv = frame.sv;
+    let suu = (auu.xyz - 2.0 * frame.au.w * su - auu.w * s) / w;
+    let suv = (auv.xyz - frame.au.w * sv - frame.av.w * su - auv.w * s) / w;
+    let svv = (avv.xyz - 2.0 * frame.av.w * sv - avv.w * s) / w;
     let step_u = select(piece.width_u, -piece.width_u, uv.x > 0.5);
     let step_v = select(piece.width_v, -piece.width_v, uv.y > 0.5);
     let first = step_u * (cross(su, suv) + cross(suu, sv)) + step_v * (cross(su, svv) + cross(suv, sv));
@@ -275,54 +314,59 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
     let dt = tables[run + 4u];
     let inv_width = tables[piece.segment_table + segment * SEGMENT_STRIDE + 1u - chunk.table_origin];
     let coefficients = piece.contracted + BEZIER_ENTRIES * (row * piece.segments + segment);
-    let b0 = contracted[coefficients];
-    let b1 = contracted[coefficients + 1u];
-    let b2 = contracted[coefficients + 2u];
-    let b3 = contracted[coefficients + 3u];
-    let f1 = contracted[coefficients + 4u];
-    let f2 = contracted[coefficients + 5u];
-    let f3 = contracted[coefficients + 6u];
-    let d0 = contracted[coefficients + 7u];
-    let d1 = contracted[coefficients + 8u];
-    let d2 = contracted[coefficients + 9u];
-    let d3 = contracted[coefficients + 10u];
-    // ∂vv only feeds the limit normal, but loads inside that rare branch would cost every
-    // vertex on SIMD-on-CPU adapters (lavapipe masks a branch rather than skipping it).
-    let e0 = contracted[coefficients + 11u];
-    let e1 = contracted[coefficients + 12u];
-    let e2 = contracted[coefficients + 13u];
-    let e3 = contracted[coefficients + 14u];
-    let v_fraction = tables[piece.row_table + row * entry_stride(piece.degree_v) - chunk.table_origin];
+    let b = mat4x4<f32>(contracted[coefficients], contracted[coefficients + 1u],
+                        contracted[coefficients + 2u], contracted[coefficients + 3u]);
+    let f = mat3x4<f32>(contracted[coefficients + 4u], contracted[coefficients + 5u],
+                        contracted[coefficients + 6u]);
+    let d = mat4x4<f32>(contracted[coefficients + 7u], contracted[coefficients + 8u],
+                        contracted[coefficients + 9u], contracted[coefficients + 10u]);
     let origin = vec3<f32>(piece.origin_x, piece.origin_y, piece.origin_z);
     let row_out = piece.first_vertex + row * piece.grid_u - chunk.vertex_origin;
+    let v_fraction = tables[piece.row_table + row * entry_stride(piece.degree_v) - chunk.table_origin];
     let u_scale = 1.0 / f32(piece.grid_u - 1u);
+    var degenerate = false;
     for (var step = 0u; step < count; step++) {
-        let i = first + step;
-        let t = t0 + f32(step) * dt;
-        let s1 = 1.0 - t;
-        // Cubic Bernstein weights, and the weights of the differences in the t-derivative.
-        let w = vec4<f32>(s1 * s1 * s1, 3.0 * t * s1 * s1, 3.0 * t * t * s1, t * t * t);
-        let wt = vec3<f32>(3.0 * s1 * s1, 6.0 * t * s1, 3.0 * t * t);
-        // Homogeneous A, A_u, A_v.
-        let a = w.x * b0 + w.y * b1 + w.z * b2 + w.w * b3;
-        let au = (wt.x * f1 + wt.y * f2 + wt.z * f3) * inv_width;
-        let av = w.x * d0 + w.y * d1 + w.z * d2 + w.w * d3;
-        let s = a.xyz / a.w;
-        let su = (au.xyz - au.w * s) / a.w;
-        let sv = (av.xyz - av.w * s) / a.w;
-        let uv = vec2<f32>(f32(i) * u_scale, v_fraction);
-        var normal = cross(su, sv);
-        if (dot(normal, normal) <= piece.degenerate_sq) {
-            let auu = 6.0 * (s1 * (f2 - f1) + t * (f3 - f2)) * (inv_width * inv_width);
-            let auv = (wt.x * (d1 - d0) + wt.y * (d2 - d1) + wt.z * (d3 - d2)) * inv_width;
-            let avv = w.x * e0 + w.y * e1 + w.z * e2 + w.w * e3;
-            normal = limit_normal_from(piece, a, au, av, auu, auv, avv, s, su, sv, uv);
-        }
-        normal = normalize(normal);
-        let out = 2u * (row_out + i);
-        vertices[out] = vec4<f32>(s + origin, normal.x);
-        vertices[out + 1u] = vec4<f32>(normal.yz, uv);
+        let frame = bezier_frame(b, f, d, inv_width, t0 + f32(step) * dt);
+        let normal = cross(frame.su, frame.sv);
+        degenerate = degenerate | is_degenerate(piece, normal);
+        let uv = vec2<f32>(f32(first + step) * u_scale, v_fraction);
+        store_vertex(2u * (row_out + first + step), frame.s + origin, normalize(normal), uv);
     }
+    // The run's vertices at degenerate points, again, with the limit normal (a second loop:
+    // see evaluate_vertices).
+    let e = mat4x4<f32>(contracted[coefficients + 11u], contracted[coefficients + 12u],
+                        contracted[coefficients + 13u], contracted[coefficients + 14u]);
+    let redo = select(0u, count, degenerate);
+    for (var step = 0u; step < redo; step++) {
+        let t = t0 + f32(step) * dt;
+        let frame = bezier_frame(b, f, d, inv_width, t);
+        if (is_degenerate(piece, cross(frame.su, frame.sv))) {
+            let s1 = 1.0 - t;
+            // ∂uu from the second differences, ∂uv from the differences of ∂v's coefficients.
+            let auu = f * vec3<f32>(-s1, s1 - t, t) * (6.0 * inv_width * inv_width);
+            let wt = vec3<f32>(3.0 * s1 * s1, 6.0 * t * s1, 3.0 * t * t);
+            let auv = d * vec4<f32>(-wt.x, wt.x - wt.y, wt.y - wt.z, wt.z) * inv_width;
+            let avv = e * bernstein3(t);
+            let uv = vec2<f32>(f32(first + step) * u_scale, v_fraction);
+            let normal = limit_normal_from(piece, frame, auu, auv, avv, uv);
+            store_vertex(2u * (row_out + first + step), frame.s + origin, normalize(normal), uv);
+        }
+    }
+}
+
+// Cubic Bernstein weights at t.
+fn bernstein3(t: f32) -> vec4<f32> {
+    let s1 = 1.0 - t;
+    return vec4<f32>(s1 * s1 * s1, 3.0 * t * s1 * s1, 3.0 * t * t * s1, t * t * t);
+}
+
+// The Bezier-run path's frame at span-local t from the span's coefficients: value `b`, its
+// forward differences `f` (∂u = 3 Σ B²_j(t) f_j / width) and ∂v `d`.
+fn bezier_frame(b: mat4x4<f32>, f: mat3x4<f32>, d: mat4x4<f32>, inv_width: f32, t: f32) -> Frame {
+    let s1 = 1.0 - t;
+    let w = bernstein3(t);
+    let wt = vec3<f32>(3.0 * s1 * s1, 6.0 * t * s1, 3.0 * t * t);
+    return frame_from(b * w, f * wt * inv_width, d * w);
 }
 
 @compute @workgroup_size(64)

@@ -22,6 +22,8 @@ pub const F32_ROUNDING: f64 = 1.0 / 8_388_608.0;
 pub const NORMAL_BAR: f64 = 1e-4;
 /// Normal bar near degenerate points (collapsed edges, poles), in radians.
 pub const DEGENERATE_NORMAL_BAR: f64 = 1e-2;
+/// uv bar (uv is in [0, 1]²): a few f32 units in the last place of 1.
+pub const UV_BAR: f64 = 4.0 * f32::EPSILON as f64;
 /// A vertex is regular when |S_u × S_v| ≥ this × (size / parameter width)²; closer to a
 /// degenerate point the f32 cross product loses digits and the looser bar applies.
 pub const REGULAR_REL: f64 = 1e-3;
@@ -65,6 +67,8 @@ pub struct Report {
     pub worst_normal: f64,
     /// Largest normal angle near degenerate points (radians; 0 if there are none).
     pub worst_degenerate_normal: f64,
+    /// Largest difference of a uv coordinate.
+    pub worst_uv: f64,
     /// Vertices compared, and how many of them were near a degenerate point.
     pub vertices: usize,
     pub degenerate_vertices: usize,
@@ -78,6 +82,7 @@ impl Report {
             && self.worst_position <= POSITION_REL_BAR
             && self.worst_normal <= NORMAL_BAR
             && self.worst_degenerate_normal <= DEGENERATE_NORMAL_BAR
+            && self.worst_uv <= UV_BAR
     }
 }
 
@@ -139,6 +144,7 @@ fn compare_with_reference(
         worst_position: 0.0,
         worst_normal: 0.0,
         worst_degenerate_normal: 0.0,
+        worst_uv: 0.0,
         vertices: reference.vertex_count(),
         degenerate_vertices: 0,
         topology_equal: reference.indices == mesh.indices
@@ -162,7 +168,9 @@ fn compare_with_reference(
                 report.degenerate_vertices += 1;
                 report.worst_degenerate_normal = report.worst_degenerate_normal.max(normal_error);
             }
-            if !normal_error.is_finite() || !mesh.positions[k].is_finite() {
+            let uv_error = (mesh.uvs[k] - reference.uvs[k]).abs().max_element();
+            report.worst_uv = report.worst_uv.max(uv_error);
+            if !normal_error.is_finite() || !mesh.positions[k].is_finite() || !uv_error.is_finite() {
                 report.worst_normal = f64::INFINITY;
             }
         }

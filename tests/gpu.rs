@@ -86,11 +86,12 @@ fn conformance_suite_passes_on_this_adapter() {
             .unwrap();
         let report = conformance::compare(&case.surfaces, &case.options, &mesh).unwrap();
         println!(
-            "{:<48} {:>14.3e} {:>14.3e} {:>14.3e}  ({} vertices, {} near degenerate points)",
+            "{:<48} {:>14.3e} {:>14.3e} {:>14.3e} uv {:.1e}  ({} vertices, {} near degenerate points)",
             case.name,
             report.worst_position,
             report.worst_normal,
             report.worst_degenerate_normal,
+            report.worst_uv,
             report.vertices,
             report.degenerate_vertices
         );

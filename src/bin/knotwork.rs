@@ -423,18 +423,19 @@ fn conformance() -> knotwork::Result<bool> {
         "bars: position {POSITION_REL_BAR:e} of the diagonal (+ f32 rounding), normal {NORMAL_BAR:e} rad ({DEGENERATE_NORMAL_BAR:e} near degenerate points), curve tangent {TANGENT_REL_BAR:e} of its scale"
     );
     println!(
-        "{:<48} {:>14} {:>14} {:>14}  result",
-        "case", "position/diag", "normal (rad)", "degen. (rad)"
+        "{:<48} {:>14} {:>14} {:>14} {:>9}  result",
+        "case", "position/diag", "normal (rad)", "degen. (rad)", "uv"
     );
     let mut all_pass = true;
     let mut surface_row = |name: &str, report: conformance::Report| {
         all_pass &= report.passes();
         println!(
-            "{:<48} {:>14.3e} {:>14.3e} {:>14.3e}  {}",
+            "{:<48} {:>14.3e} {:>14.3e} {:>14.3e} {:>9.1e}  {}",
             name,
             report.worst_position,
             report.worst_normal,
             report.worst_degenerate_normal,
+            report.worst_uv,
             if report.passes() { "pass" } else { "FAIL" }
         );
     };
