@@ -2,15 +2,14 @@
 //
 // The host (src/gpu/pack.rs) splits every surface into pieces (bands of grid rows), computes
 // basis values in f64 and uploads them with the control points, which are stored relative to
-// the surface's own origin. One workgroup per tile of 64 work items; five passes, of which a
-// piece takes three. Pieces of degree ≤ 3 along u (the Bezier-run path):
-//   bezier_rows          — per grid row and knot span along u touched by the grid: the net
-//                          contracted along v, then turned into the span's cubic Bezier form
-//                          (value, ∂v, ∂vv) by a host-computed matrix; the value's forward
-//                          differences too, which keep ∂u exact in f32 over tiny spans;
-//   evaluate_bezier_runs — per run of vertices along a row inside one span: the coefficients
-//                          loaded once into registers, each vertex a cubic in the span-local
-//                          parameter (no per-vertex loads: what decides speed on SIMD-on-CPU
+// the surface's own origin. One workgroup per tile of 64 work items; four passes, of which a
+// piece takes one or two. Pieces of degree ≤ 3 along u (the Bezier-run path):
+//   evaluate_bezier_runs — per run of vertices along a row inside one knot span along u: the
+//                          net contracted along v at the row, turned into the span's cubic
+//                          Bezier form (value, ∂v, ∂vv) by a host-computed matrix, with the
+//                          value's forward differences, which keep ∂u exact in f32 over tiny
+//                          spans; then each vertex a cubic in the span-local parameter, from
+//                          registers (no per-vertex loads: what decides speed on SIMD-on-CPU
 //                          implementations such as lavapipe, where every storage access is a
 //                          loop over the lanes).
 // Pieces of higher degree along u (the general path), from basis tables of every grid column:
@@ -67,8 +66,6 @@ const SEGMENT_STRIDE: u32 = 30u;
 // Per run: [first grid column, column count, segment (bits each), span-local parameter of the
 // first column, local parameter step].
 const RUN_STRIDE: u32 = 5u;
-// vec4 entries per (row, segment) of the scratch: b0..b3, f1..f3, d0..d3, e0..e3.
-const BEZIER_ENTRIES: u32 = 15u;
 
 @group(0) @binding(0) var<uniform> chunk: ChunkParams;
 @group(0) @binding(1) var<storage, read> pieces: array<Piece>;
@@ -252,52 +249,6 @@ fn limit_normal_from(piece: Piece, frame: Frame, auu: vec4<f32>, auv: vec4<f32>,
 }
 
 @compute @workgroup_size(64)
-fn bezier_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
-               @builtin(local_invocation_index) lid: u32) {
-    if (wid.x + wid.y * groups.x >= chunk.tile_count) { return; }
-    let work = work_item(wid, groups, lid);
-    let piece = pieces[work.x];
-    let item = work.y;
-    if (item >= piece.rows * piece.segments) { return; }
-    let row = item / piece.segments;
-    let segment = piece.segment_table + (item % piece.segments) * SEGMENT_STRIDE - chunk.table_origin;
-    let first_column = bitcast<u32>(tables[segment]);
-    let q = piece.degree_v;
-    let entry = piece.row_table + row * entry_stride(q) - chunk.table_origin;
-    let span = bitcast<u32>(tables[entry + 1u]);
-    let net = piece.points - chunk.point_origin + (span - q) * piece.count_u + first_column;
-    // The net contracted along v (value, ∂v, ∂vv) at the segment's control columns, four
-    // (columns past the degree repeat the last one; their matrix entries are zero).
-    let last = piece.degree_u;
-    var value0 = vec4<f32>(0.0); var value1 = vec4<f32>(0.0); var value2 = vec4<f32>(0.0); var value3 = vec4<f32>(0.0);
-    var dv0 = vec4<f32>(0.0); var dv1 = vec4<f32>(0.0); var dv2 = vec4<f32>(0.0); var dv3 = vec4<f32>(0.0);
-    var dvv0 = vec4<f32>(0.0); var dvv1 = vec4<f32>(0.0); var dvv2 = vec4<f32>(0.0); var dvv3 = vec4<f32>(0.0);
-    for (var k = 0u; k <= q; k++) {
-        let n = vec3<f32>(tables[entry + 2u + k], tables[entry + 3u + q + k], tables[entry + 4u + 2u * q + k]);
-        let first = net + k * piece.count_u;
-        let p0 = points[first];
-        let p1 = points[first + min(1u, last)];
-        let p2 = points[first + min(2u, last)];
-        let p3 = points[first + last];
-        value0 += n.x * p0; value1 += n.x * p1; value2 += n.x * p2; value3 += n.x * p3;
-        dv0 += n.y * p0; dv1 += n.y * p1; dv2 += n.y * p2; dv3 += n.y * p3;
-        dvv0 += n.z * p0; dvv1 += n.z * p1; dvv2 += n.z * p2; dvv3 += n.z * p3;
-    }
-    // Scratch: Bezier coefficients of the value (4), their forward differences (3), the
-    // coefficients of ∂v (4) and ∂vv (4).
-    let out = piece.contracted + BEZIER_ENTRIES * item;
-    for (var j = 0u; j < 7u; j++) {
-        let m = segment + 2u + 4u * j;
-        let row = vec4<f32>(tables[m], tables[m + 1u], tables[m + 2u], tables[m + 3u]);
-        contracted[out + j] = row.x * value0 + row.y * value1 + row.z * value2 + row.w * value3;
-        if (j < 4u) {
-            contracted[out + 7u + j] = row.x * dv0 + row.y * dv1 + row.z * dv2 + row.w * dv3;
-            contracted[out + 11u + j] = row.x * dvv0 + row.y * dvv1 + row.z * dvv2 + row.w * dvv3;
-        }
-    }
-}
-
-@compute @workgroup_size(64)
 fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
                         @builtin(local_invocation_index) lid: u32) {
     if (wid.x + wid.y * groups.x >= chunk.tile_count) { return; }
@@ -309,17 +260,38 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
     let run = piece.run_table + (item % piece.runs) * RUN_STRIDE - chunk.table_origin;
     let first = bitcast<u32>(tables[run]);
     let count = bitcast<u32>(tables[run + 1u]);
-    let segment = bitcast<u32>(tables[run + 2u]);
+    let segment = piece.segment_table + bitcast<u32>(tables[run + 2u]) * SEGMENT_STRIDE - chunk.table_origin;
     let t0 = tables[run + 3u];
     let dt = tables[run + 4u];
-    let inv_width = tables[piece.segment_table + segment * SEGMENT_STRIDE + 1u - chunk.table_origin];
-    let coefficients = piece.contracted + BEZIER_ENTRIES * (row * piece.segments + segment);
-    let b = mat4x4<f32>(contracted[coefficients], contracted[coefficients + 1u],
-                        contracted[coefficients + 2u], contracted[coefficients + 3u]);
-    let f = mat3x4<f32>(contracted[coefficients + 4u], contracted[coefficients + 5u],
-                        contracted[coefficients + 6u]);
-    let d = mat4x4<f32>(contracted[coefficients + 7u], contracted[coefficients + 8u],
-                        contracted[coefficients + 9u], contracted[coefficients + 10u]);
+    let inv_width = tables[segment + 1u];
+    // The net contracted along v at this row (value, ∂v, ∂vv; columns: the segment's four
+    // control columns, those past the degree repeating the last one, whose matrix entries
+    // are zero).
+    let q = piece.degree_v;
+    let entry = piece.row_table + row * entry_stride(q) - chunk.table_origin;
+    let span = bitcast<u32>(tables[entry + 1u]);
+    let net = piece.points - chunk.point_origin + (span - q) * piece.count_u + bitcast<u32>(tables[segment]);
+    let last = piece.degree_u;
+    var value = mat4x4<f32>();
+    var value_v = mat4x4<f32>();
+    var value_vv = mat4x4<f32>();
+    for (var k = 0u; k <= q; k++) {
+        let at = net + k * piece.count_u;
+        let p = mat4x4<f32>(points[at], points[at + min(1u, last)], points[at + min(2u, last)], points[at + last]);
+        value += tables[entry + 2u + k] * p;
+        value_v += tables[entry + 3u + q + k] * p;
+        value_vv += tables[entry + 4u + 2u * q + k] * p;
+    }
+    // The span's cubic Bezier form: coefficients of the value, their forward differences,
+    // coefficients of ∂v.
+    let m0 = matrix_row(segment, 0u);
+    let m1 = matrix_row(segment, 1u);
+    let m2 = matrix_row(segment, 2u);
+    let m3 = matrix_row(segment, 3u);
+    let b = mat4x4<f32>(value * m0, value * m1, value * m2, value * m3);
+    let f = mat3x4<f32>(value * matrix_row(segment, 4u), value * matrix_row(segment, 5u),
+                        value * matrix_row(segment, 6u));
+    let d = mat4x4<f32>(value_v * m0, value_v * m1, value_v * m2, value_v * m3);
     let origin = vec3<f32>(piece.origin_x, piece.origin_y, piece.origin_z);
     let row_out = piece.first_vertex + row * piece.grid_u - chunk.vertex_origin;
     let v_fraction = tables[piece.row_table + row * entry_stride(piece.degree_v) - chunk.table_origin];
@@ -334,8 +306,7 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
     }
     // The run's vertices at degenerate points, again, with the limit normal (a second loop:
     // see evaluate_vertices).
-    let e = mat4x4<f32>(contracted[coefficients + 11u], contracted[coefficients + 12u],
-                        contracted[coefficients + 13u], contracted[coefficients + 14u]);
+    let e = mat4x4<f32>(value_vv * m0, value_vv * m1, value_vv * m2, value_vv * m3);
     let redo = select(0u, count, degenerate);
     for (var step = 0u; step < redo; step++) {
         let t = t0 + f32(step) * dt;
@@ -352,6 +323,12 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
             store_vertex(2u * (row_out + first + step), frame.s + origin, normalize(normal), uv);
         }
     }
+}
+
+// Row `j` of the 7 × 4 matrix of the segment entry at `segment`.
+fn matrix_row(segment: u32, j: u32) -> vec4<f32> {
+    let at = segment + 2u + 4u * j;
+    return vec4<f32>(tables[at], tables[at + 1u], tables[at + 2u], tables[at + 3u]);
 }
 
 // Cubic Bernstein weights at t.

@@ -49,13 +49,12 @@ pub const COONS_WGSL: &str = include_str!("../../shaders/coons.wgsl");
 
 const ENTRY_POINTS: [&str; PASSES] = [
     "contract_rows",
-    "bezier_rows",
     "evaluate_vertices",
     "evaluate_bezier_runs",
     "connect_cells",
 ];
 /// Index of `connect_cells` in [`ENTRY_POINTS`].
-const CONNECT_PASS: usize = 4;
+const CONNECT_PASS: usize = 3;
 /// Stride of the per-chunk, per-pass uniforms (the WebGPU maximum of
 /// `min_uniform_buffer_offset_alignment`).
 const UNIFORM_STRIDE: u64 = 256;

@@ -19,12 +19,9 @@ pub const VERTEX_BYTES: u64 = 32;
 /// vec4 entries per (row, control column) of the contracted scratch: value, ∂v, ∂vv.
 const CONTRACTED_ENTRIES: u32 = 3;
 /// Most vertices per invocation of `evaluate_bezier_runs` (the runs of its table).
-const BEZIER_RUN: usize = 64;
+const BEZIER_RUN: usize = 256;
 /// Highest degree along u that the Bezier-run kernels take; lower degrees are elevated to it.
 pub(crate) const BEZIER_DEGREE: usize = 3;
-/// vec4 entries per (row, segment) of the scratch on the Bezier-run path: the cubic Bezier
-/// coefficients of the value and their forward differences, the coefficients of ∂v and ∂vv.
-const BEZIER_ENTRIES: u32 = 15;
 /// f32 per segment entry (`SEGMENT_STRIDE` in the shader): first control column (bits),
 /// 1 / knot-span width, the 7 × 4 matrix (row-major) from the B-spline values to the four
 /// cubic Bezier coefficients and their three forward differences.
@@ -91,9 +88,9 @@ pub struct Tile {
     pub first_item: u32,
 }
 
-/// The kernels, in dispatch order: the general path's two, the Bezier-run path's two, then
+/// The kernels, in dispatch order: the general path's two, the Bezier-run path's one, then
 /// the triangles.
-pub(crate) const PASSES: usize = 5;
+pub(crate) const PASSES: usize = 4;
 
 /// Buffer limits a plan must respect (from the device, or smaller for tests and budgets).
 #[derive(Clone, Copy, Debug)]
@@ -401,22 +398,14 @@ pub(crate) fn pack(
 }
 
 /// Work items of `piece` in each pass: on the general path (row, control column) pairs and
-/// runs of `RUN` vertices along a row; on the Bezier-run path (row, segment) pairs and
-/// (row, run) pairs; then cells.
+/// runs of `RUN` vertices along a row; on the Bezier-run path (row, run) pairs; then cells.
 fn pass_items(piece: &Piece) -> [u32; PASSES] {
     let cells = piece.cell_rows * (piece.grid_u - 1);
     if piece.segments > 0 {
-        [
-            0,
-            piece.rows * piece.segments,
-            0,
-            piece.rows * piece.runs,
-            cells,
-        ]
+        [0, 0, piece.rows * piece.runs, cells]
     } else {
         [
             piece.rows * piece.count_u,
-            0,
             piece.rows * piece.grid_u.div_ceil(RUN),
             0,
             cells,
@@ -425,10 +414,10 @@ fn pass_items(piece: &Piece) -> [u32; PASSES] {
 }
 
 /// vec4 entries of scratch per grid row of a surface with `segments` Bezier segments along u
-/// (0 on the general path) and `count_u` control columns.
+/// (0 on the general path) and `count_u` control columns: the Bezier-run path needs none.
 fn scratch_per_row(segments: u32, count_u: u32) -> u32 {
     if segments > 0 {
-        segments * BEZIER_ENTRIES
+        0
     } else {
         count_u * CONTRACTED_ENTRIES
     }
