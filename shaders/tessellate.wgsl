@@ -256,8 +256,10 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
     let piece = pieces[work.x];
     let item = work.y;
     if (item >= piece.rows * piece.runs) { return; }
-    let row = item / piece.runs;
-    let run = piece.run_table + (item % piece.runs) * RUN_STRIDE - chunk.table_origin;
+    // Run-major: neighbouring invocations (the SIMD lanes of a CPU adapter) take the same run
+    // of neighbouring rows, so their loops have the same length even where spans differ.
+    let row = item % piece.rows;
+    let run = piece.run_table + (item / piece.rows) * RUN_STRIDE - chunk.table_origin;
     let first = bitcast<u32>(tables[run]);
     let count = bitcast<u32>(tables[run + 1u]);
     let segment = piece.segment_table + bitcast<u32>(tables[run + 2u]) * SEGMENT_STRIDE - chunk.table_origin;

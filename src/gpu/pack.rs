@@ -398,7 +398,7 @@ pub(crate) fn pack(
 }
 
 /// Work items of `piece` in each pass: on the general path (row, control column) pairs and
-/// runs of `RUN` vertices along a row; on the Bezier-run path (row, run) pairs; then cells.
+/// runs of `RUN` vertices along a row; on the Bezier-run path (run, row) pairs; then cells.
 fn pass_items(piece: &Piece) -> [u32; PASSES] {
     let cells = piece.cell_rows * (piece.grid_u - 1);
     if piece.segments > 0 {
