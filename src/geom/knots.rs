@@ -9,7 +9,7 @@ pub const MAX_DEGREE: usize = 20;
 ///
 /// Invariants (checked by [`KnotVector::try_new`]): degree in 1..=[`MAX_DEGREE`]; every knot
 /// finite; knots non-decreasing; at least 2·(degree+1) knots, so at least degree+1 control
-/// points; a non-empty domain [knot[degree], knot[n]] where n = len − degree − 1 is the
+/// points; a non-empty domain `[knot[degree], knot[n]]` where n = len − degree − 1 is the
 /// number of control points; multiplicity at most degree+1 for a run touching either end of
 /// the vector and at most degree for every interior run.
 #[derive(Debug, Clone, PartialEq)]
@@ -151,7 +151,7 @@ impl KnotVector {
         self.knots.len() - self.degree - 1
     }
 
-    /// The parameter domain [knot[degree], knot[control_count]].
+    /// The parameter domain `[knot[degree], knot[control_count]]`.
     pub fn domain(&self) -> (f64, f64) {
         (self.knots[self.degree], self.knots[self.control_count()])
     }
@@ -164,7 +164,7 @@ impl KnotVector {
         k[0] == k[p] && k[k.len() - 1] == k[k.len() - 1 - p]
     }
 
-    /// Index s of the non-empty span [knot[s], knot[s+1]) holding `u`, with
+    /// Index s of the non-empty span `[knot[s], knot[s+1])` holding `u`, with
     /// degree ≤ s < control_count. Values outside the domain are clamped to it; the domain
     /// end maps to the last non-empty span.
     pub fn find_span(&self, u: f64) -> usize {
