@@ -38,6 +38,7 @@ use crate::geom::{BSplineCurve, BSplineSurface};
 use crate::mesh::{Mesh, MeshPart, Polyline, TessOptions};
 use glam::{DVec2, DVec3};
 use pack::{PASSES, Packed};
+use rayon::prelude::*;
 use std::num::NonZeroU64;
 
 /// The WGSL source of the tessellation kernels.
@@ -709,7 +710,11 @@ impl GpuBatch {
             bytemuck::cast_slice(&mapped(vertices, vertex_bytes)?),
             &mut mesh,
         );
-        mesh.indices = bytemuck::cast_slice(&mapped(indices, index_bytes)?).to_vec();
+        {
+            let index_view = mapped(indices, index_bytes)?;
+            let index_slice: &[u32] = bytemuck::cast_slice(&index_view);
+            mesh.indices.par_extend(index_slice.par_iter().copied());
+        }
         vertices.unmap();
         indices.unmap();
         Ok(mesh)
@@ -717,19 +722,15 @@ impl GpuBatch {
 }
 
 /// Appends the 32-byte vertices in `floats` (position, normal, uv as f32) to `mesh`, widened
-/// to f64.
+/// to f64, on all cores (the mapped buffer is read once per attribute).
 fn push_vertices(floats: &[f32], mesh: &mut Mesh) {
-    let n = floats.len() / 8;
-    mesh.positions.reserve_exact(n);
-    mesh.normals.reserve_exact(n);
-    mesh.uvs.reserve_exact(n);
-    for v in floats.chunks_exact(8) {
-        mesh.positions
-            .push(DVec3::new(v[0].into(), v[1].into(), v[2].into()));
-        mesh.normals
-            .push(DVec3::new(v[3].into(), v[4].into(), v[5].into()));
-        mesh.uvs.push(DVec2::new(v[6].into(), v[7].into()));
-    }
+    let vertices = || floats.par_chunks_exact(8);
+    mesh.positions
+        .par_extend(vertices().map(|v| DVec3::new(v[0].into(), v[1].into(), v[2].into())));
+    mesh.normals
+        .par_extend(vertices().map(|v| DVec3::new(v[3].into(), v[4].into(), v[5].into())));
+    mesh.uvs
+        .par_extend(vertices().map(|v| DVec2::new(v[6].into(), v[7].into())));
 }
 
 /// The first `bytes` of a buffer mapped for reading.
