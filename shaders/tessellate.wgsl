@@ -296,7 +296,7 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
     let d = mat4x4<f32>(value_v * m0, value_v * m1, value_v * m2, value_v * m3);
     let origin = vec3<f32>(piece.origin_x, piece.origin_y, piece.origin_z);
     let row_out = piece.first_vertex + row * piece.grid_u - chunk.vertex_origin;
-    let v_fraction = tables[piece.row_table + row * entry_stride(piece.degree_v) - chunk.table_origin];
+    let v_fraction = tables[entry];
     let u_scale = 1.0 / f32(piece.grid_u - 1u);
     var degenerate = false;
     for (var step = 0u; step < count; step++) {
@@ -317,7 +317,7 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
             let s1 = 1.0 - t;
             // ∂uu from the second differences, ∂uv from the differences of ∂v's coefficients.
             let auu = f * vec3<f32>(-s1, s1 - t, t) * (6.0 * inv_width * inv_width);
-            let wt = vec3<f32>(3.0 * s1 * s1, 6.0 * t * s1, 3.0 * t * t);
+            let wt = bernstein3_derivative(t);
             let auv = d * vec4<f32>(-wt.x, wt.x - wt.y, wt.y - wt.z, wt.z) * inv_width;
             let avv = e * bernstein3(t);
             let uv = vec2<f32>(f32(first + step) * u_scale, v_fraction);
@@ -339,13 +339,17 @@ fn bernstein3(t: f32) -> vec4<f32> {
     return vec4<f32>(s1 * s1 * s1, 3.0 * t * s1 * s1, 3.0 * t * t * s1, t * t * t);
 }
 
+// Weights of a cubic's forward differences in its t-derivative: 3 B²_j(t).
+fn bernstein3_derivative(t: f32) -> vec3<f32> {
+    let s1 = 1.0 - t;
+    return vec3<f32>(3.0 * s1 * s1, 6.0 * t * s1, 3.0 * t * t);
+}
+
 // The Bezier-run path's frame at span-local t from the span's coefficients: value `b`, its
 // forward differences `f` (∂u = 3 Σ B²_j(t) f_j / width) and ∂v `d`.
 fn bezier_frame(b: mat4x4<f32>, f: mat3x4<f32>, d: mat4x4<f32>, inv_width: f32, t: f32) -> Frame {
-    let s1 = 1.0 - t;
     let w = bernstein3(t);
-    let wt = vec3<f32>(3.0 * s1 * s1, 6.0 * t * s1, 3.0 * t * t);
-    return frame_from(b * w, f * wt * inv_width, d * w);
+    return frame_from(b * w, f * bernstein3_derivative(t) * inv_width, d * w);
 }
 
 @compute @workgroup_size(64)

@@ -168,11 +168,16 @@ fn compare_with_reference(
                 report.degenerate_vertices += 1;
                 report.worst_degenerate_normal = report.worst_degenerate_normal.max(normal_error);
             }
-            let uv_error = (mesh.uvs[k] - reference.uvs[k]).abs().max_element();
-            report.worst_uv = report.worst_uv.max(uv_error);
-            if !normal_error.is_finite() || !mesh.positions[k].is_finite() || !uv_error.is_finite() {
+            if !normal_error.is_finite() || !mesh.positions[k].is_finite() {
                 report.worst_normal = f64::INFINITY;
             }
+            let uv_error = (mesh.uvs[k] - reference.uvs[k]).abs().max_element();
+            // `max` would skip a NaN: a non-finite uv is the worst uv error.
+            report.worst_uv = report.worst_uv.max(if uv_error.is_finite() {
+                uv_error
+            } else {
+                f64::INFINITY
+            });
         }
     }
     report

@@ -56,7 +56,7 @@ pub struct Piece {
     pub columns: u32,
     pub row_table: u32,
     pub contracted: u32,
-    /// Bezier-run path (degree along u ≤ 3): knot spans the grid columns
+    /// Bezier-run path (degree along u ≤ `BEZIER_DEGREE`): knot spans the grid columns
     /// touch, column runs per row, and the offsets of their tables; `segments` = 0 on the
     /// general path.
     pub segments: u32,
