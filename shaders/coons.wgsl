@@ -92,7 +92,7 @@ fn blend_coons(@builtin(global_invocation_id) gid: vec3<u32>,
     let v = f32(j) / f32(nv - 1u);
     var normal = cross(su, sv);
     if (dot(normal, normal) <= job.degenerate_sq) {
-        // First-order limit toward the centre of [0, 1]², as tessellate.wgsl's limit_normal.
+        // The limit toward the centre of [0, 1]² (grid_common.wgsl).
         let auu = blends[bu + 2u];
         let bvv = blends[bv + 2u];
         let suu = coons_term(job, auu, -auu, b, 1.0 - b,
@@ -101,25 +101,18 @@ fn blend_coons(@builtin(global_invocation_id) gid: vec3<u32>,
             samples[v0 + 1u].xyz, samples[v1 + 1u].xyz, samples[u0 + 1u].xyz, samples[u1 + 1u].xyz);
         let svv = coons_term(job, a, 1.0 - a, bvv, -bvv,
             samples[v0].xyz, samples[v1].xyz, samples[u0 + 2u].xyz, samples[u1 + 2u].xyz);
-        let step_u = select(1.0, -1.0, u > 0.5);
-        let step_v = select(1.0, -1.0, v > 0.5);
-        normal = step_u * (cross(su, suv) + cross(suu, sv)) + step_v * (cross(su, svv) + cross(suv, sv));
-        if (dot(normal, normal) <= job.degenerate_sq) {
-            normal = vec3<f32>(0.0, 0.0, 1.0);
-        }
+        normal = first_order_limit_normal(su, sv, suu, suv, svv, vec2<f32>(1.0), vec2<f32>(u, v),
+                                          job.degenerate_sq);
     }
     normal = normalize(normal);
     let origin = vec3<f32>(job.origin_x, job.origin_y, job.origin_z);
     vertices[2u * index] = vec4<f32>(s + origin, normal.x);
     vertices[2u * index + 1u] = vec4<f32>(normal.yz, u, v);
     if (i + 1u < nu && j + 1u < nv) {
-        let corner = job.mesh_vertex + j * nu + i;
+        let triangles = cell_triangles(job.mesh_vertex + j * nu + i, nu);
         let out = job.first_index + 6u * (j * (nu - 1u) + i);
-        indices[out] = corner;
-        indices[out + 1u] = corner + 1u;
-        indices[out + 2u] = corner + nu + 1u;
-        indices[out + 3u] = corner;
-        indices[out + 4u] = corner + nu + 1u;
-        indices[out + 5u] = corner + nu;
+        for (var k = 0u; k < 6u; k++) {
+            indices[out + k] = triangles[k];
+        }
     }
 }

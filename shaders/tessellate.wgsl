@@ -208,11 +208,9 @@ fn evaluate_vertices(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgro
     }
 }
 
-// Where S_u × S_v vanishes: the first-order term of its expansion along the direction
-// (±width_u, ±width_v) pointing to the centre of the range,
-//   du (S_u × S_uv + S_uu × S_v) + dv (S_u × S_vv + S_uv × S_v),
-// from the second derivatives; +Z where that vanishes too (no tangent plane nearby).
-// `uv` is the grid fraction.
+// The limit normal where S_u × S_v vanishes (see grid_common.wgsl), from the second
+// derivatives of the row's contracted control columns starting at `base`; `uv` is the grid
+// fraction.
 fn limit_normal(piece: Piece, column: u32, base: u32, frame: Frame, uv: vec2<f32>) -> vec3<f32> {
     let p = piece.degree_u;
     var auu = vec4<f32>(0.0);
@@ -239,13 +237,8 @@ fn limit_normal_from(piece: Piece, frame: Frame, auu: vec4<f32>, auv: vec4<f32>,
     let suu = (auu.xyz - 2.0 * frame.au.w * su - auu.w * s) / w;
     let suv = (auv.xyz - frame.au.w * sv - frame.av.w * su - auv.w * s) / w;
     let svv = (avv.xyz - 2.0 * frame.av.w * sv - avv.w * s) / w;
-    let step_u = select(piece.width_u, -piece.width_u, uv.x > 0.5);
-    let step_v = select(piece.width_v, -piece.width_v, uv.y > 0.5);
-    let first = step_u * (cross(su, suv) + cross(suu, sv)) + step_v * (cross(su, svv) + cross(suv, sv));
-    if (dot(first, first) <= piece.degenerate_sq) {
-        return vec3<f32>(0.0, 0.0, 1.0);
-    }
-    return first;
+    return first_order_limit_normal(su, sv, suu, suv, svv, vec2<f32>(piece.width_u, piece.width_v),
+                                    uv, piece.degenerate_sq);
 }
 
 @compute @workgroup_size(64)
@@ -363,15 +356,9 @@ fn connect_cells(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
     if (item >= piece.cell_rows * cells_per_row) { return; }
     let row = item / cells_per_row;
     let i = item % cells_per_row;
-    let a = piece.first_vertex + row * piece.grid_u + i;
-    let b = a + 1u;
-    let c = a + piece.grid_u + 1u;
-    let d = a + piece.grid_u;
+    let triangles = cell_triangles(piece.first_vertex + row * piece.grid_u + i, piece.grid_u);
     let out = piece.first_index + 6u * item - chunk.index_origin;
-    indices[out] = a;
-    indices[out + 1u] = b;
-    indices[out + 2u] = c;
-    indices[out + 3u] = a;
-    indices[out + 4u] = c;
-    indices[out + 5u] = d;
+    for (var k = 0u; k < 6u; k++) {
+        indices[out + k] = triangles[k];
+    }
 }

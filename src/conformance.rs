@@ -106,11 +106,9 @@ pub fn compare_each(
     CpuTessellator.tessellate_each_into(surfaces, options, &mut reference)?;
     Ok(compare_with_reference(&reference, mesh, |part, uv| {
         let surface = &surfaces[part];
-        let size = surface.control_box_diagonal();
-        let (du, dv) = (surface.knots_u().domain(), surface.knots_v().domain());
-        let regular = REGULAR_REL * size * size / ((du.1 - du.0) * (dv.1 - dv.0));
         let sample = surface.evaluate(surface.range_u().lerp(uv.x), surface.range_v().lerp(uv.y));
-        (size, sample.du.cross(sample.dv).length() >= regular)
+        let cross = sample.du.cross(sample.dv).length();
+        (surface.control_box_diagonal(), cross >= REGULAR_REL * surface.cross_scale())
     }))
 }
 
@@ -124,12 +122,9 @@ pub fn compare_coons(
     let mut reference = Mesh::default();
     CpuTessellator.tessellate_coons_into(patches, options, &mut reference)?;
     Ok(compare_with_reference(&reference, mesh, |part, uv| {
-        let size = patches[part].size();
         let sample = patches[part].evaluate(uv.x, uv.y);
-        (
-            size,
-            sample.du.cross(sample.dv).length() >= REGULAR_REL * size * size,
-        )
+        let cross = sample.du.cross(sample.dv).length();
+        (patches[part].size(), cross >= REGULAR_REL * patches[part].cross_scale())
     }))
 }
 

@@ -118,6 +118,11 @@ pub enum Error {
         path: PathBuf,
         expected: &'static str,
     },
+    #[error("{what} need knotwork's `{feature}` feature, which this build leaves out")]
+    FeatureDisabled {
+        feature: &'static str,
+        what: &'static str,
+    },
     #[error("no GPU adapter: {reason}")]
     NoAdapter { reason: String },
     #[error("GPU error: {message}")]

@@ -42,6 +42,7 @@ pub mod geom;
 pub mod gpu;
 pub mod io;
 pub mod mesh;
+#[cfg(feature = "render")]
 pub mod render;
 
 pub use cpu::CpuTessellator;

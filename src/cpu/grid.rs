@@ -5,7 +5,7 @@
 //! point and its v-derivative per control column), then every vertex of the row contracts the
 //! p+1 columns of its span with the column table, four vertices at a time in SIMD lanes. Rows of all surfaces run in parallel on rayon's pool.
 
-use super::basis::{BasisDers, MAX_ORDER, basis_ders};
+use crate::geom::{BasisDers, MAX_ORDER, basis_ders, degenerate_cross_sq};
 #[cfg(target_arch = "x86_64")]
 use super::lanes::Avx2;
 use super::lanes::{F64x4, Portable};
@@ -287,7 +287,7 @@ impl Row<'_> {
     /// limit normal of [`BSplineSurface::evaluate`].
     #[inline(always)]
     fn evaluate<V: F64x4>(&self, positions: &mut [DVec3], normals: &mut [DVec3]) {
-        let threshold = self.surface.degenerate_cross_sq();
+        let threshold = degenerate_cross_sq(self.surface.cross_scale(), f64::EPSILON);
         let p = self.surface.degree_u();
         let stride = self.columns.stride();
         for &(span, start, end) in &self.columns.runs {

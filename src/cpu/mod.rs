@@ -1,13 +1,12 @@
-//! The f64 reference path: basis functions, point evaluation and grid tessellation.
+//! The f64 reference executor: grid tessellation of surfaces, Coons patches and curves on
+//! rayon's pool, with the evaluation of [`crate::geom`].
 
-pub(crate) mod basis;
 mod coons;
-mod eval;
 mod grid;
 mod lanes;
 
 pub use coons::tessellate_coons_into;
-pub use eval::SurfaceSample;
+pub use crate::geom::SurfaceSample;
 pub use grid::{evaluate_grid_into, tessellate_grid_into};
 
 use crate::Tessellator;

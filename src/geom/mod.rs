@@ -1,11 +1,14 @@
-//! The geometry model: knot vectors, B-spline and Bezier surfaces and curves, all validated at
-//! construction. Every surface is held in one canonical form — a tensor-product B-spline in
+//! The mathematics, free of any executor: knot vectors, basis functions, B-spline and Bezier
+//! surfaces and curves (validated at construction), their evaluation, limit normals and the
+//! one degeneracy rule. Every surface is held in one canonical form — a tensor-product B-spline in
 //! homogeneous coordinates (x·w, y·w, z·w, w) — so one evaluator serves every kind. The
 //! classic forms ([`curves`], [`patches`], [`shapes`]) convert to it exactly.
 
+mod basis;
 mod bezier;
 mod curve;
 pub mod curves;
+mod eval;
 mod knots;
 pub mod patches;
 mod piecewise;
@@ -16,7 +19,10 @@ pub use bezier::{
     BezierPatch, bernstein, bezier_curve, bezier_surface, de_casteljau_point,
     piecewise_bezier_surface,
 };
+pub(crate) use basis::{BasisDers, MAX_ORDER, basis_ders};
 pub use curve::BSplineCurve;
+pub(crate) use eval::Rail;
+pub use eval::{DEGENERATE_EPSILONS, SurfaceSample, cross_scale, degenerate_cross_sq};
 pub(crate) use knots::check_degree;
 pub use knots::{KnotVector, MAX_DEGREE};
 pub(crate) use surface::cartesian_box;

@@ -5,7 +5,8 @@
 //! result is read back into a [`Mesh`] in the layout of surfaces.
 
 use super::curves::{CurveChunk, SAMPLE_BYTES, fits};
-use super::pack::{GPU_DEGENERATE_REL, Limits, too_large};
+use super::pack::{Limits, too_large};
+use crate::geom::degenerate_cross_sq;
 use super::{
     GpuContext, VERTEX_BYTES, bind_buffers, dispatch_flat, map_for_reading, mapped, push_vertices,
     scoped, staged_copies, storage_buffer,
@@ -121,8 +122,7 @@ fn pack_coons(
         let chunk = chunks.last_mut().expect("one chunk at least");
         let (lo, hi) = patch.control_box();
         let origin = 0.5 * (lo + hi);
-        let size = patch.size();
-        let degenerate = GPU_DEGENERATE_REL * size * size;
+        let degenerate_sq = degenerate_cross_sq(patch.cross_scale(), f64::from(f32::EPSILON));
         let first_sample = chunk.curves.sample_count as u32;
         for (curve, count) in patch.boundaries().iter().zip([nu, nu, nv, nv]) {
             chunk.curves.push(curve, count, origin, DVec3::ZERO);
@@ -135,7 +135,7 @@ fn pack_coons(
         }
         chunk.jobs.push(CoonsJob {
             origin: origin.as_vec3().to_array(),
-            degenerate_sq: (degenerate * degenerate) as f32,
+            degenerate_sq: degenerate_sq as f32,
             corners: patch.corners().map(|c| (c - origin).as_vec3().to_array()),
             grid_u: nu,
             grid_v: nv,

@@ -41,12 +41,18 @@ use pack::{PASSES, Packed};
 use rayon::prelude::*;
 use std::num::NonZeroU64;
 
-/// The WGSL source of the tessellation kernels.
-pub const TESSELLATE_WGSL: &str = include_str!("../../shaders/tessellate.wgsl");
+/// The WGSL source of the tessellation kernels (with the shared grid rules prepended).
+pub const TESSELLATE_WGSL: &str = concat!(
+    include_str!("../../shaders/grid_common.wgsl"),
+    include_str!("../../shaders/tessellate.wgsl")
+);
 /// The WGSL source of the curve sampling kernel.
 pub const CURVES_WGSL: &str = include_str!("../../shaders/curves.wgsl");
-/// The WGSL source of the direct Coons kernel.
-pub const COONS_WGSL: &str = include_str!("../../shaders/coons.wgsl");
+/// The WGSL source of the direct Coons kernel (with the shared grid rules prepended).
+pub const COONS_WGSL: &str = concat!(
+    include_str!("../../shaders/grid_common.wgsl"),
+    include_str!("../../shaders/coons.wgsl")
+);
 
 const ENTRY_POINTS: [&str; PASSES] = [
     "contract_rows",

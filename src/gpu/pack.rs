@@ -3,7 +3,7 @@
 //! as f32, basis tables of every grid column and row computed in f64 and rounded once, and
 //! the pieces grouped into chunks whose buffer ranges fit the adapter's binding limits.
 
-use crate::cpu::basis::{BasisDers, MAX_ORDER, basis_ders};
+use crate::geom::{BasisDers, MAX_ORDER, basis_ders, degenerate_cross_sq};
 use crate::error::{Error, Result};
 use crate::geom::{BSplineSurface, Interval, KnotVector};
 use crate::mesh::{MeshPart, TessOptions, plan_parts};
@@ -29,10 +29,6 @@ const SEGMENT_STRIDE: usize = 30;
 /// f32 per run entry (`RUN_STRIDE` in the shader): first grid column, column count, segment
 /// (bits each), local parameter of the first column, local parameter step.
 const RUN_STRIDE: usize = 5;
-/// Below this fraction of (size / parameter width)², |S_u × S_v| counts as zero in f32:
-/// vertices that close to a degenerate point take the limit normal (an angle change of the
-/// same order, 1e-5 rad).
-pub(crate) const GPU_DEGENERATE_REL: f64 = 1e-5;
 
 /// One band of grid rows of one surface, as the shader reads it (`Piece` in tessellate.wgsl).
 #[repr(C)]
@@ -358,16 +354,14 @@ pub(crate) fn pack(
             tables,
         });
         let row_stride = 2 + 3 * (surface.degree_v() as u32 + 1);
-        let (du, dv) = (surface.knots_u().domain(), surface.knots_v().domain());
-        let size = surface.control_box_diagonal();
-        let degenerate = GPU_DEGENERATE_REL * size * size / ((du.1 - du.0) * (dv.1 - dv.0));
+        let degenerate_sq = degenerate_cross_sq(surface.cross_scale(), f64::from(f32::EPSILON));
         let mut first_row = 0;
         while first_row < nv {
             let rows = rows_per_piece.min(nv - first_row);
             let cell_rows = rows.min(nv - 1 - first_row);
             packed.pieces.push(Piece {
                 origin: origin.as_vec3().to_array(),
-                degenerate_sq: (degenerate * degenerate) as f32,
+                degenerate_sq: degenerate_sq as f32,
                 width_u: surface.range_u().width() as f32,
                 width_v: surface.range_v().width() as f32,
                 count_u: surface.count_u() as u32,

@@ -5,12 +5,18 @@
 
 mod binary_meshes;
 mod bpt;
+#[cfg(feature = "gltf")]
+mod glb;
+#[cfg(feature = "json")]
 mod json;
 mod obj_freeform;
 mod obj_mesh;
 
-pub use binary_meshes::{write_glb, write_ply, write_stl};
+pub use binary_meshes::{write_ply, write_stl};
 pub use bpt::read_bpt;
+#[cfg(feature = "gltf")]
+pub use glb::write_glb;
+#[cfg(feature = "json")]
 pub use json::read_json_scene;
 pub use obj_freeform::read_obj_freeform;
 pub use obj_mesh::{format_f64, write_obj_mesh};
@@ -156,7 +162,13 @@ pub fn read_scene_as(path: &Path, format: Option<SceneFormat>) -> Result<Scene> 
     let scene = match format {
         SceneFormat::Obj => read_obj_freeform(&text),
         SceneFormat::Bpt => read_bpt(&text),
+        #[cfg(feature = "json")]
         SceneFormat::Json => read_json_scene(&text),
+        #[cfg(not(feature = "json"))]
+        SceneFormat::Json => Err(Error::FeatureDisabled {
+            feature: "json",
+            what: "JSON scene files",
+        }),
     };
     scene.map_err(|e| e.in_file(path))
 }
@@ -226,12 +238,22 @@ pub fn write_mesh_as(
             },
         });
     }
-    write_atomic(path, |w| match format {
-        MeshFormat::Obj => write_obj_mesh(mesh, w),
-        MeshFormat::Ply => write_ply(mesh, w),
-        MeshFormat::Stl => write_stl(mesh, w),
-        MeshFormat::Glb => write_glb(mesh, groups, w),
-    })
+    type Writer = fn(&Mesh, &[SurfaceGroup], &mut dyn Write) -> std::io::Result<()>;
+    let write: Writer = match format {
+        MeshFormat::Obj => |mesh, _, w| write_obj_mesh(mesh, w),
+        MeshFormat::Ply => |mesh, _, w| write_ply(mesh, w),
+        MeshFormat::Stl => |mesh, _, w| write_stl(mesh, w),
+        #[cfg(feature = "gltf")]
+        MeshFormat::Glb => write_glb,
+        #[cfg(not(feature = "gltf"))]
+        MeshFormat::Glb => {
+            return Err(Error::FeatureDisabled {
+                feature: "gltf",
+                what: "glTF files",
+            });
+        }
+    };
+    write_atomic(path, |w| write(mesh, groups, w))
 }
 
 /// Writes `mesh` to `path` in the format its extension names, atomically.
@@ -270,4 +292,24 @@ pub fn write_atomic(
         let _ = std::fs::remove_file(&temporary);
     }
     result.map_err(io_error)
+}
+
+#[cfg(all(test, not(feature = "json"), not(feature = "gltf")))]
+mod tests {
+    use super::*;
+
+    /// A build without the `json` and `gltf` features names the missing feature and writes
+    /// nothing.
+    #[test]
+    fn formats_left_out_of_the_build_are_named() {
+        let err = read_scene(Path::new("data/scene.json")).unwrap_err();
+        assert!(matches!(err.root(), Error::FeatureDisabled { feature: "json", .. }), "{err}");
+        let dir = std::env::temp_dir().join(format!("knotwork-features-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let out = dir.join("mesh.glb");
+        let err = write_mesh(&out, &Mesh::default()).unwrap_err();
+        assert!(matches!(err, Error::FeatureDisabled { feature: "gltf", .. }), "{err}");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0, "nothing written");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

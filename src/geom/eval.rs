@@ -1,11 +1,33 @@
-//! Point evaluation in f64: positions, partial derivatives up to second order, unit normals
-//! with limits at degenerate points.
+//! Point evaluation of every form in f64: positions, partial derivatives up to second order,
+//! unit normals with limits at degenerate points, and the one rule that decides where a
+//! normal is degenerate — used by both executors, the GPU packer and conformance.
 
 use super::basis::{BasisDers, MAX_ORDER, basis_ders};
+use super::patches::CoonsPatch;
+use super::{BSplineCurve, BSplineSurface, Interval};
 use crate::error::{Error, Result};
-use crate::geom::{BSplineCurve, BSplineSurface, Interval};
 use crate::mesh::Polyline;
 use glam::{DVec3, DVec4};
+
+/// The scale of |S_u × S_v| for a surface whose control net spans `size` (bounding-box
+/// diagonal, model units) over a parameter domain `width_u` × `width_v`: size² / (width_u ·
+/// width_v), in model units² per parameter unit².
+pub fn cross_scale(size: f64, width_u: f64, width_v: f64) -> f64 {
+    size * size / (width_u * width_v)
+}
+
+/// How many machine epsilons of [`cross_scale`] |S_u × S_v| may be and still count as zero.
+pub const DEGENERATE_EPSILONS: f64 = 100.0;
+
+/// The degeneracy rule: the squared length at or below which |S_u × S_v|² counts as zero —
+/// rounding noise at a genuinely degenerate point, not a tangent plane — for a surface of
+/// [`cross_scale`] `scale` evaluated in arithmetic of machine epsilon `epsilon`
+/// (`f64::EPSILON` on the CPU, `f32::EPSILON` in the kernels, which receive this value from
+/// the host).
+pub fn degenerate_cross_sq(scale: f64, epsilon: f64) -> f64 {
+    let t = DEGENERATE_EPSILONS * epsilon * scale;
+    t * t
+}
 
 /// A surface point with its partial derivatives (model units per unit of parameter) and
 /// unit normal.
@@ -62,10 +84,6 @@ pub(crate) fn limit_normal(
     DVec3::Z
 }
 
-/// Cross products below this fraction of (model size / parameter width)² count as zero:
-/// rounding noise at a genuinely degenerate point, not a tangent plane.
-pub(crate) const DEGENERATE_REL: f64 = 1e-12;
-
 impl BSplineSurface {
     /// Evaluates position, derivatives and normal at (u, v); parameters outside the knot
     /// domain are clamped to it.
@@ -107,13 +125,11 @@ impl BSplineSurface {
         self.evaluate(u, v).position
     }
 
-    /// Squared length below which |S_u × S_v|² counts as zero for this surface.
-    pub(crate) fn degenerate_cross_sq(&self) -> f64 {
+    /// [`cross_scale`] of this surface: its control box diagonal over its knot domain.
+    pub fn cross_scale(&self) -> f64 {
         let (u0, u1) = self.knots_u().domain();
         let (v0, v1) = self.knots_v().domain();
-        let size = self.control_box_diagonal();
-        let t = DEGENERATE_REL * size * size / ((u1 - u0) * (v1 - v0));
-        t * t
+        cross_scale(self.control_box_diagonal(), u1 - u0, v1 - v0)
     }
 
     fn normal_of(&self, s: &SurfaceSample, u: f64, v: f64) -> DVec3 {
@@ -121,7 +137,7 @@ impl BSplineSurface {
             s,
             (u, v),
             (self.range_u(), self.range_v()),
-            self.degenerate_cross_sq(),
+            degenerate_cross_sq(self.cross_scale(), f64::EPSILON),
             |u, v| self.rational_first_derivatives(u, v).1,
         )
     }
@@ -221,5 +237,87 @@ impl BSplineCurve {
         let first = (h[1].truncate() - h[1].w * position) / w;
         let second = (h[2].truncate() - 2.0 * h[1].w * first - h[2].w * position) / w;
         [position, first, second]
+    }
+}
+
+/// What one parameter value contributes: the two opposite boundaries there with their first
+/// and second derivatives, and [α, α′, α″] of the blend. A grid column (u) holds S(u,0) and
+/// S(u,1); a grid row (v) holds S(0,v) and S(1,v).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Rail {
+    pub near: [DVec3; 3],
+    pub far: [DVec3; 3],
+    pub blend: [f64; 3],
+}
+
+/// [F₀⁽ᵏ⁾, F₁⁽ᵏ⁾] with F₀ = α and F₁ = 1 − α.
+fn blend_pair(blend: &[f64; 3], k: usize) -> (f64, f64) {
+    if k == 0 {
+        (blend[0], 1.0 - blend[0])
+    } else {
+        (blend[k], -blend[k])
+    }
+}
+
+impl CoonsPatch {
+    /// The column rail at u (`across` = false: S(u,0), S(u,1)) or the row rail at v (true).
+    pub(crate) fn rail(&self, t: f64, across: bool) -> Rail {
+        let [v0, v1, u0, u1] = self.boundaries();
+        let (near, far) = if across { (u0, u1) } else { (v0, v1) };
+        Rail {
+            near: near.derivatives(t),
+            far: far.derivatives(t),
+            blend: self.blend().derivatives(t),
+        }
+    }
+
+    /// ∂ᵢᵤ∂ⱼᵥ S from the rails at u and v: every term of the Coons formula is a product of a
+    /// function of u and one of v, so each order differentiates its own factors.
+    fn derivative(&self, column: &Rail, row: &Rail, i: usize, j: usize) -> DVec3 {
+        let [c00, c10, c01, c11] = self.corners();
+        let (fu, gu) = blend_pair(&column.blend, i);
+        let (fv, gv) = blend_pair(&row.blend, j);
+        fv * column.near[i] + gv * column.far[i] + fu * row.near[j] + gu * row.far[j]
+            - (fu * fv * c00 + gu * fv * c10 + fu * gv * c01 + gu * gv * c11)
+    }
+
+    /// Position, derivatives and normal at (u, v) from the rails there; the normal follows
+    /// the contract of [`crate::BSplineSurface::evaluate`] over [0, 1]².
+    pub(crate) fn sample_from(&self, column: &Rail, row: &Rail, u: f64, v: f64) -> SurfaceSample {
+        let d = |i, j| self.derivative(column, row, i, j);
+        let mut sample = SurfaceSample {
+            position: d(0, 0),
+            du: d(1, 0),
+            dv: d(0, 1),
+            duu: d(2, 0),
+            duv: d(1, 1),
+            dvv: d(0, 2),
+            normal: DVec3::ZERO,
+        };
+        let unit = Interval::new(0.0, 1.0);
+        sample.normal = limit_normal(
+            &sample,
+            (u, v),
+            (unit, unit),
+            degenerate_cross_sq(self.cross_scale(), f64::EPSILON),
+            |u, v| {
+                let (column, row) = (self.rail(u, false), self.rail(v, true));
+                [
+                    self.derivative(&column, &row, 1, 0),
+                    self.derivative(&column, &row, 0, 1),
+                ]
+            },
+        );
+        sample
+    }
+
+    /// Evaluates position, derivatives and normal at (u, v) ∈ [0, 1]².
+    pub fn evaluate(&self, u: f64, v: f64) -> SurfaceSample {
+        self.sample_from(&self.rail(u, false), &self.rail(v, true), u, v)
+    }
+
+    /// [`cross_scale`] of this patch: its control box diagonal over [0, 1]².
+    pub fn cross_scale(&self) -> f64 {
+        cross_scale(self.size(), 1.0, 1.0)
     }
 }

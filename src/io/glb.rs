@@ -1,0 +1,288 @@
+//! glTF 2.0 binary output (feature `gltf`), through the `gltf` crate's JSON model and GLB
+//! container writer: its schema is large and easy to get subtly wrong by hand.
+
+use super::{SurfaceGroup, cover_groups};
+use crate::mesh::Mesh;
+use gltf::json;
+use json::validation::{Checked, USize64};
+use std::io::{Result, Write};
+
+/// glTF 2.0 binary (.glb): one buffer with POSITION, NORMAL, TEXCOORD_0 (f32) and u32
+/// indices; one mesh and node per group of surfaces (`groups`, completed by
+/// [`cover_groups`]): a primitive of triangles over the shared vertex accessors with its own
+/// index accessor; POSITION bounds filled in. Polylines form one more mesh, "curves": a
+/// LINE_STRIP primitive per curve with POSITION and `_TANGENT` (f32 vec3).
+pub fn write_glb(mesh: &Mesh, groups: &[SurfaceGroup], w: &mut dyn Write) -> Result<()> {
+    let n = mesh.vertex_count();
+    if mesh.indices.is_empty() && mesh.polylines.is_empty() {
+        // glTF accessors cannot be empty: a file without triangles or lines would not be
+        // valid glTF.
+        return Err(std::io::Error::other(
+            "glTF needs at least one triangle or line: the input has no surfaces or curves",
+        ));
+    }
+    let mut bin: Vec<u8> = Vec::with_capacity(n * 32 + mesh.indices.len() * 4);
+    let positions: Vec<[f32; 3]> = mesh
+        .positions
+        .iter()
+        .map(|p| p.as_vec3().to_array())
+        .collect();
+    let (lo, hi) = bounds_of(&positions);
+    bin.extend_from_slice(bytemuck::cast_slice(&positions));
+    let normals: Vec<[f32; 3]> = mesh
+        .normals
+        .iter()
+        .map(|v| v.as_vec3().to_array())
+        .collect();
+    bin.extend_from_slice(bytemuck::cast_slice(&normals));
+    let uvs: Vec<[f32; 2]> = mesh.uvs.iter().map(|v| v.as_vec2().to_array()).collect();
+    bin.extend_from_slice(bytemuck::cast_slice(&uvs));
+    let index_offset = bin.len();
+    bin.extend_from_slice(bytemuck::cast_slice(&mesh.indices));
+    let curve_offset = bin.len();
+    let curve_points: Vec<[f32; 3]> = mesh
+        .polylines
+        .iter()
+        .flat_map(|l| l.positions.iter().map(|p| p.as_vec3().to_array()))
+        .collect();
+    bin.extend_from_slice(bytemuck::cast_slice(&curve_points));
+    let curve_tangents: Vec<[f32; 3]> = mesh
+        .polylines
+        .iter()
+        .flat_map(|l| l.tangents.iter().map(|t| t.as_vec3().to_array()))
+        .collect();
+    bin.extend_from_slice(bytemuck::cast_slice(&curve_tangents));
+
+    let mut root = json::Root {
+        asset: json::Asset {
+            generator: Some("knotwork".into()),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let buffer = root.push(json::Buffer {
+        byte_length: USize64::from(bin.len()),
+        name: None,
+        uri: None,
+        extensions: None,
+        extras: Default::default(),
+    });
+    let view = |root: &mut json::Root,
+                offset: usize,
+                length: usize,
+                stride: Option<usize>,
+                target: json::buffer::Target| {
+        root.push(json::buffer::View {
+            buffer,
+            byte_length: USize64::from(length),
+            byte_offset: Some(USize64::from(offset)),
+            byte_stride: stride.map(json::buffer::Stride),
+            name: None,
+            target: Some(Checked::Valid(target)),
+            extensions: None,
+            extras: Default::default(),
+        })
+    };
+    let accessor = |root: &mut json::Root,
+                    view,
+                    offset: usize,
+                    count: usize,
+                    component,
+                    type_,
+                    bounds: Option<([f32; 3], [f32; 3])>| {
+        root.push(json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: Some(USize64::from(offset)),
+            count: USize64::from(count),
+            component_type: Checked::Valid(json::accessor::GenericComponentType(component)),
+            extensions: None,
+            extras: Default::default(),
+            type_: Checked::Valid(type_),
+            min: bounds.map(|b| json::serialize::to_value(b.0).expect("floats serialise")),
+            max: bounds.map(|b| json::serialize::to_value(b.1).expect("floats serialise")),
+            name: None,
+            normalized: false,
+            sparse: None,
+        })
+    };
+    use json::accessor::{ComponentType, Type};
+    use json::buffer::Target;
+    let array = Target::ArrayBuffer;
+    let mut nodes = Vec::new();
+    if !mesh.indices.is_empty() {
+        let position_view = view(&mut root, 0, n * 12, Some(12), array);
+        let normal_view = view(&mut root, n * 12, n * 12, Some(12), array);
+        let uv_view = view(&mut root, n * 24, n * 8, Some(8), array);
+        let index_view = view(
+            &mut root,
+            index_offset,
+            mesh.indices.len() * 4,
+            None,
+            Target::ElementArrayBuffer,
+        );
+        let bounds = Some((lo, hi));
+        let position = accessor(
+            &mut root,
+            position_view,
+            0,
+            n,
+            ComponentType::F32,
+            Type::Vec3,
+            bounds,
+        );
+        let normal = accessor(
+            &mut root,
+            normal_view,
+            0,
+            n,
+            ComponentType::F32,
+            Type::Vec3,
+            None,
+        );
+        let uv = accessor(
+            &mut root,
+            uv_view,
+            0,
+            n,
+            ComponentType::F32,
+            Type::Vec2,
+            None,
+        );
+        for group in cover_groups(groups, mesh.parts.len()) {
+            let parts = &mesh.parts[group.surfaces.clone()];
+            // Parts follow one another in the index buffer: a group's triangles are one range.
+            let first_index = parts[0].first_index as usize;
+            let index_count: usize = parts.iter().map(|p| p.index_count as usize).sum();
+            if index_count == 0 {
+                continue;
+            }
+            let indices = accessor(
+                &mut root,
+                index_view,
+                first_index * 4,
+                index_count,
+                ComponentType::U32,
+                Type::Scalar,
+                None,
+            );
+            let attributes = [
+                (json::mesh::Semantic::Positions, position),
+                (json::mesh::Semantic::Normals, normal),
+                (json::mesh::Semantic::TexCoords(0), uv),
+            ]
+            .into_iter()
+            .map(|(semantic, accessor)| (Checked::Valid(semantic), accessor))
+            .collect();
+            let primitive = json::mesh::Primitive {
+                attributes,
+                extensions: None,
+                extras: Default::default(),
+                indices: Some(indices),
+                material: None,
+                mode: Checked::Valid(json::mesh::Mode::Triangles),
+                targets: None,
+            };
+            let mesh_index = root.push(json::Mesh {
+                extensions: None,
+                extras: Default::default(),
+                name: Some(group.name.clone()),
+                primitives: vec![primitive],
+                weights: None,
+            });
+            nodes.push(root.push(json::Node {
+                mesh: Some(mesh_index),
+                name: Some(group.name),
+                ..Default::default()
+            }));
+        }
+    }
+    if !mesh.polylines.is_empty() {
+        let bytes = curve_points.len() * 12;
+        let point_view = view(&mut root, curve_offset, bytes, Some(12), array);
+        let tangent_view = view(&mut root, curve_offset + bytes, bytes, Some(12), array);
+        let mut primitives = Vec::with_capacity(mesh.polylines.len());
+        let mut first = 0;
+        for polyline in &mesh.polylines {
+            let count = polyline.positions.len();
+            let points = &curve_points[first..first + count];
+            let bounds = bounds_of(points);
+            let position = accessor(
+                &mut root,
+                point_view,
+                first * 12,
+                count,
+                ComponentType::F32,
+                Type::Vec3,
+                Some(bounds),
+            );
+            let tangent = accessor(
+                &mut root,
+                tangent_view,
+                first * 12,
+                count,
+                ComponentType::F32,
+                Type::Vec3,
+                None,
+            );
+            first += count;
+            primitives.push(json::mesh::Primitive {
+                attributes: [
+                    (json::mesh::Semantic::Positions, position),
+                    (json::mesh::Semantic::Extras("TANGENT".into()), tangent),
+                ]
+                .into_iter()
+                .map(|(semantic, accessor)| (Checked::Valid(semantic), accessor))
+                .collect(),
+                extensions: None,
+                extras: Default::default(),
+                indices: None,
+                material: None,
+                mode: Checked::Valid(json::mesh::Mode::LineStrip),
+                targets: None,
+            });
+        }
+        let mesh_index = root.push(json::Mesh {
+            extensions: None,
+            extras: Default::default(),
+            name: Some("curves".into()),
+            primitives,
+            weights: None,
+        });
+        nodes.push(root.push(json::Node {
+            mesh: Some(mesh_index),
+            name: Some("curves".into()),
+            ..Default::default()
+        }));
+    }
+    let scene = root.push(json::Scene {
+        extensions: None,
+        extras: Default::default(),
+        name: None,
+        nodes,
+    });
+    root.scene = Some(scene);
+    let json_bytes = root.to_vec().map_err(std::io::Error::other)?;
+    let glb = gltf::binary::Glb {
+        header: gltf::binary::Header {
+            magic: *b"glTF",
+            version: 2,
+            length: 0,
+        },
+        json: json_bytes.into(),
+        bin: Some(bin.into()),
+    };
+    glb.to_writer(w).map_err(std::io::Error::other)
+}
+
+/// Component-wise (min, max) of `points`: the bounds glTF requires on POSITION accessors.
+fn bounds_of(points: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
+    points.iter().fold(
+        ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+        |(lo, hi), p| {
+            (
+                std::array::from_fn(|k| lo[k].min(p[k])),
+                std::array::from_fn(|k| hi[k].max(p[k])),
+            )
+        },
+    )
+}
