@@ -108,7 +108,10 @@ pub fn compare_each(
         let surface = &surfaces[part];
         let sample = surface.evaluate(surface.range_u().lerp(uv.x), surface.range_v().lerp(uv.y));
         let cross = sample.du.cross(sample.dv).length();
-        (surface.control_box_diagonal(), cross >= REGULAR_REL * surface.cross_scale())
+        (
+            surface.control_box_diagonal(),
+            cross >= REGULAR_REL * surface.cross_scale(),
+        )
     }))
 }
 
@@ -124,7 +127,10 @@ pub fn compare_coons(
     Ok(compare_with_reference(&reference, mesh, |part, uv| {
         let sample = patches[part].evaluate(uv.x, uv.y);
         let cross = sample.du.cross(sample.dv).length();
-        (patches[part].size(), cross >= REGULAR_REL * patches[part].cross_scale())
+        (
+            patches[part].size(),
+            cross >= REGULAR_REL * patches[part].cross_scale(),
+        )
     }))
 }
 

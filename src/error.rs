@@ -118,6 +118,8 @@ pub enum Error {
         path: PathBuf,
         expected: &'static str,
     },
+    #[error("the plan was made for {planned} items, but {given} were given to execute it")]
+    PlanMismatch { planned: usize, given: usize },
     #[error("{what} need knotwork's `{feature}` feature, which this build leaves out")]
     FeatureDisabled {
         feature: &'static str,

@@ -42,6 +42,7 @@ pub mod geom;
 pub mod gpu;
 pub mod io;
 pub mod mesh;
+pub mod plan;
 #[cfg(feature = "render")]
 pub mod render;
 

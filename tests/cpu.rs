@@ -712,3 +712,18 @@ fn every_geometry_error_is_reported() {
         }
     ));
 }
+
+/// A plan executes only on as many items as it was made for; the mesh is left as it was.
+#[test]
+fn a_plan_refuses_other_items() {
+    let scene = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt")).unwrap();
+    let options = vec![TessOptions::DEFAULT.with_grid(4, 5); 2];
+    let plan = knotwork::plan::SurfacePlan::new(&scene.surfaces[..2], &options).unwrap();
+    let mut mesh = knotwork::Mesh::default();
+    knotwork::cpu::execute_surfaces(&plan, &scene.surfaces[..2], &mut mesh).unwrap();
+    assert_eq!((mesh.vertex_count(), mesh.triangle_count()), (40, 48));
+    let before = mesh.clone();
+    let err = knotwork::cpu::execute_surfaces(&plan, &scene.surfaces[..1], &mut mesh).unwrap_err();
+    assert!(matches!(err, Error::PlanMismatch { planned: 2, given: 1 }), "{err}");
+    assert_eq!(mesh, before);
+}

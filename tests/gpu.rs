@@ -65,7 +65,10 @@ fn every_shader_parses_and_validates_with_naga() {
             let text = std::fs::read_to_string(&path).unwrap();
             let is_render = path.file_stem().is_some_and(|s| s == "render");
             assert!(
-                is_render || shipped_shaders().iter().any(|(_, source)| source.contains(&text)),
+                is_render
+                    || shipped_shaders()
+                        .iter()
+                        .any(|(_, source)| source.contains(&text)),
                 "{} is in no shipped module",
                 path.display()
             );

@@ -2,12 +2,13 @@
 //! curves and blend) of each grid column and row once, combined per vertex by the Coons
 //! formula of [`crate::geom`].
 
-use super::grid::fill_grids;
+use super::grid::{fill_grids, fill_uvs};
 use crate::error::Result;
 use crate::geom::Rail;
 use crate::geom::patches::CoonsPatch;
-use crate::mesh::{Mesh, MeshPart, TessOptions};
-use glam::{DVec2, DVec3};
+use crate::mesh::{Mesh, TessOptions};
+use crate::plan::{CoonsPlan, CoonsSamples, check_item_count};
+use glam::DVec3;
 use rayon::prelude::*;
 
 /// Tessellates every patch on its own grid (`options[k]` for patch k) into `mesh`, in the
@@ -17,35 +18,49 @@ pub fn tessellate_coons_into(
     options: &[TessOptions],
     mesh: &mut Mesh,
 ) -> Result<()> {
-    fill_grids(patches, options, mesh, tessellate_patch)
+    execute_coons(&CoonsPlan::new(patches, options)?, patches, mesh)
+}
+
+/// Executes `plan` (made for `patches`) into `mesh`, reusing its buffers.
+pub fn execute_coons(plan: &CoonsPlan, patches: &[CoonsPatch], mesh: &mut Mesh) -> Result<()> {
+    check_item_count(plan.items.len(), patches.len())?;
+    let jobs: Vec<_> = patches.iter().zip(&plan.items).collect();
+    fill_grids(
+        &plan.layout,
+        &jobs,
+        mesh,
+        |&(patch, samples), positions, normals, uvs| {
+            tessellate_patch(patch, samples, positions, normals);
+            fill_uvs(&samples.boundaries[0], &samples.boundaries[2], uvs);
+        },
+    );
+    Ok(())
 }
 
 fn tessellate_patch(
     patch: &CoonsPatch,
-    part: &MeshPart,
+    samples: &CoonsSamples,
     positions: &mut [DVec3],
     normals: &mut [DVec3],
-    uvs: &mut [DVec2],
 ) {
-    let (nu, nv) = (part.grid_u as usize, part.grid_v as usize);
-    let fraction = |k: usize, n: usize| k as f64 / (n - 1) as f64;
-    let columns: Vec<Rail> = (0..nu)
-        .map(|i| patch.rail(fraction(i, nu), false))
+    let [columns, _, rows, _] = &samples.boundaries;
+    let column_rails: Vec<Rail> = columns
+        .params()
+        .iter()
+        .zip(&samples.column_blends)
+        .map(|(&u, &blend)| patch.rail_with_blend(u, false, blend))
         .collect();
     positions
-        .par_chunks_mut(nu)
-        .zip(normals.par_chunks_mut(nu))
-        .zip(uvs.par_chunks_mut(nu))
+        .par_chunks_mut(columns.len())
+        .zip(normals.par_chunks_mut(columns.len()))
         .enumerate()
-        .for_each(|(j, ((positions, normals), uvs))| {
-            let v = fraction(j, nv);
-            let row = patch.rail(v, true);
-            for (i, column) in columns.iter().enumerate() {
-                let u = fraction(i, nu);
-                let sample = patch.sample_from(column, &row, u, v);
+        .for_each(|(j, (positions, normals))| {
+            let v = rows.params()[j];
+            let row = patch.rail_with_blend(v, true, samples.row_blends[j]);
+            for (i, column) in column_rails.iter().enumerate() {
+                let sample = patch.sample_from(column, &row, columns.params()[i], v);
                 positions[i] = sample.position;
                 normals[i] = sample.normal;
-                uvs[i] = DVec2::new(u, v);
             }
         });
 }

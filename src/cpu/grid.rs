@@ -1,17 +1,18 @@
-//! Grid tessellation on the CPU, in f64.
+//! Grid tessellation on the CPU, in f64, executing a [`SurfacePlan`].
 //!
-//! Basis values depend on the grid column (u) or row (v) only, so they are tabulated once per
-//! column and once per row. Each row first contracts the control net along v (one homogeneous
-//! point and its v-derivative per control column), then every vertex of the row contracts the
-//! p+1 columns of its span with the column table, four vertices at a time in SIMD lanes. Rows of all surfaces run in parallel on rayon's pool.
+//! The plan's basis tables give every grid column (u) and row (v) once. Each row first
+//! contracts the control net along v (one homogeneous point and its v-derivative per control
+//! column), then every vertex of the row contracts the p+1 columns of its span with the column
+//! table, four vertices at a time in SIMD lanes. Rows of all surfaces run in parallel on
+//! rayon's pool.
 
-use crate::geom::{BasisDers, MAX_ORDER, basis_ders, degenerate_cross_sq};
 #[cfg(target_arch = "x86_64")]
 use super::lanes::Avx2;
 use super::lanes::{F64x4, Portable};
 use crate::error::{Error, Result};
-use crate::geom::BSplineSurface;
-use crate::mesh::{Mesh, MeshPart, TessOptions, fill_grid_indices, plan_parts};
+use crate::geom::{BSplineSurface, degenerate_cross_sq};
+use crate::mesh::{Mesh, MeshPart, TessOptions};
+use crate::plan::{AxisSamples, GridLayout, SurfacePlan, cell_triangles, check_item_count};
 use glam::{DVec2, DVec3, DVec4};
 use rayon::prelude::*;
 
@@ -22,104 +23,95 @@ pub fn tessellate_grid_into(
     options: &[TessOptions],
     mesh: &mut Mesh,
 ) -> Result<()> {
-    fill_grids(surfaces, options, mesh, tessellate_surface)
+    execute_surfaces(&SurfacePlan::new(surfaces, options)?, surfaces, mesh)
 }
 
-/// Lays out `mesh` for one grid per item (`options[k]` for item k), fills the vertices of
-/// each item's grid with `fill` (item, its part, positions, normals, uvs), in parallel, and
-/// writes the triangles. The mesh's buffers are reused.
-pub(crate) fn fill_grids<T: Sync>(
-    surfaces: &[T],
-    options: &[TessOptions],
+/// Executes `plan` (made for `surfaces`) into `mesh`, replacing its contents but reusing its
+/// buffers.
+pub fn execute_surfaces(
+    plan: &SurfacePlan,
+    surfaces: &[BSplineSurface],
     mesh: &mut Mesh,
-    fill: impl Fn(&T, &MeshPart, &mut [DVec3], &mut [DVec3], &mut [DVec2]) + Sync,
 ) -> Result<()> {
-    let parts = plan_parts(surfaces.len(), options)?;
-    let total_vertices = parts
-        .last()
-        .map_or(0, |p| (p.first_vertex + p.vertex_count) as usize);
-    let total_indices = parts
-        .last()
-        .map_or(0, |p| (p.first_index + p.index_count) as usize);
+    check_item_count(plan.items.len(), surfaces.len())?;
+    let jobs: Vec<_> = surfaces.iter().zip(&plan.items).collect();
+    fill_grids(
+        &plan.layout,
+        &jobs,
+        mesh,
+        |(surface, samples), positions, normals, uvs| {
+            evaluate_tables(surface, &samples.columns, &samples.rows, positions, normals);
+            fill_uvs(&samples.columns, &samples.rows, uvs);
+        },
+    );
+    Ok(())
+}
+
+/// Lays out `mesh` by `layout`, fills the vertices of item k's grid with `fill(&items[k],
+/// positions, normals, uvs)`, in parallel, and writes the triangles. The mesh's buffers are
+/// reused; its polylines are left alone.
+pub(crate) fn fill_grids<T: Sync>(
+    layout: &GridLayout,
+    items: &[T],
+    mesh: &mut Mesh,
+    fill: impl Fn(&T, &mut [DVec3], &mut [DVec3], &mut [DVec2]) + Sync,
+) {
+    let total_vertices = layout.vertex_count as usize;
     // Every element is overwritten below; resizing only touches memory when a buffer grows.
     mesh.positions.resize(total_vertices, DVec3::ZERO);
     mesh.normals.resize(total_vertices, DVec3::ZERO);
     mesh.uvs.resize(total_vertices, DVec2::ZERO);
-    mesh.indices.resize(total_indices, 0);
-    mesh.parts = parts;
-    // Split the outputs into one (positions, normals, uvs) slice triple per surface.
-    let mut jobs = Vec::with_capacity(surfaces.len());
+    mesh.indices.resize(layout.index_count as usize, 0);
+    mesh.parts.clone_from(&layout.parts);
+    // Split the outputs into one (positions, normals, uvs) slice triple per item.
+    let mut jobs = Vec::with_capacity(items.len());
     let (mut pos, mut nrm, mut uv) = (
         &mut mesh.positions[..],
         &mut mesh.normals[..],
         &mut mesh.uvs[..],
     );
-    for (surface, part) in surfaces.iter().zip(&mesh.parts) {
+    for (item, part) in items.iter().zip(&layout.parts) {
         let n = part.vertex_count as usize;
         let (p0, p1) = pos.split_at_mut(n);
         let (n0, n1) = nrm.split_at_mut(n);
         let (u0, u1) = uv.split_at_mut(n);
-        jobs.push((surface, *part, p0, n0, u0));
+        jobs.push((item, p0, n0, u0));
         (pos, nrm, uv) = (p1, n1, u1);
     }
     jobs.into_par_iter()
-        .for_each(|(surface, part, positions, normals, uvs)| {
-            fill(surface, &part, positions, normals, uvs);
-        });
-    fill_grid_indices(&mesh.parts, &mut mesh.indices);
-    Ok(())
+        .for_each(|(item, positions, normals, uvs)| fill(item, positions, normals, uvs));
+    fill_grid_indices(&layout.parts, &mut mesh.indices);
 }
 
-/// Basis values and first derivatives of one direction at every grid sample, with the
-/// samples grouped into runs that share a knot span.
-struct AxisTable {
-    /// Parameter of each sample.
-    params: Vec<f64>,
-    /// Each sample's fraction of the range, i / (samples − 1): the uv coordinate.
-    fractions: Vec<f64>,
-    /// `values[k * stride + i]`: basis function k (of the span) at sample i; each row is
-    /// padded with `LANES − 1` zeros so 4-lane loads past the last sample stay in bounds.
-    values: Vec<f64>,
-    /// Same layout, first derivatives.
-    derivatives: Vec<f64>,
-    /// (span, first sample, end sample) for each run of samples in one span.
-    runs: Vec<(usize, usize, usize)>,
-}
-
-impl AxisTable {
-    /// Distance between the rows of `values` and `derivatives`.
-    fn stride(&self) -> usize {
-        self.params.len() + LANES - 1
-    }
-
-    fn new(knots: &crate::geom::KnotVector, range: crate::geom::Interval, samples: usize) -> Self {
-        let p = knots.degree();
-        let mut table = AxisTable {
-            params: Vec::with_capacity(samples),
-            fractions: Vec::with_capacity(samples),
-            values: vec![0.0; (p + 1) * (samples + LANES - 1)],
-            derivatives: vec![0.0; (p + 1) * (samples + LANES - 1)],
-            runs: Vec::new(),
-        };
-        let mut ders: BasisDers = [[0.0; MAX_ORDER]; 3];
-        for i in 0..samples {
-            let fraction = i as f64 / (samples - 1) as f64;
-            let t = range.lerp(fraction);
-            let span = knots.find_span(t);
-            basis_ders(knots, span, t, 1, &mut ders);
-            for (k, (&value, &derivative)) in ders[0].iter().zip(&ders[1]).take(p + 1).enumerate() {
-                table.values[k * (samples + LANES - 1) + i] = value;
-                table.derivatives[k * (samples + LANES - 1) + i] = derivative;
-            }
-            table.params.push(t);
-            table.fractions.push(fraction);
-            match table.runs.last_mut() {
-                Some(run) if run.0 == span => run.2 = i + 1,
-                _ => table.runs.push((span, i, i + 1)),
-            }
+/// Writes the triangles of every part into `indices` (sized for all parts), in parallel, by
+/// the plan's cell rule ([`cell_triangles`]).
+fn fill_grid_indices(parts: &[MeshPart], indices: &mut [u32]) {
+    let mut rows: Vec<(u32, u32, &mut [u32])> = Vec::new();
+    let mut rest = indices;
+    for part in parts {
+        let row_len = 6 * (part.grid_u - 1) as usize;
+        for j in 0..part.grid_v - 1 {
+            let (row, tail) = rest.split_at_mut(row_len);
+            rows.push((part.first_vertex + j * part.grid_u, part.grid_u, row));
+            rest = tail;
         }
-        table
     }
+    rows.into_par_iter().for_each(|(row_start, nu, row)| {
+        for (i, cell) in row.chunks_exact_mut(6).enumerate() {
+            cell.copy_from_slice(&cell_triangles(row_start + i as u32, nu));
+        }
+    });
+}
+
+/// The uv of every vertex of a grid: the fractions of its column and row.
+pub(crate) fn fill_uvs(columns: &AxisSamples, rows: &AxisSamples, uvs: &mut [DVec2]) {
+    uvs.par_chunks_mut(columns.len())
+        .zip(rows.fractions())
+        .for_each(|(row_uvs, &v)| {
+            for (uv, &u) in row_uvs.iter_mut().zip(columns.fractions()) {
+                *uv = DVec2::new(u, v);
+            }
+        });
 }
 
 /// Per-row working storage: the control net contracted along v at the current row, one
@@ -131,26 +123,7 @@ struct RowScratch {
 
 /// Vertices evaluated together, one per lane of [`F64x4`].
 const LANES: usize = 4;
-
-fn tessellate_surface(
-    surface: &BSplineSurface,
-    part: &MeshPart,
-    positions: &mut [DVec3],
-    normals: &mut [DVec3],
-    uvs: &mut [DVec2],
-) {
-    let (nu, nv) = (part.grid_u as usize, part.grid_v as usize);
-    let columns = AxisTable::new(surface.knots_u(), surface.range_u(), nu);
-    let rows = AxisTable::new(surface.knots_v(), surface.range_v(), nv);
-    evaluate_tables(surface, &columns, &rows, positions, normals);
-    uvs.par_chunks_mut(nu)
-        .zip(&rows.fractions)
-        .for_each(|(row_uvs, &v)| {
-            for (uv, &u) in row_uvs.iter_mut().zip(&columns.fractions) {
-                *uv = DVec2::new(u, v);
-            }
-        });
-}
+const _: () = assert!(crate::plan::ROW_PADDING >= LANES - 1);
 
 /// Evaluates `surface` on a grid of `grid_u` × `grid_v` vertices — uniform in parameter over
 /// its range, vertex (i, j) at j·grid_u + i — into positions and unit normals, in parallel
@@ -176,20 +149,20 @@ pub fn evaluate_grid_into(
             return Err(Error::BufferLength { expected, found });
         }
     }
-    let columns = AxisTable::new(surface.knots_u(), surface.range_u(), grid_u as usize);
-    let rows = AxisTable::new(surface.knots_v(), surface.range_v(), grid_v as usize);
+    let columns = AxisSamples::uniform(surface.knots_u(), surface.range_u(), grid_u as usize);
+    let rows = AxisSamples::uniform(surface.knots_v(), surface.range_v(), grid_v as usize);
     evaluate_tables(surface, &columns, &rows, positions, normals);
     Ok(())
 }
 
 fn evaluate_tables(
     surface: &BSplineSurface,
-    columns: &AxisTable,
-    rows: &AxisTable,
+    columns: &AxisSamples,
+    rows: &AxisSamples,
     positions: &mut [DVec3],
     normals: &mut [DVec3],
 ) {
-    let nu = columns.params.len();
+    let nu = columns.len();
     let count_u = surface.count_u();
     let fma = has_fma();
     positions
@@ -206,7 +179,7 @@ fn evaluate_tables(
                 let row = Row {
                     surface,
                     columns,
-                    v: rows.params[j],
+                    v: rows.params()[j],
                     scratch,
                 };
                 if fma {
@@ -238,29 +211,23 @@ fn has_fma() -> bool {
 /// this grid touch, the homogeneous value and v-derivative of that column at v_j.
 fn contract_columns(
     surface: &BSplineSurface,
-    columns: &AxisTable,
-    rows: &AxisTable,
+    columns: &AxisSamples,
+    rows: &AxisSamples,
     j: usize,
     scratch: &mut RowScratch,
 ) {
     let (p, q) = (surface.degree_u(), surface.degree_v());
     let count_u = surface.count_u();
     let points = surface.homogeneous_points();
-    let stride = rows.stride();
-    let span_v = rows
-        .runs
-        .iter()
-        .find(|r| r.1 <= j && j < r.2)
-        .expect("every row lies in a run")
-        .0;
-    let first_column = columns.runs.first().map_or(0, |r| r.0 - p);
-    let last_column = columns.runs.last().map_or(0, |r| r.0);
+    let span_v = rows.spans()[j];
+    let first_column = columns.runs().first().map_or(0, |r| r.span - p);
+    let last_column = columns.runs().last().map_or(0, |r| r.span);
     for c in first_column..=last_column {
         let (mut value, mut dv) = (DVec4::ZERO, DVec4::ZERO);
         for b in 0..=q {
             let pt = points[(span_v - q + b) * count_u + c];
-            value += rows.values[b * stride + j] * pt;
-            dv += rows.derivatives[b * stride + j] * pt;
+            value += rows.row(0, b)[j] * pt;
+            dv += rows.row(1, b)[j] * pt;
         }
         scratch.column_value[c] = value;
         scratch.column_dv[c] = dv;
@@ -270,7 +237,7 @@ fn contract_columns(
 /// One grid row ready for the u contraction.
 struct Row<'a> {
     surface: &'a BSplineSurface,
-    columns: &'a AxisTable,
+    columns: &'a AxisSamples,
     v: f64,
     scratch: &'a RowScratch,
 }
@@ -290,15 +257,17 @@ impl Row<'_> {
         let threshold = degenerate_cross_sq(self.surface.cross_scale(), f64::EPSILON);
         let p = self.surface.degree_u();
         let stride = self.columns.stride();
-        for &(span, start, end) in &self.columns.runs {
+        let (values, derivatives) = (self.columns.table(0), self.columns.table(1));
+        for run in self.columns.runs() {
+            let (span, start, end) = (run.span, run.start, run.end);
             for i0 in (start..end).step_by(LANES) {
                 // Homogeneous value A, ∂u A and ∂v A, component by component, four vertices wide.
                 let mut acc = [V::splat(0.0); 12];
                 for k in 0..=p {
                     let t = self.scratch.column_value[span - p + k].to_array();
                     let d = self.scratch.column_dv[span - p + k].to_array();
-                    let n = V::load(&self.columns.values[k * stride + i0..]);
-                    let dn = V::load(&self.columns.derivatives[k * stride + i0..]);
+                    let n = V::load(&values[k * stride + i0..]);
+                    let dn = V::load(&derivatives[k * stride + i0..]);
                     for c in 0..4 {
                         acc[c] = n.mul_add(V::splat(t[c]), acc[c]);
                         acc[4 + c] = dn.mul_add(V::splat(t[c]), acc[4 + c]);
@@ -342,7 +311,9 @@ impl Row<'_> {
                     normals[i] = if len_sq[l] > limit[l] {
                         DVec3::new(nx[l], ny[l], nz[l])
                     } else {
-                        self.surface.evaluate(self.columns.params[i], self.v).normal
+                        self.surface
+                            .evaluate(self.columns.params()[i], self.v)
+                            .normal
                     };
                 }
             }
@@ -388,8 +359,8 @@ mod tests {
             Some(&weights),
         )
         .unwrap();
-        let columns = AxisTable::new(surface.knots_u(), surface.range_u(), 23);
-        let rows = AxisTable::new(surface.knots_v(), surface.range_v(), 6);
+        let columns = AxisSamples::uniform(surface.knots_u(), surface.range_u(), 23);
+        let rows = AxisSamples::uniform(surface.knots_v(), surface.range_v(), 6);
         let mut scratch = RowScratch {
             column_value: vec![DVec4::ZERO; nu],
             column_dv: vec![DVec4::ZERO; nu],
@@ -400,7 +371,7 @@ mod tests {
             let row = Row {
                 surface: &surface,
                 columns: &columns,
-                v: rows.params[j],
+                v: rows.params()[j],
                 scratch: &scratch,
             };
             let (mut p1, mut n1, mut p2, mut n2) = (
@@ -415,7 +386,7 @@ mod tests {
             for i in 0..23 {
                 assert!((p1[i] - p2[i]).length() <= 1e-14 * size, "position {i},{j}");
                 assert!((n1[i] - n2[i]).length() <= 1e-12, "normal {i},{j}");
-                let exact = surface.evaluate(columns.params[i], rows.params[j]);
+                let exact = surface.evaluate(columns.params()[i], rows.params()[j]);
                 assert!((p1[i] - exact.position).length() <= 1e-13 * size);
             }
         }

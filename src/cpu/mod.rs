@@ -5,21 +5,44 @@ mod coons;
 mod grid;
 mod lanes;
 
-pub use coons::tessellate_coons_into;
 pub use crate::geom::SurfaceSample;
-pub use grid::{evaluate_grid_into, tessellate_grid_into};
+pub use coons::{execute_coons, tessellate_coons_into};
+pub use grid::{evaluate_grid_into, execute_surfaces, tessellate_grid_into};
 
 use crate::Tessellator;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
-use crate::mesh::{Mesh, Polyline, TessOptions, check_sample_counts};
+use crate::mesh::{Mesh, Polyline, TessOptions};
+use crate::plan::{CurvePlan, check_item_count};
 use rayon::prelude::*;
 
 /// The CPU tessellator: f64 throughout, parallel over rows and surfaces on rayon's current
 /// pool (run it inside `ThreadPool::install` to choose the thread count).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct CpuTessellator;
+
+/// Samples every curve of `plan` (made for `curves`) at the plan's parameters: positions and
+/// tangents, in curve order.
+pub fn execute_curves(plan: &CurvePlan, curves: &[BSplineCurve]) -> Result<Vec<Polyline>> {
+    check_item_count(plan.items.len(), curves.len())?;
+    Ok(curves
+        .par_iter()
+        .zip(&plan.items)
+        .map(|(curve, item)| {
+            let (positions, tangents) = item
+                .samples
+                .params()
+                .iter()
+                .map(|&u| curve.evaluate(u))
+                .unzip();
+            Polyline {
+                positions,
+                tangents,
+            }
+        })
+        .collect())
+}
 
 impl Tessellator for CpuTessellator {
     fn tessellate_each_into(
@@ -41,18 +64,7 @@ impl Tessellator for CpuTessellator {
     }
 
     fn tessellate_curves(&self, curves: &[BSplineCurve], samples: &[u32]) -> Result<Vec<Polyline>> {
-        check_sample_counts(curves, samples)?;
-        curves
-            .par_iter()
-            .zip(samples)
-            .enumerate()
-            .map(|(index, (curve, &count))| {
-                curve.polyline(count).map_err(|e| Error::InCurve {
-                    index,
-                    source: Box::new(e),
-                })
-            })
-            .collect()
+        execute_curves(&CurvePlan::new(curves, samples)?, curves)
     }
 
     fn name(&self) -> String {

@@ -262,12 +262,17 @@ fn blend_pair(blend: &[f64; 3], k: usize) -> (f64, f64) {
 impl CoonsPatch {
     /// The column rail at u (`across` = false: S(u,0), S(u,1)) or the row rail at v (true).
     pub(crate) fn rail(&self, t: f64, across: bool) -> Rail {
+        self.rail_with_blend(t, across, self.blend().derivatives(t))
+    }
+
+    /// As [`CoonsPatch::rail`], with the blend's [α, α′, α″] at `t` given (from a plan).
+    pub(crate) fn rail_with_blend(&self, t: f64, across: bool, blend: [f64; 3]) -> Rail {
         let [v0, v1, u0, u1] = self.boundaries();
         let (near, far) = if across { (u0, u1) } else { (v0, v1) };
         Rail {
             near: near.derivatives(t),
             far: far.derivatives(t),
-            blend: self.blend().derivatives(t),
+            blend,
         }
     }
 

@@ -15,11 +15,11 @@ mod piecewise;
 pub mod shapes;
 mod surface;
 
+pub(crate) use basis::{BasisDers, MAX_ORDER, basis_ders};
 pub use bezier::{
     BezierPatch, bernstein, bezier_curve, bezier_surface, de_casteljau_point,
     piecewise_bezier_surface,
 };
-pub(crate) use basis::{BasisDers, MAX_ORDER, basis_ders};
 pub use curve::BSplineCurve;
 pub(crate) use eval::Rail;
 pub use eval::{DEGENERATE_EPSILONS, SurfaceSample, cross_scale, degenerate_cross_sq};

@@ -6,14 +6,15 @@
 
 use super::curves::{CurveChunk, SAMPLE_BYTES, fits};
 use super::pack::{Limits, too_large};
-use crate::geom::degenerate_cross_sq;
 use super::{
     GpuContext, VERTEX_BYTES, bind_buffers, dispatch_flat, map_for_reading, mapped, push_vertices,
     scoped, staged_copies, storage_buffer,
 };
 use crate::error::{Error, Result};
+use crate::geom::degenerate_cross_sq;
 use crate::geom::patches::CoonsPatch;
-use crate::mesh::{Mesh, TessOptions, plan_parts};
+use crate::mesh::{Mesh, TessOptions};
+use crate::plan::{CoonsPlan, check_item_count};
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
@@ -71,6 +72,7 @@ impl CoonsChunk {
 /// blend table, patch list, then the curve buffers of its four boundaries — computed before
 /// anything is allocated for it.
 fn patch_bytes(patch: &CoonsPatch, nu: u32, nv: u32) -> [(&'static str, u64); 8] {
+    let (nu, nv) = (nu as usize, nv as usize);
     let mut curves = [
         ("the boundary samples of one patch", 0),
         ("the boundary control points of one patch", 0),
@@ -82,7 +84,7 @@ fn patch_bytes(patch: &CoonsPatch, nu: u32, nv: u32) -> [(&'static str, u64); 8]
             total.1 += bytes;
         }
     }
-    let (nu, nv) = (u64::from(nu), u64::from(nv));
+    let (nu, nv) = (nu as u64, nv as u64);
     let [samples, points, tables, curve_list] = curves;
     [
         ("the vertices of one patch", nu * nv * VERTEX_BYTES),
@@ -96,17 +98,17 @@ fn patch_bytes(patch: &CoonsPatch, nu: u32, nv: u32) -> [(&'static str, u64); 8]
     ]
 }
 
-/// Groups consecutive patches into chunks within `limits`, patch k on the grid of
-/// `options[k]` (its mesh layout from [`plan_parts`]).
+/// Groups consecutive patches of `plan` (made for `patches`) into chunks within `limits`.
 fn pack_coons(
+    plan: &CoonsPlan,
     patches: &[CoonsPatch],
-    options: &[TessOptions],
     limits: &Limits,
-) -> Result<(Vec<CoonsChunk>, Vec<crate::MeshPart>)> {
-    let parts = plan_parts(patches.len(), options)?;
+) -> Result<Vec<CoonsChunk>> {
+    check_item_count(plan.items.len(), patches.len())?;
     let budget = limits.binding_bytes.min(limits.buffer_bytes);
     let mut chunks = vec![CoonsChunk::default()];
-    for (index, (patch, part)) in patches.iter().zip(&parts).enumerate() {
+    for (index, (patch, item)) in patches.iter().zip(&plan.items).enumerate() {
+        let part = &item.part;
         let (nu, nv) = (part.grid_u, part.grid_v);
         let needs = patch_bytes(patch, nu, nv);
         if let Some(&(what, bytes)) = needs.iter().find(|(_, b)| *b > budget) {
@@ -124,14 +126,12 @@ fn pack_coons(
         let origin = 0.5 * (lo + hi);
         let degenerate_sq = degenerate_cross_sq(patch.cross_scale(), f64::from(f32::EPSILON));
         let first_sample = chunk.curves.sample_count as u32;
-        for (curve, count) in patch.boundaries().iter().zip([nu, nu, nv, nv]) {
-            chunk.curves.push(curve, count, origin, DVec3::ZERO);
+        for (curve, samples) in patch.boundaries().iter().zip(&item.boundaries) {
+            chunk.curves.push(curve, samples, origin, DVec3::ZERO);
         }
-        let blend = patch.blend();
         let blend_table = chunk.blends.len() as u32;
-        for (k, n) in (0..nu).map(|i| (i, nu)).chain((0..nv).map(|j| (j, nv))) {
-            let t = f64::from(k) / f64::from(n - 1);
-            chunk.blends.extend(blend.derivatives(t).map(|x| x as f32));
+        for blend in item.column_blends.iter().chain(&item.row_blends) {
+            chunk.blends.extend(blend.map(|x| x as f32));
         }
         chunk.jobs.push(CoonsJob {
             origin: origin.as_vec3().to_array(),
@@ -150,7 +150,7 @@ fn pack_coons(
         chunk.index_count += u64::from(part.index_count);
     }
     chunks.retain(|chunk| !chunk.jobs.is_empty());
-    Ok((chunks, parts))
+    Ok(chunks)
 }
 
 /// Tessellates `patches` on the GPU, patch k on the grid of `options[k]`, each chunk within
@@ -161,9 +161,10 @@ pub(crate) fn tessellate_coons(
     options: &[TessOptions],
     limits: Limits,
 ) -> Result<Mesh> {
-    let (chunks, parts) = pack_coons(patches, options, &limits)?;
+    let plan = CoonsPlan::new(patches, options)?;
+    let chunks = pack_coons(&plan, patches, &limits)?;
     let mut mesh = Mesh {
-        parts,
+        parts: plan.layout.parts,
         ..Mesh::default()
     };
     if chunks.is_empty() {

@@ -7,7 +7,8 @@ use super::pack::{Limits, local_points, push_table, too_large};
 use super::{GpuContext, map_for_reading, mapped, scoped, staged_copies};
 use crate::error::{Error, Result};
 use crate::geom::{BSplineCurve, cartesian_box};
-use crate::mesh::{Polyline, check_sample_counts};
+use crate::mesh::Polyline;
+use crate::plan::{AxisSamples, CurvePlan, check_item_count};
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
@@ -40,20 +41,18 @@ pub(crate) struct CurveChunk {
 }
 
 impl CurveChunk {
-    /// Bytes `curve` sampled `count` times takes in each of a chunk's buffers: samples,
+    /// Bytes `curve` with `count` samples takes in each of a chunk's buffers: samples,
     /// control points, basis tables, curve list.
-    pub fn curve_bytes(curve: &BSplineCurve, count: u32) -> [(&'static str, u64); 4] {
+    pub fn curve_bytes(curve: &BSplineCurve, count: usize) -> [(&'static str, u64); 4] {
+        let count = count as u64;
         let entry_floats = 2 + 3 * (curve.degree() as u64 + 1);
         [
-            ("the samples of a curve", u64::from(count) * SAMPLE_BYTES),
+            ("the samples of a curve", count * SAMPLE_BYTES),
             (
                 "the control points of a curve",
                 curve.homogeneous_points().len() as u64 * 16,
             ),
-            (
-                "the basis table of a curve",
-                u64::from(count) * entry_floats * 4,
-            ),
+            ("the basis table of a curve", count * entry_floats * 4),
             ("a curve record", size_of::<CurveJob>() as u64),
         ]
     }
@@ -68,21 +67,27 @@ impl CurveChunk {
         ]
     }
 
-    /// Adds `curve` sampled `count` times, its points stored relative to `origin`; the
+    /// Adds `curve` at the plan's `samples`, its points stored relative to `origin`; the
     /// kernel adds `output_origin` to the positions (`origin` for world coordinates, zero
     /// to keep them relative).
-    pub fn push(&mut self, curve: &BSplineCurve, count: u32, origin: DVec3, output_origin: DVec3) {
+    pub fn push(
+        &mut self,
+        curve: &BSplineCurve,
+        samples: &AxisSamples,
+        origin: DVec3,
+        output_origin: DVec3,
+    ) {
         self.jobs.push(CurveJob {
             origin: output_origin.as_vec3().to_array(),
             degree: curve.degree() as u32,
             first_sample: self.sample_count as u32,
-            samples: count,
+            samples: samples.len() as u32,
             points: self.points.len() as u32,
             table: self.tables.len() as u32,
         });
         local_points(curve.homogeneous_points(), origin, &mut self.points);
-        push_table(curve.knots(), curve.range(), count, &mut self.tables);
-        self.sample_count += u64::from(count);
+        push_table(samples, &mut self.tables);
+        self.sample_count += samples.len() as u64;
     }
 
     /// Uploads the chunk and records its dispatch, writing the samples into `output`
@@ -128,27 +133,24 @@ pub(crate) fn fits<const N: usize>(
         .all(|(have, (_, add))| have + add <= budget)
 }
 
-/// Groups consecutive curves into chunks whose every buffer fits one binding of `limits`;
-/// curve k is sampled `samples[k]` (≥ 2) times. Sizes are checked before anything is
-/// allocated for them: a curve that alone exceeds a binding is refused.
+/// Groups consecutive curves of `plan` (made for `curves`) into chunks whose every buffer
+/// fits one binding of `limits`. Sizes are checked before anything is allocated for them: a
+/// curve that alone exceeds a binding is refused.
 fn pack_curves(
+    plan: &CurvePlan,
     curves: &[BSplineCurve],
-    samples: &[u32],
     limits: &Limits,
 ) -> Result<Vec<CurveChunk>> {
+    check_item_count(plan.items.len(), curves.len())?;
     let budget = limits.binding_bytes.min(limits.buffer_bytes);
     let mut chunks = vec![CurveChunk::default()];
-    for (index, (curve, &count)) in curves.iter().zip(samples).enumerate() {
-        let in_curve = |source| Error::InCurve {
-            index,
-            source: Box::new(source),
-        };
-        if count < 2 {
-            return Err(in_curve(Error::GridTooSmall { nu: count, nv: 1 }));
-        }
-        let needs = CurveChunk::curve_bytes(curve, count);
+    for (index, (curve, item)) in curves.iter().zip(&plan.items).enumerate() {
+        let needs = CurveChunk::curve_bytes(curve, item.samples.len());
         if let Some(&(what, bytes)) = needs.iter().find(|(_, bytes)| *bytes > budget) {
-            return Err(in_curve(too_large(what, bytes, budget)));
+            return Err(Error::InCurve {
+                index,
+                source: Box::new(too_large(what, bytes, budget)),
+            });
         }
         let last = chunks.last().expect("one chunk at least");
         if !fits(last.bytes(), needs, budget) {
@@ -157,7 +159,7 @@ fn pack_curves(
         let (lo, hi) = cartesian_box(curve.homogeneous_points());
         let origin = 0.5 * (lo + hi);
         let chunk = chunks.last_mut().expect("one chunk at least");
-        chunk.push(curve, count, origin, origin);
+        chunk.push(curve, &item.samples, origin, origin);
     }
     chunks.retain(|chunk| !chunk.jobs.is_empty());
     Ok(chunks)
@@ -173,8 +175,7 @@ pub fn sample_curves(
     samples: &[u32],
     limits: Limits,
 ) -> Result<Vec<Polyline>> {
-    check_sample_counts(curves, samples)?;
-    let chunks = pack_curves(curves, samples, &limits)?;
+    let chunks = pack_curves(&CurvePlan::new(curves, samples)?, curves, &limits)?;
     if chunks.is_empty() {
         return Ok(Vec::new());
     }
@@ -245,7 +246,8 @@ mod tests {
             buffer_bytes: 1 << 30,
             offset_alignment: 256,
         };
-        let chunks = pack_curves(&curves, &samples, &limits).unwrap();
+        let plan = CurvePlan::new(&curves, &samples).unwrap();
+        let chunks = pack_curves(&plan, &curves, &limits).unwrap();
         assert!(chunks.len() > 3, "{} chunks", chunks.len());
         let mut next = 0;
         for chunk in &chunks {

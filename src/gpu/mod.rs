@@ -36,6 +36,7 @@ use crate::error::{Error, Result};
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
 use crate::mesh::{Mesh, MeshPart, Polyline, TessOptions};
+use crate::plan::SurfacePlan;
 use glam::{DVec2, DVec3};
 use pack::{PASSES, Packed};
 use rayon::prelude::*;
@@ -459,7 +460,7 @@ impl GpuBatch {
         } else {
             wgpu::BufferUsages::empty()
         };
-        let packed = pack::pack(surfaces, options, &limits)?;
+        let packed = pack::pack(&SurfacePlan::new(surfaces, options)?, surfaces, &limits)?;
         scoped(device, || {
             let copy = wgpu::BufferUsages::COPY_DST;
             let pieces = storage_buffer(

@@ -3,10 +3,10 @@
 //! as f32, basis tables of every grid column and row computed in f64 and rounded once, and
 //! the pieces grouped into chunks whose buffer ranges fit the adapter's binding limits.
 
-use crate::geom::{BasisDers, MAX_ORDER, basis_ders, degenerate_cross_sq};
 use crate::error::{Error, Result};
-use crate::geom::{BSplineSurface, Interval, KnotVector};
-use crate::mesh::{MeshPart, TessOptions, plan_parts};
+use crate::geom::{BSplineSurface, degenerate_cross_sq};
+use crate::mesh::MeshPart;
+use crate::plan::{AxisSamples, BezierSegment, SurfacePlan, check_item_count};
 use bytemuck::{Pod, Zeroable};
 use glam::{DVec3, DVec4};
 
@@ -20,8 +20,6 @@ pub const VERTEX_BYTES: u64 = 32;
 const CONTRACTED_ENTRIES: u32 = 3;
 /// Most vertices per invocation of `evaluate_bezier_runs` (the runs of its table).
 const BEZIER_RUN: usize = 256;
-/// Highest degree along u that the Bezier-run kernels take; lower degrees are elevated to it.
-pub(crate) const BEZIER_DEGREE: usize = 3;
 /// f32 per segment entry (`SEGMENT_STRIDE` in the shader): first control column (bits),
 /// 1 / knot-span width, the 7 × 4 matrix (row-major) from the B-spline values to the four
 /// cubic Bezier coefficients and their three forward differences.
@@ -166,100 +164,61 @@ pub(crate) fn local_points(points: &[DVec4], origin: DVec3, out: &mut Vec<[f32; 
     }));
 }
 
-/// The Bezier-run tables (see tessellate.wgsl) of `samples` uniform samples of `range` along
-/// a direction of degree ≤ [`BEZIER_DEGREE`]: one segment per knot span the samples touch,
-/// then runs of at most `BEZIER_RUN` consecutive samples within one segment. Returns the
-/// segment count, the run count and the offsets of both tables in `out`.
+/// The Bezier-run tables (see tessellate.wgsl) of a direction of degree ≤ [`BEZIER_DEGREE`]:
+/// the plan's segments (one per knot span the samples touch) rounded to f32, then runs of at
+/// most `BEZIER_RUN` consecutive samples within one segment. Returns the segment count, the
+/// run count and the offsets of both tables in `out`.
 fn push_bezier_columns(
-    knots: &KnotVector,
-    range: Interval,
-    samples: u32,
+    samples: &AxisSamples,
+    segments: &[BezierSegment],
     out: &mut Vec<f32>,
 ) -> (u32, u32, u32, u32) {
-    let p = knots.degree();
-    let k = knots.knots();
-    let step = range.width() / f64::from(samples - 1);
-    // (sample, span) of every sample: spans never decrease along the samples.
-    let spans: Vec<usize> = (0..samples)
-        .map(|i| knots.find_span(range.lerp(f64::from(i) / f64::from(samples - 1))))
-        .collect();
+    let p = samples.degree();
     let segment_table = out.len() as u32;
-    let mut segment_spans: Vec<usize> = Vec::new();
-    let mut ders: BasisDers = [[0.0; MAX_ORDER]; 3];
-    for &span in &spans {
-        if segment_spans.last() == Some(&span) {
-            continue;
-        }
-        segment_spans.push(span);
-        // The span's polynomial pieces N_{span-p+c}, c ≤ p, in the cubic Bernstein basis of
-        // the whole knot span (a cubic is fixed by its end values and end derivatives): the
-        // coefficients (non-negative, so values sum without cancellation even for weights
-        // 1e4 apart) and their forward differences (exact in f32 where the coefficients
-        // nearly coincide: derivatives over a tiny span).
-        let (a, b) = (k[span], k[span + 1]);
-        let h = b - a;
-        let mut matrix = [[0.0f64; 4]; 7];
-        basis_ders(knots, span, a, 1, &mut ders);
-        let start: [(f64, f64); MAX_ORDER] =
-            std::array::from_fn(|c| (ders[0][c], ders[1][c] * h / 3.0));
-        basis_ders(knots, span, b, 1, &mut ders);
-        for (c, &(value_a, slope_a)) in start.iter().enumerate().take(p + 1) {
-            let (value_b, slope_b) = (ders[0][c], ders[1][c] * h / 3.0);
-            let middle = (value_b - value_a) - slope_a - slope_b;
-            matrix[0][c] = value_a;
-            matrix[1][c] = value_a + slope_a;
-            matrix[2][c] = value_b - slope_b;
-            matrix[3][c] = value_b;
-            matrix[4][c] = slope_a;
-            matrix[5][c] = middle;
-            matrix[6][c] = slope_b;
-        }
-        out.push(f32::from_bits((span - p) as u32));
-        out.push((1.0 / h) as f32);
-        out.extend(matrix.iter().flatten().map(|&m| m as f32));
+    for (segment, run) in segments.iter().zip(samples.runs()) {
+        out.push(f32::from_bits((run.span - p) as u32));
+        out.push((1.0 / segment.width) as f32);
+        out.extend(segment.matrix.iter().flatten().map(|&m| m as f32));
     }
     let run_table = out.len() as u32;
     debug_assert_eq!(
         (run_table - segment_table) as usize,
-        segment_spans.len() * SEGMENT_STRIDE
+        segments.len() * SEGMENT_STRIDE
     );
     // A segment's samples split into runs of nearly equal length: neighbouring runs run
     // side by side in SIMD lanes, and a group takes as long as its longest run.
+    let params = samples.params();
+    let step = (params[params.len() - 1] - params[0]) / (params.len() - 1) as f64;
     let mut runs = 0;
-    let mut first = 0usize;
-    for (segment, &span) in segment_spans.iter().enumerate() {
-        let samples_in_span = spans[first..].iter().take_while(|&&s| s == span).count();
+    for (index, (segment, run)) in segments.iter().zip(samples.runs()).enumerate() {
+        let samples_in_span = run.end - run.start;
         let parts = samples_in_span.div_ceil(BEZIER_RUN);
-        let h = k[span + 1] - k[span];
+        let mut first = run.start;
         for part in 0..parts {
             let count = samples_in_span / parts + usize::from(part < samples_in_span % parts);
-            let u = range.lerp(first as f64 / f64::from(samples - 1));
             out.push(f32::from_bits(first as u32));
             out.push(f32::from_bits(count as u32));
-            out.push(f32::from_bits(segment as u32));
-            out.push(((u - k[span]) / h) as f32);
-            out.push((step / h) as f32);
+            out.push(f32::from_bits(index as u32));
+            out.push(((params[first] - segment.start) / segment.width) as f32);
+            out.push((step / segment.width) as f32);
             runs += 1;
             first += count;
         }
     }
     debug_assert_eq!(out.len() - run_table as usize, runs as usize * RUN_STRIDE);
-    (segment_spans.len() as u32, runs, segment_table, run_table)
+    (segments.len() as u32, runs, segment_table, run_table)
 }
 
-/// Table entries (see tessellate.wgsl) of `samples` uniform samples of `range`.
-pub(crate) fn push_table(knots: &KnotVector, range: Interval, samples: u32, out: &mut Vec<f32>) {
-    let p = knots.degree();
-    let mut ders: BasisDers = [[0.0; MAX_ORDER]; 3];
-    for i in 0..samples {
-        let fraction = f64::from(i) / f64::from(samples - 1);
-        let t = range.lerp(fraction);
-        let span = knots.find_span(t);
-        basis_ders(knots, span, t, 2, &mut ders);
-        out.push(fraction as f32);
-        out.push(f32::from_bits(span as u32));
-        for row in &ders {
-            out.extend(row[..=p].iter().map(|&x| x as f32));
+/// Table entries (see tessellate.wgsl) of every sample of `samples`, rounded to f32: the
+/// sample's fraction, its span (bits), then the values, first and second derivatives of
+/// its degree + 1 basis functions.
+pub(crate) fn push_table(samples: &AxisSamples, out: &mut Vec<f32>) {
+    let p = samples.degree();
+    for i in 0..samples.len() {
+        out.push(samples.fractions()[i] as f32);
+        out.push(f32::from_bits(samples.spans()[i] as u32));
+        for order in 0..3 {
+            out.extend((0..=p).map(|k| samples.row(order, k)[i] as f32));
         }
     }
 }
@@ -268,19 +227,15 @@ pub(crate) fn too_large(what: &'static str, bytes: u64, limit: u64) -> Error {
     Error::GpuJobTooLarge { what, bytes, limit }
 }
 
-/// Plans and packs `surfaces`, surface k on the grid of `options[k]`, within `limits`.
+/// Packs `plan` (made for `surfaces`) within `limits`.
 pub(crate) fn pack(
+    plan: &SurfacePlan,
     surfaces: &[BSplineSurface],
-    options: &[TessOptions],
     limits: &Limits,
 ) -> Result<Packed> {
-    let parts = plan_parts(surfaces.len(), options)?;
-    let vertex_count = parts
-        .last()
-        .map_or(0, |p| u64::from(p.first_vertex + p.vertex_count));
-    let index_count = parts
-        .last()
-        .map_or(0, |p| u64::from(p.first_index + p.index_count));
+    check_item_count(plan.items.len(), surfaces.len())?;
+    let parts = plan.layout.parts.clone();
+    let (vertex_count, index_count) = (plan.layout.vertex_count, plan.layout.index_count);
     for (what, bytes) in [
         ("the vertex buffer", vertex_count * VERTEX_BYTES),
         ("the index buffer", index_count * 4),
@@ -304,14 +259,16 @@ pub(crate) fn pack(
         index_count,
         contracted_len: 0,
     };
-    for (surface_index, (surface, part)) in surfaces.iter().zip(&packed.parts).enumerate() {
+    for (surface_index, (surface, item)) in surfaces.iter().zip(&plan.items).enumerate() {
+        let part = &item.part;
         let (nu, nv) = (part.grid_u, part.grid_v);
         let columns = packed.tables.len() as u32;
-        let (segments, runs, segment_table, run_table) = if surface.degree_u() <= BEZIER_DEGREE {
-            push_bezier_columns(surface.knots_u(), surface.range_u(), nu, &mut packed.tables)
-        } else {
-            push_table(surface.knots_u(), surface.range_u(), nu, &mut packed.tables);
-            (0, 0, 0, 0)
+        let (segments, runs, segment_table, run_table) = match &item.bezier_columns {
+            Some(segments) => push_bezier_columns(&item.columns, segments, &mut packed.tables),
+            None => {
+                push_table(&item.columns, &mut packed.tables);
+                (0, 0, 0, 0)
+            }
         };
         let row_bytes = [
             u64::from(nu) * VERTEX_BYTES,
@@ -338,7 +295,7 @@ pub(crate) fn pack(
             ));
         }
         let rows_table = packed.tables.len() as u32;
-        push_table(surface.knots_v(), surface.range_v(), nv, &mut packed.tables);
+        push_table(&item.rows, &mut packed.tables);
         let tables = (columns as usize, packed.tables.len());
         if (tables.1 - tables.0) as u64 * 4 > budget {
             return Err(too_large(
@@ -524,46 +481,39 @@ fn gcd(a: u64, b: u64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::KnotVector;
+    use crate::geom::{Interval, KnotVector};
+    use crate::mesh::TessOptions;
+    use crate::plan::BEZIER_DEGREE;
 
     /// The Bezier-run tables: every sample in exactly one run, runs within one knot span and
-    /// at most `BEZIER_RUN` long, their local parameters those of the samples; each segment's
-    /// matrix turns the B-spline basis into Bezier coefficients that reproduce the basis
-    /// functions (to f32 rounding), and its difference rows are the coefficients' differences
-    /// (to f32 rounding of the differences themselves, also over a 1e-6 span, where
-    /// subtracting rounded coefficients would not be).
+    /// at most `BEZIER_RUN` long, their local parameters those of the samples (to f32
+    /// rounding, also inside a 1e-6 span); the segment entries are the plan's segments
+    /// rounded to f32 once (the plan's tests check the segments' mathematics).
     #[test]
-    fn bezier_tables_reproduce_the_basis() {
+    fn bezier_run_tables_cover_every_sample_once() {
         const F32_BAR: f64 = 1e-6;
-        let mut tiny_spans = 0;
         for degree in 1..=BEZIER_DEGREE {
             let mut knots = vec![0.0; degree + 1];
-            // A repeated knot where the degree allows one, a 1e-6 span.
-            knots.extend(
-                [0.1, 0.35]
-                    .iter()
-                    .chain(if degree > 1 { &[0.35][..] } else { &[] }),
-            );
-            knots.extend([0.5, 0.5 + 1e-6, 0.9]);
+            knots.extend([0.1, 0.35, 0.5, 0.5 + 1e-6, 0.9]);
             knots.extend(vec![1.0; degree + 1]);
             let knots = KnotVector::try_new(degree, knots).unwrap();
-            // The second range starts inside the 1e-6 span, so that span has a segment.
             for range in [Interval::new(0.05, 0.97), Interval::new(0.5 + 5e-7, 0.97)] {
-                let samples = 301;
+                let samples = AxisSamples::uniform(&knots, range, 601);
+                let plan_segments = samples.bezier_segments(&knots).unwrap();
                 let mut out = Vec::new();
                 let (segments, runs, segment_table, run_table) =
-                    push_bezier_columns(&knots, range, samples, &mut out);
+                    push_bezier_columns(&samples, &plan_segments, &mut out);
+                assert_eq!(segments as usize, plan_segments.len());
                 let bits = |x: f32| x.to_bits() as usize;
                 let mut next = 0;
                 for run in out[run_table as usize..].chunks(RUN_STRIDE) {
                     let (first, count, segment) = (bits(run[0]), bits(run[1]), bits(run[2]));
                     assert!(first == next && (1..=BEZIER_RUN).contains(&count));
-                    assert!(segment < segments as usize);
                     let entry = &out[segment_table as usize + segment * SEGMENT_STRIDE..];
                     let span = bits(entry[0]) + degree;
                     let (a, b) = (knots.knots()[span], knots.knots()[span + 1]);
                     for step in 0..count {
-                        let u = range.lerp((first + step) as f64 / f64::from(samples - 1));
+                        let u = samples.params()[first + step];
                         assert_eq!(knots.find_span(u), span, "sample {}", first + step);
                         let t = f64::from(run[3]) + step as f64 * f64::from(run[4]);
                         assert!(
@@ -576,58 +526,17 @@ mod tests {
                 }
                 assert_eq!(
                     (next, runs as usize * RUN_STRIDE),
-                    (samples as usize, out.len() - run_table as usize)
+                    (601, out.len() - run_table as usize)
                 );
-                for segment in
-                    out[segment_table as usize..run_table as usize].chunks(SEGMENT_STRIDE)
-                {
-                    let span = bits(segment[0]) + degree;
-                    let (a, b) = (knots.knots()[span], knots.knots()[span + 1]);
-                    assert!((f64::from(segment[1]) * (b - a) - 1.0).abs() < F32_BAR);
-                    let m = |j: usize, c: usize| f64::from(segment[2 + 4 * j + c]);
-                    let mut ders: BasisDers = [[0.0; MAX_ORDER]; 3];
-                    for t in [0.0, 0.3, 0.75, 1.0] {
-                        basis_ders(&knots, span, a + t * (b - a), 0, &mut ders);
-                        let bernstein = [
-                            (1.0 - t).powi(3),
-                            3.0 * t * (1.0 - t).powi(2),
-                            3.0 * t * t * (1.0 - t),
-                            t.powi(3),
-                        ];
-                        for (c, &basis) in ders[0].iter().enumerate().take(4) {
-                            let bezier: f64 =
-                                bernstein.iter().enumerate().map(|(j, w)| w * m(j, c)).sum();
-                            let expected = if c <= degree { basis } else { 0.0 };
-                            assert!((bezier - expected).abs() < F32_BAR, "degree {degree} t {t}");
-                        }
-                    }
-                    // Differences from the end derivatives (independently of the coefficients):
-                    // 3(b1 − b0) = h N'(a), 3(b3 − b2) = h N'(b), 6(b2 − 2b1 + b0) = h² N''(a);
-                    // each within f32 rounding of itself, however small.
-                    let h = b - a;
-                    basis_ders(&knots, span, a, 2, &mut ders);
-                    let start = ders;
-                    basis_ders(&knots, span, b, 1, &mut ders);
-                    for c in 0..=degree {
-                        let first = h * start[1][c] / 3.0;
-                        let expected = [
-                            first,
-                            first + h * h * start[2][c] / 6.0,
-                            h * ders[1][c] / 3.0,
-                        ];
-                        for (j, difference) in expected.into_iter().enumerate() {
-                            let error = (m(4 + j, c) - difference).abs();
-                            assert!(
-                                error <= F32_BAR * difference.abs() + 1e-9 * h,
-                                "degree {degree} span {span}"
-                            );
-                        }
-                    }
-                    tiny_spans += usize::from(h < 1e-5);
+                let entries =
+                    out[segment_table as usize..run_table as usize].chunks(SEGMENT_STRIDE);
+                for (entry, segment) in entries.zip(&plan_segments) {
+                    assert_eq!(entry[1], (1.0 / segment.width) as f32);
+                    let matrix = segment.matrix.iter().flatten().map(|&m| m as f32);
+                    assert!(entry[2..].iter().copied().eq(matrix));
                 }
             }
         }
-        assert_eq!(tiny_spans, BEZIER_DEGREE);
     }
 
     /// With WebGPU's usual 256-byte offset alignment and a binding limit small enough to make
@@ -649,7 +558,8 @@ mod tests {
             buffer_bytes: 1 << 30,
             offset_alignment: 256,
         };
-        let packed = pack(&surfaces, &options, &limits).unwrap();
+        let plan = SurfacePlan::new(&surfaces, &options).unwrap();
+        let packed = pack(&plan, &surfaces, &limits).unwrap();
         assert!(packed.chunks.len() > 5);
         let (mut next_piece, mut next_vertex, mut next_index) = (0u64, 0u64, 0u64);
         for chunk in &packed.chunks {

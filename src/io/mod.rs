@@ -303,13 +303,35 @@ mod tests {
     #[test]
     fn formats_left_out_of_the_build_are_named() {
         let err = read_scene(Path::new("data/scene.json")).unwrap_err();
-        assert!(matches!(err.root(), Error::FeatureDisabled { feature: "json", .. }), "{err}");
+        assert!(
+            matches!(
+                err.root(),
+                Error::FeatureDisabled {
+                    feature: "json",
+                    ..
+                }
+            ),
+            "{err}"
+        );
         let dir = std::env::temp_dir().join(format!("knotwork-features-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let out = dir.join("mesh.glb");
         let err = write_mesh(&out, &Mesh::default()).unwrap_err();
-        assert!(matches!(err, Error::FeatureDisabled { feature: "gltf", .. }), "{err}");
-        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0, "nothing written");
+        assert!(
+            matches!(
+                err,
+                Error::FeatureDisabled {
+                    feature: "gltf",
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        assert_eq!(
+            std::fs::read_dir(&dir).unwrap().count(),
+            0,
+            "nothing written"
+        );
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -1,0 +1,302 @@
+//! What to sample, decided once for every backend (OpenSubdiv's "Far" to the executors'
+//! "Osd"): from the items and their options to each item's samples, the output layout
+//! (vertex and index offsets, checked against u32 before anything is allocated) and the f64
+//! tables the executors consume. [`crate::cpu`] and [`crate::gpu`] both execute these plans;
+//! neither decides a sample position or a layout of its own.
+
+mod tables;
+
+pub use tables::{AxisSamples, BEZIER_DEGREE, BezierSegment, ROW_PADDING, SpanRun};
+
+use crate::error::{Error, Result};
+use crate::geom::patches::CoonsPatch;
+use crate::geom::{BSplineCurve, BSplineSurface};
+use crate::mesh::{MeshPart, TessOptions};
+
+/// Where every grid item's vertices and indices go in the output.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct GridLayout {
+    /// One part per item, in item order, packed without gaps.
+    pub parts: Vec<MeshPart>,
+    /// Vertices of all parts (≤ u32::MAX).
+    pub vertex_count: u64,
+    /// Indices of all parts (≤ u32::MAX).
+    pub index_count: u64,
+}
+
+impl GridLayout {
+    /// Lays out one grid per entry of `options` for `count` items: grid_u × grid_v vertices
+    /// and 6·(grid_u − 1)·(grid_v − 1) indices each, in order. Fails before anything is
+    /// allocated if the counts differ, a grid has fewer than 2 × 2 vertices, or a vertex or
+    /// an index would not fit u32.
+    pub fn new(count: usize, options: &[TessOptions]) -> Result<Self> {
+        if options.len() != count {
+            return Err(Error::OptionsCount {
+                expected: count,
+                found: options.len(),
+            });
+        }
+        let (mut vertices, mut indices) = (0u64, 0u64);
+        let mut parts = Vec::with_capacity(options.len());
+        for o in options {
+            let (nu, nv) = (o.grid_u, o.grid_v);
+            if nu < 2 || nv < 2 {
+                return Err(Error::GridTooSmall { nu, nv });
+            }
+            let (vertex_count, index_count) = (
+                u64::from(nu) * u64::from(nv),
+                6 * u64::from(nu - 1) * u64::from(nv - 1),
+            );
+            if vertices + vertex_count > u64::from(u32::MAX)
+                || indices + index_count > u64::from(u32::MAX)
+            {
+                return Err(Error::MeshTooLarge {
+                    vertices: vertices + vertex_count,
+                });
+            }
+            parts.push(MeshPart {
+                grid_u: nu,
+                grid_v: nv,
+                first_vertex: vertices as u32,
+                vertex_count: vertex_count as u32,
+                first_index: indices as u32,
+                index_count: index_count as u32,
+            });
+            vertices += vertex_count;
+            indices += index_count;
+        }
+        Ok(GridLayout {
+            parts,
+            vertex_count: vertices,
+            index_count: indices,
+        })
+    }
+}
+
+/// Checks that a plan of `planned` items is executed on `given` items (the items it was made
+/// for).
+pub(crate) fn check_item_count(planned: usize, given: usize) -> Result<()> {
+    if planned == given {
+        Ok(())
+    } else {
+        Err(Error::PlanMismatch { planned, given })
+    }
+}
+
+/// The connectivity rule of every grid: the two triangles of the cell whose lowest corner is
+/// vertex `a` of a grid `grid_u` vertices wide. With b = a + 1, c = a + grid_u + 1 and
+/// d = a + grid_u: (a, b, c) and (a, c, d), counter-clockwise seen from the S_u × S_v side.
+/// (The kernels' copy is `cell_triangles` in shaders/grid_common.wgsl.)
+pub fn cell_triangles(a: u32, grid_u: u32) -> [u32; 6] {
+    let c = a + grid_u + 1;
+    [a, a + 1, c, a, c, a + grid_u]
+}
+
+/// One surface's samples: its grid's columns (u) and rows (v) over the surface's evaluation
+/// range, and where its output goes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SurfaceSamples {
+    pub part: MeshPart,
+    pub columns: AxisSamples,
+    pub rows: AxisSamples,
+    /// The cubic Bezier form of each knot span the columns touch, for degree ≤
+    /// [`BEZIER_DEGREE`] along u (one entry per run of [`AxisSamples::runs`]).
+    pub bezier_columns: Option<Vec<BezierSegment>>,
+}
+
+/// The plan for a list of surfaces.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SurfacePlan {
+    pub layout: GridLayout,
+    /// One entry per surface, in order.
+    pub items: Vec<SurfaceSamples>,
+}
+
+impl SurfacePlan {
+    /// Plans surface k on the grid of `options[k]`.
+    pub fn new(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Self> {
+        let layout = GridLayout::new(surfaces.len(), options)?;
+        let items = surfaces
+            .iter()
+            .zip(&layout.parts)
+            .map(|(surface, &part)| {
+                let columns = AxisSamples::uniform(
+                    surface.knots_u(),
+                    surface.range_u(),
+                    part.grid_u as usize,
+                );
+                let rows = AxisSamples::uniform(
+                    surface.knots_v(),
+                    surface.range_v(),
+                    part.grid_v as usize,
+                );
+                SurfaceSamples {
+                    part,
+                    bezier_columns: columns.bezier_segments(surface.knots_u()),
+                    columns,
+                    rows,
+                }
+            })
+            .collect();
+        Ok(SurfacePlan { layout, items })
+    }
+}
+
+/// One directly evaluated Coons patch's samples over (u, v) ∈ [0, 1]²: its four boundary
+/// curves at the grid's columns (S(u,0), S(u,1)) and rows (S(0,v), S(1,v)), the blend
+/// [α, α′, α″] at each column and row, and where its output goes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CoonsSamples {
+    pub part: MeshPart,
+    /// In the order of [`CoonsPatch::boundaries`]: v = 0 and v = 1 at the columns, u = 0
+    /// and u = 1 at the rows.
+    pub boundaries: [AxisSamples; 4],
+    pub column_blends: Vec<[f64; 3]>,
+    pub row_blends: Vec<[f64; 3]>,
+}
+
+/// The plan for a list of directly evaluated Coons patches.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CoonsPlan {
+    pub layout: GridLayout,
+    pub items: Vec<CoonsSamples>,
+}
+
+impl CoonsPlan {
+    /// Plans patch k on the grid of `options[k]`.
+    pub fn new(patches: &[CoonsPatch], options: &[TessOptions]) -> Result<Self> {
+        let layout = GridLayout::new(patches.len(), options)?;
+        let items = patches
+            .iter()
+            .zip(&layout.parts)
+            .map(|(patch, &part)| {
+                let (nu, nv) = (part.grid_u as usize, part.grid_v as usize);
+                let boundaries = std::array::from_fn(|k| {
+                    let curve = &patch.boundaries()[k];
+                    let samples = if k < 2 { nu } else { nv };
+                    AxisSamples::uniform(curve.knots(), curve.range(), samples)
+                });
+                let blends = |n: usize| -> Vec<[f64; 3]> {
+                    (0..n)
+                        .map(|k| patch.blend().derivatives(k as f64 / (n - 1) as f64))
+                        .collect()
+                };
+                CoonsSamples {
+                    part,
+                    boundaries,
+                    column_blends: blends(nu),
+                    row_blends: blends(nv),
+                }
+            })
+            .collect();
+        Ok(CoonsPlan { layout, items })
+    }
+}
+
+/// One curve's samples and where they go among all curves' samples.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CurveSamples {
+    /// Index of the curve's first sample among all samples of the plan.
+    pub first_sample: u64,
+    pub samples: AxisSamples,
+}
+
+/// The plan for a list of curves.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CurvePlan {
+    pub items: Vec<CurveSamples>,
+    /// Samples of all curves.
+    pub sample_count: u64,
+}
+
+impl CurvePlan {
+    /// Plans curve k with `samples[k]` (≥ 2) samples uniform over its range; errors name the
+    /// curve.
+    pub fn new(curves: &[BSplineCurve], samples: &[u32]) -> Result<Self> {
+        if samples.len() != curves.len() {
+            return Err(Error::SampleCounts {
+                expected: curves.len(),
+                found: samples.len(),
+            });
+        }
+        let mut plan = CurvePlan::default();
+        for (index, (curve, &count)) in curves.iter().zip(samples).enumerate() {
+            if count < 2 {
+                return Err(Error::InCurve {
+                    index,
+                    source: Box::new(Error::GridTooSmall { nu: count, nv: 1 }),
+                });
+            }
+            plan.items.push(CurveSamples {
+                first_sample: plan.sample_count,
+                samples: AxisSamples::uniform(curve.knots(), curve.range(), count as usize),
+            });
+            plan.sample_count += u64::from(count);
+        }
+        Ok(plan)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Parts follow each other without gaps; the u32 check names the vertex count that
+    /// overflows and happens before anything is allocated.
+    #[test]
+    fn layouts_pack_parts_and_refuse_overflow() {
+        let options = [
+            TessOptions::DEFAULT.with_grid(3, 4),
+            TessOptions::DEFAULT.with_grid(5, 2),
+        ];
+        let layout = GridLayout::new(2, &options).unwrap();
+        assert_eq!(
+            layout.parts[1],
+            MeshPart {
+                grid_u: 5,
+                grid_v: 2,
+                first_vertex: 12,
+                vertex_count: 10,
+                first_index: 36,
+                index_count: 24,
+            }
+        );
+        assert_eq!((layout.vertex_count, layout.index_count), (22, 60));
+        let huge = [TessOptions::DEFAULT.with_grid(65536, 65536)];
+        assert!(matches!(
+            GridLayout::new(1, &huge),
+            Err(Error::MeshTooLarge { vertices }) if vertices == 65536 * 65536
+        ));
+        assert!(matches!(
+            GridLayout::new(3, &options),
+            Err(Error::OptionsCount {
+                expected: 3,
+                found: 2
+            })
+        ));
+        assert!(matches!(
+            GridLayout::new(1, &[TessOptions::DEFAULT.with_grid(1, 9)]),
+            Err(Error::GridTooSmall { nu: 1, nv: 9 })
+        ));
+    }
+
+    /// The cell rule: both triangles turn the same way as the grid's (u, v) axes.
+    #[test]
+    fn cell_triangles_are_counter_clockwise_in_the_parameter_plane() {
+        let grid_u = 7;
+        let corner = |index: u32| {
+            let (i, j) = (index % grid_u, index / grid_u);
+            (f64::from(i), f64::from(j))
+        };
+        let triangles = cell_triangles(2 * grid_u + 3, grid_u);
+        for t in triangles.chunks(3) {
+            let [a, b, c] = [corner(t[0]), corner(t[1]), corner(t[2])];
+            let area = (b.0 - a.0) * (c.1 - a.1) - (b.1 - a.1) * (c.0 - a.0);
+            assert_eq!(area, 1.0);
+        }
+        let mut used = triangles.to_vec();
+        used.sort_unstable();
+        used.dedup();
+        assert_eq!(used, [17, 18, 24, 25]);
+    }
+}
