@@ -50,7 +50,7 @@ pub use cpu::CpuTessellator;
 pub use error::{Error, Result};
 pub use geom::{BSplineCurve, BSplineSurface, BezierPatch, Interval, KnotVector};
 pub use gpu::{GpuBatch, GpuContext, GpuMesh, GpuTessellator};
-pub use mesh::{Mesh, MeshPart, Polyline, TessOptions};
+pub use mesh::{AnyMesh, Mesh, Mesh32, MeshPart, Polyline, TessOptions, Vertex};
 
 /// One interface for every tessellation backend: the same surfaces and options give a
 /// [`Mesh`] with the same layout, whichever backend runs.

@@ -1,7 +1,10 @@
-//! The triangle mesh both tessellation paths produce, and the grid topology they share.
+//! The triangle meshes the executors produce: [`Mesh`] in f64 (the reference, OBJ) and
+//! [`Mesh32`] in f32 (what GPUs, glTF, PLY and STL carry), in the same layout.
 
 use crate::error::{Error, Result};
+use bytemuck::{Pod, Zeroable};
 use glam::{DVec2, DVec3};
+use rayon::prelude::*;
 
 /// Tessellation options, built from [`TessOptions::DEFAULT`] with `with_*` methods.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -65,6 +68,151 @@ pub struct Mesh {
     /// Tessellated curves, in input order. Surface tessellation leaves them alone; fill them
     /// with [`crate::Tessellator::tessellate_curves`].
     pub polylines: Vec<Polyline>,
+}
+
+/// One vertex of a [`Mesh32`], and of the GPU's vertex buffers byte for byte: 32 bytes,
+/// position (`Float32x3`) at offset 0, unit normal (`Float32x3`) at 12, uv (`Float32x2`) at
+/// 24.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Pod, Zeroable)]
+pub struct Vertex {
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+    pub uv: [f32; 2],
+}
+
+/// The f32 mesh: the layout of [`Mesh`] (parts, grid order, winding) with interleaved
+/// [`Vertex`]es as the GPU writes them, so GPU readback is a copy. Polylines stay f64: they
+/// are small, and the CPU's exact values survive.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Mesh32 {
+    pub vertices: Vec<Vertex>,
+    pub indices: Vec<u32>,
+    /// One entry per input item, in input order.
+    pub parts: Vec<MeshPart>,
+    pub polylines: Vec<Polyline>,
+}
+
+impl Mesh32 {
+    pub fn vertex_count(&self) -> usize {
+        self.vertices.len()
+    }
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+
+    /// The same mesh in f64 (every f32 value exactly).
+    pub fn to_f64(&self) -> Mesh {
+        let mut mesh = Mesh {
+            indices: self.indices.clone(),
+            parts: self.parts.clone(),
+            polylines: self.polylines.clone(),
+            ..Mesh::default()
+        };
+        let widen = |v: [f32; 3]| DVec3::new(v[0].into(), v[1].into(), v[2].into());
+        let vertices = || self.vertices.par_iter();
+        mesh.positions.par_extend(vertices().map(|v| widen(v.position)));
+        mesh.normals.par_extend(vertices().map(|v| widen(v.normal)));
+        mesh.uvs
+            .par_extend(vertices().map(|v| DVec2::new(v.uv[0].into(), v.uv[1].into())));
+        mesh
+    }
+}
+
+impl From<&Mesh> for Mesh32 {
+    /// The mesh rounded to f32 (positions, normals and uvs each to nearest).
+    fn from(mesh: &Mesh) -> Self {
+        Mesh32 {
+            vertices: narrow_vertices(mesh),
+            indices: mesh.indices.clone(),
+            parts: mesh.parts.clone(),
+            polylines: mesh.polylines.clone(),
+        }
+    }
+}
+
+/// The vertices of `mesh` rounded to f32, in parallel.
+fn narrow_vertices(mesh: &Mesh) -> Vec<Vertex> {
+    let narrow = |v: DVec3| v.as_vec3().to_array();
+    let mut vertices = Vec::with_capacity(mesh.vertex_count());
+    vertices.par_extend(
+        mesh.positions
+            .par_iter()
+            .zip(&mesh.normals)
+            .zip(&mesh.uvs)
+            .map(|((&p, &n), &t)| Vertex {
+                position: narrow(p),
+                normal: narrow(n),
+                uv: t.as_vec2().to_array(),
+            }),
+    );
+    vertices
+}
+
+/// A mesh of either precision, as the writers take it.
+#[derive(Debug, Clone, Copy)]
+pub enum AnyMesh<'a> {
+    F64(&'a Mesh),
+    F32(&'a Mesh32),
+}
+
+impl<'a> From<&'a Mesh> for AnyMesh<'a> {
+    fn from(mesh: &'a Mesh) -> Self {
+        AnyMesh::F64(mesh)
+    }
+}
+
+impl<'a> From<&'a Mesh32> for AnyMesh<'a> {
+    fn from(mesh: &'a Mesh32) -> Self {
+        AnyMesh::F32(mesh)
+    }
+}
+
+impl<'a> AnyMesh<'a> {
+    pub fn vertex_count(&self) -> usize {
+        match self {
+            AnyMesh::F64(m) => m.vertex_count(),
+            AnyMesh::F32(m) => m.vertex_count(),
+        }
+    }
+    pub fn indices(&self) -> &'a [u32] {
+        match self {
+            AnyMesh::F64(m) => &m.indices,
+            AnyMesh::F32(m) => &m.indices,
+        }
+    }
+    pub fn triangle_count(&self) -> usize {
+        self.indices().len() / 3
+    }
+    pub fn parts(&self) -> &'a [MeshPart] {
+        match self {
+            AnyMesh::F64(m) => &m.parts,
+            AnyMesh::F32(m) => &m.parts,
+        }
+    }
+    pub fn polylines(&self) -> &'a [Polyline] {
+        match self {
+            AnyMesh::F64(m) => &m.polylines,
+            AnyMesh::F32(m) => &m.polylines,
+        }
+    }
+    /// Position of vertex `index` (an f32 one widened exactly).
+    pub fn position(&self, index: usize) -> DVec3 {
+        match self {
+            AnyMesh::F64(m) => m.positions[index],
+            AnyMesh::F32(m) => {
+                let p = m.vertices[index].position;
+                DVec3::new(p[0].into(), p[1].into(), p[2].into())
+            }
+        }
+    }
+    /// Every vertex rounded to f32 (borrowed for an f32 mesh).
+    pub fn vertices_f32(&self) -> std::borrow::Cow<'a, [Vertex]> {
+        match self {
+            AnyMesh::F64(m) => std::borrow::Cow::Owned(narrow_vertices(m)),
+            AnyMesh::F32(m) => std::borrow::Cow::Borrowed(&m.vertices),
+        }
+    }
 }
 
 /// A curve sampled uniformly in parameter over its range: positions and tangents (first
@@ -179,6 +327,7 @@ impl Mesh {
             });
             remap.push(target);
         }
+        welded.polylines.clone_from(&self.polylines);
         let mut report = WeldReport {
             merged_vertices: self.positions.len() - welded.positions.len(),
             dropped_triangles: 0,

@@ -1123,3 +1123,73 @@ fn classic_form_errors_name_the_item() {
         "u1": { "kind": "bezier", "points": [[1, 0, 0], [1, 1, 0]] } } ] }"#;
     assert!(error(blend).contains("blending function must be 1 at 0 and 0 at 1"));
 }
+
+/// An f32 mesh writes what its f64 source writes after rounding: PLY and glb byte for byte,
+/// STL corners exactly and face normals to f32 rounding, OBJ every f32 value exactly (read
+/// back by tobj); the round trip f64 → f32 → f64 keeps every f32 value.
+#[test]
+fn f32_meshes_write_as_their_f64_sources() {
+    let mut mesh = teapot_mesh(5);
+    mesh.polylines.push(knotwork::Polyline {
+        positions: vec![DVec3::new(0.1, 0.2, 0.3), DVec3::new(1.0, 2.0, 3.0)],
+        tangents: vec![DVec3::X, DVec3::Y],
+    });
+    let mesh32 = knotwork::Mesh32::from(&mesh);
+    assert_eq!(knotwork::Mesh32::from(&mesh32.to_f64()), mesh32);
+    let dir = scratch_dir("f32");
+    for extension in ["glb", "obj"] {
+        let (a, b) = (dir.join(format!("a.{extension}")), dir.join(format!("b.{extension}")));
+        write_mesh(&a, &mesh).unwrap();
+        write_mesh(&b, &mesh32).unwrap();
+        let (a, b) = (std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+        if extension == "glb" {
+            assert_eq!(a, b, "glb");
+        } else {
+            // Every `v`, `vt`, `vn` value parses back to the f32 it came from.
+            let text = String::from_utf8(b).unwrap();
+            let values = |tag: &str| -> Vec<Vec<f32>> {
+                text.lines()
+                    .filter_map(|l| l.strip_prefix(tag))
+                    .map(|l| l.split(' ').map(|x| x.parse().unwrap()).collect())
+                    .collect()
+            };
+            let (v, vt, vn) = (values("v "), values("vt "), values("vn "));
+            assert_eq!(v.len(), mesh32.vertex_count() + 2, "surface and curve points");
+            for (k, vertex) in mesh32.vertices.iter().enumerate() {
+                assert_eq!(v[k], vertex.position, "vertex {k}");
+                assert_eq!(vt[k], vertex.uv, "vertex {k}");
+                assert_eq!(vn[k], vertex.normal, "vertex {k}");
+            }
+        }
+    }
+    mesh.polylines.clear();
+    let mesh32 = knotwork::Mesh32::from(&mesh);
+    let (a, b) = (dir.join("a.ply"), dir.join("b.ply"));
+    write_mesh(&a, &mesh).unwrap();
+    write_mesh(&b, &mesh32).unwrap();
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap(), "ply");
+    let (a, b) = (dir.join("a.stl"), dir.join("b.stl"));
+    write_mesh(&a, &mesh).unwrap();
+    write_mesh(&b, &mesh32).unwrap();
+    let read = |p: &Path| stl_io::read_stl(&mut std::fs::File::open(p).unwrap()).unwrap();
+    let (a, b) = (read(&a), read(&b));
+    assert_eq!(a.vertices, b.vertices);
+    for (fa, fb) in a.faces.iter().zip(&b.faces) {
+        assert_eq!(fa.vertices, fb.vertices);
+        let difference: f32 = (0..3).map(|c| (fa.normal[c] - fb.normal[c]).abs()).sum();
+        assert!(difference < 1e-3, "{:?} vs {:?}", fa.normal, fb.normal);
+    }
+}
+
+/// Welding keeps the polylines.
+#[test]
+fn weld_keeps_polylines() {
+    let mut mesh = teapot_mesh(4);
+    mesh.polylines.push(knotwork::Polyline {
+        positions: vec![DVec3::ZERO, DVec3::X],
+        tangents: vec![DVec3::X, DVec3::X],
+    });
+    let (welded, report) = mesh.weld(1e-9);
+    assert!(report.merged_vertices > 0);
+    assert_eq!(welded.polylines, mesh.polylines);
+}

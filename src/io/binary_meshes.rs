@@ -2,12 +2,18 @@
 //! little-endian records, a few lines of code, and the crates that write them add nothing but
 //! a dependency.
 
-use crate::mesh::Mesh;
+use crate::mesh::AnyMesh;
 use std::io::{Result, Write};
 
+/// Triangles written per batch: PLY and STL records are small, so they are gathered into
+/// one buffer per batch and written in one call.
+const TRIANGLES_PER_WRITE: usize = 1 << 16;
+
 /// Binary little-endian PLY: per vertex x y z nx ny nz (f32) and u v (f32, named `s t`
-/// as most readers expect), per face a u8 count and three u32 indices.
-pub fn write_ply(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
+/// as most readers expect) — the byte layout of a [`crate::Mesh32`] vertex, so an f32 mesh
+/// is written as it is — per face a u8 count and three u32 indices.
+pub fn write_ply<'a>(mesh: impl Into<AnyMesh<'a>>, w: &mut dyn Write) -> Result<()> {
+    let mesh: AnyMesh = mesh.into();
     write!(
         w,
         "ply\nformat binary_little_endian 1.0\ncomment knotwork mesh\nelement vertex {}\n\
@@ -18,21 +24,32 @@ pub fn write_ply(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
         mesh.vertex_count(),
         mesh.triangle_count()
     )?;
-    for ((p, n), t) in mesh.positions.iter().zip(&mesh.normals).zip(&mesh.uvs) {
-        let record = [p.x, p.y, p.z, n.x, n.y, n.z, t.x, t.y].map(|x| x as f32);
-        w.write_all(bytemuck::cast_slice(&record))?;
+    match mesh {
+        AnyMesh::F32(m) => w.write_all(bytemuck::cast_slice(&m.vertices))?,
+        AnyMesh::F64(m) => {
+            for ((p, n), t) in m.positions.iter().zip(&m.normals).zip(&m.uvs) {
+                let record = [p.x, p.y, p.z, n.x, n.y, n.z, t.x, t.y].map(|x| x as f32);
+                w.write_all(bytemuck::cast_slice(&record))?;
+            }
+        }
     }
-    for triangle in mesh.indices.chunks_exact(3) {
-        w.write_all(&[3])?;
-        w.write_all(bytemuck::cast_slice(triangle))?;
+    let mut records = Vec::with_capacity(TRIANGLES_PER_WRITE * 13);
+    for batch in mesh.indices().chunks(3 * TRIANGLES_PER_WRITE) {
+        records.clear();
+        for triangle in batch.chunks_exact(3) {
+            records.push(3);
+            records.extend_from_slice(bytemuck::cast_slice(triangle));
+        }
+        w.write_all(&records)?;
     }
     Ok(())
 }
 
 /// Binary STL: an 80-byte header, the triangle count, and per triangle its unit face normal
-/// (from the winding), three corners (f32) and a zero attribute word. STL has no shared
-/// vertices, no vertex normals and no uvs.
-pub fn write_stl(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
+/// (from the winding, computed in f64), three corners (f32) and a zero attribute word. STL
+/// has no shared vertices, no vertex normals and no uvs.
+pub fn write_stl<'a>(mesh: impl Into<AnyMesh<'a>>, w: &mut dyn Write) -> Result<()> {
+    let mesh: AnyMesh = mesh.into();
     let mut header = [0u8; 80];
     let title = b"knotwork mesh (binary STL)";
     header[..title.len()].copy_from_slice(title);
@@ -40,12 +57,17 @@ pub fn write_stl(mesh: &Mesh, w: &mut dyn Write) -> Result<()> {
     let count = u32::try_from(mesh.triangle_count())
         .map_err(|_| std::io::Error::other("more triangles than binary STL can count"))?;
     w.write_all(&count.to_le_bytes())?;
-    for triangle in mesh.indices.chunks_exact(3) {
-        let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[triangle[k] as usize]);
-        let normal = (b - a).cross(c - a).normalize_or_zero();
-        let record = [normal, a, b, c].map(|v| v.as_vec3().to_array());
-        w.write_all(bytemuck::cast_slice(&record))?;
-        w.write_all(&[0, 0])?;
+    let mut records = Vec::with_capacity(TRIANGLES_PER_WRITE * 50);
+    for batch in mesh.indices().chunks(3 * TRIANGLES_PER_WRITE) {
+        records.clear();
+        for triangle in batch.chunks_exact(3) {
+            let [a, b, c] = [0, 1, 2].map(|k| mesh.position(triangle[k] as usize));
+            let normal = (b - a).cross(c - a).normalize_or_zero();
+            let record = [normal, a, b, c].map(|v| v.as_vec3().to_array());
+            records.extend_from_slice(bytemuck::cast_slice(&record));
+            records.extend_from_slice(&[0, 0]);
+        }
+        w.write_all(&records)?;
     }
     Ok(())
 }

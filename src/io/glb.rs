@@ -2,52 +2,48 @@
 //! container writer: its schema is large and easy to get subtly wrong by hand.
 
 use super::{SurfaceGroup, cover_groups};
-use crate::mesh::Mesh;
+use crate::mesh::{AnyMesh, Vertex};
 use gltf::json;
 use json::validation::{Checked, USize64};
 use std::io::{Result, Write};
+
+/// Bytes per interleaved vertex: position, normal, uv (f32).
+const VERTEX_STRIDE: usize = size_of::<Vertex>();
 
 /// glTF 2.0 binary (.glb): one buffer with POSITION, NORMAL, TEXCOORD_0 (f32) and u32
 /// indices; one mesh and node per group of surfaces (`groups`, completed by
 /// [`cover_groups`]): a primitive of triangles over the shared vertex accessors with its own
 /// index accessor; POSITION bounds filled in. Polylines form one more mesh, "curves": a
 /// LINE_STRIP primitive per curve with POSITION and `_TANGENT` (f32 vec3).
-pub fn write_glb(mesh: &Mesh, groups: &[SurfaceGroup], w: &mut dyn Write) -> Result<()> {
+pub fn write_glb<'a>(
+    mesh: impl Into<AnyMesh<'a>>,
+    groups: &[SurfaceGroup],
+    w: &mut dyn Write,
+) -> Result<()> {
+    let mesh: AnyMesh = mesh.into();
     let n = mesh.vertex_count();
-    if mesh.indices.is_empty() && mesh.polylines.is_empty() {
+    let (indices, polylines) = (mesh.indices(), mesh.polylines());
+    if indices.is_empty() && polylines.is_empty() {
         // glTF accessors cannot be empty: a file without triangles or lines would not be
         // valid glTF.
         return Err(std::io::Error::other(
             "glTF needs at least one triangle or line: the input has no surfaces or curves",
         ));
     }
-    let mut bin: Vec<u8> = Vec::with_capacity(n * 32 + mesh.indices.len() * 4);
-    let positions: Vec<[f32; 3]> = mesh
-        .positions
-        .iter()
-        .map(|p| p.as_vec3().to_array())
-        .collect();
-    let (lo, hi) = bounds_of(&positions);
-    bin.extend_from_slice(bytemuck::cast_slice(&positions));
-    let normals: Vec<[f32; 3]> = mesh
-        .normals
-        .iter()
-        .map(|v| v.as_vec3().to_array())
-        .collect();
-    bin.extend_from_slice(bytemuck::cast_slice(&normals));
-    let uvs: Vec<[f32; 2]> = mesh.uvs.iter().map(|v| v.as_vec2().to_array()).collect();
-    bin.extend_from_slice(bytemuck::cast_slice(&uvs));
+    // The vertices interleaved as in a Mesh32 (and the GPU's buffers): one strided view.
+    let vertices = mesh.vertices_f32();
+    let mut bin: Vec<u8> = Vec::with_capacity(n * VERTEX_STRIDE + indices.len() * 4);
+    let (lo, hi) = bounds_of(vertices.iter().map(|v| v.position));
+    bin.extend_from_slice(bytemuck::cast_slice(&vertices));
     let index_offset = bin.len();
-    bin.extend_from_slice(bytemuck::cast_slice(&mesh.indices));
+    bin.extend_from_slice(bytemuck::cast_slice(indices));
     let curve_offset = bin.len();
-    let curve_points: Vec<[f32; 3]> = mesh
-        .polylines
+    let curve_points: Vec<[f32; 3]> = polylines
         .iter()
         .flat_map(|l| l.positions.iter().map(|p| p.as_vec3().to_array()))
         .collect();
     bin.extend_from_slice(bytemuck::cast_slice(&curve_points));
-    let curve_tangents: Vec<[f32; 3]> = mesh
-        .polylines
+    let curve_tangents: Vec<[f32; 3]> = polylines
         .iter()
         .flat_map(|l| l.tangents.iter().map(|t| t.as_vec3().to_array()))
         .collect();
@@ -109,21 +105,19 @@ pub fn write_glb(mesh: &Mesh, groups: &[SurfaceGroup], w: &mut dyn Write) -> Res
     use json::buffer::Target;
     let array = Target::ArrayBuffer;
     let mut nodes = Vec::new();
-    if !mesh.indices.is_empty() {
-        let position_view = view(&mut root, 0, n * 12, Some(12), array);
-        let normal_view = view(&mut root, n * 12, n * 12, Some(12), array);
-        let uv_view = view(&mut root, n * 24, n * 8, Some(8), array);
+    if !indices.is_empty() {
+        let vertex_view = view(&mut root, 0, n * VERTEX_STRIDE, Some(VERTEX_STRIDE), array);
         let index_view = view(
             &mut root,
             index_offset,
-            mesh.indices.len() * 4,
+            indices.len() * 4,
             None,
             Target::ElementArrayBuffer,
         );
         let bounds = Some((lo, hi));
         let position = accessor(
             &mut root,
-            position_view,
+            vertex_view,
             0,
             n,
             ComponentType::F32,
@@ -132,8 +126,8 @@ pub fn write_glb(mesh: &Mesh, groups: &[SurfaceGroup], w: &mut dyn Write) -> Res
         );
         let normal = accessor(
             &mut root,
-            normal_view,
-            0,
+            vertex_view,
+            12,
             n,
             ComponentType::F32,
             Type::Vec3,
@@ -141,15 +135,15 @@ pub fn write_glb(mesh: &Mesh, groups: &[SurfaceGroup], w: &mut dyn Write) -> Res
         );
         let uv = accessor(
             &mut root,
-            uv_view,
-            0,
+            vertex_view,
+            24,
             n,
             ComponentType::F32,
             Type::Vec2,
             None,
         );
-        for group in cover_groups(groups, mesh.parts.len()) {
-            let parts = &mesh.parts[group.surfaces.clone()];
+        for group in cover_groups(groups, mesh.parts().len()) {
+            let parts = &mesh.parts()[group.surfaces.clone()];
             // Parts follow one another in the index buffer: a group's triangles are one range.
             let first_index = parts[0].first_index as usize;
             let index_count: usize = parts.iter().map(|p| p.index_count as usize).sum();
@@ -196,16 +190,15 @@ pub fn write_glb(mesh: &Mesh, groups: &[SurfaceGroup], w: &mut dyn Write) -> Res
             }));
         }
     }
-    if !mesh.polylines.is_empty() {
+    if !polylines.is_empty() {
         let bytes = curve_points.len() * 12;
         let point_view = view(&mut root, curve_offset, bytes, Some(12), array);
         let tangent_view = view(&mut root, curve_offset + bytes, bytes, Some(12), array);
-        let mut primitives = Vec::with_capacity(mesh.polylines.len());
+        let mut primitives = Vec::with_capacity(polylines.len());
         let mut first = 0;
-        for polyline in &mesh.polylines {
+        for polyline in polylines {
             let count = polyline.positions.len();
-            let points = &curve_points[first..first + count];
-            let bounds = bounds_of(points);
+            let bounds = bounds_of(curve_points[first..first + count].iter().copied());
             let position = accessor(
                 &mut root,
                 point_view,
@@ -275,8 +268,8 @@ pub fn write_glb(mesh: &Mesh, groups: &[SurfaceGroup], w: &mut dyn Write) -> Res
 }
 
 /// Component-wise (min, max) of `points`: the bounds glTF requires on POSITION accessors.
-fn bounds_of(points: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
-    points.iter().fold(
+fn bounds_of(points: impl Iterator<Item = [f32; 3]>) -> ([f32; 3], [f32; 3]) {
+    points.fold(
         ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
         |(lo, hi), p| {
             (

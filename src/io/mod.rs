@@ -19,13 +19,13 @@ pub use glb::write_glb;
 #[cfg(feature = "json")]
 pub use json::read_json_scene;
 pub use obj_freeform::read_obj_freeform;
-pub use obj_mesh::{format_f64, write_obj_mesh};
+pub use obj_mesh::{format_f32, format_f64, write_obj_mesh};
 
 use crate::Tessellator;
 use crate::error::{Error, Result};
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
-use crate::mesh::{Mesh, TessOptions};
+use crate::mesh::{AnyMesh, Mesh, TessOptions};
 use std::io::Write;
 use std::path::Path;
 
@@ -214,22 +214,23 @@ impl MeshFormat {
     }
 }
 
-/// Writes `mesh` to `path` in `format`, or in the format its extension names, atomically.
-/// `groups` name runs of surfaces (parts): glTF gets one mesh per group; other formats ignore
-/// them.
-pub fn write_mesh_as(
+/// Writes `mesh` (f64 or f32) to `path` in `format`, or in the format its extension names,
+/// atomically. `groups` name runs of surfaces (parts): glTF gets one mesh per group; other
+/// formats ignore them.
+pub fn write_mesh_as<'a>(
     path: &Path,
-    mesh: &Mesh,
+    mesh: impl Into<AnyMesh<'a>>,
     groups: &[SurfaceGroup],
     format: Option<MeshFormat>,
 ) -> Result<()> {
+    let mesh: AnyMesh = mesh.into();
     let format = format
         .or_else(|| MeshFormat::from_extension(&extension(path)))
         .ok_or_else(|| Error::UnknownFormat {
             path: path.to_path_buf(),
             expected: OUTPUT_FORMATS,
         })?;
-    if !mesh.polylines.is_empty() && matches!(format, MeshFormat::Ply | MeshFormat::Stl) {
+    if !mesh.polylines().is_empty() && matches!(format, MeshFormat::Ply | MeshFormat::Stl) {
         return Err(Error::PolylinesUnsupported {
             format: if format == MeshFormat::Ply {
                 "PLY"
@@ -238,13 +239,13 @@ pub fn write_mesh_as(
             },
         });
     }
-    type Writer = fn(&Mesh, &[SurfaceGroup], &mut dyn Write) -> std::io::Result<()>;
+    type Writer = fn(AnyMesh, &[SurfaceGroup], &mut dyn Write) -> std::io::Result<()>;
     let write: Writer = match format {
         MeshFormat::Obj => |mesh, _, w| write_obj_mesh(mesh, w),
         MeshFormat::Ply => |mesh, _, w| write_ply(mesh, w),
         MeshFormat::Stl => |mesh, _, w| write_stl(mesh, w),
         #[cfg(feature = "gltf")]
-        MeshFormat::Glb => write_glb,
+        MeshFormat::Glb => |mesh, groups, w| write_glb(mesh, groups, w),
         #[cfg(not(feature = "gltf"))]
         MeshFormat::Glb => {
             return Err(Error::FeatureDisabled {
@@ -256,8 +257,8 @@ pub fn write_mesh_as(
     write_atomic(path, |w| write(mesh, groups, w))
 }
 
-/// Writes `mesh` to `path` in the format its extension names, atomically.
-pub fn write_mesh(path: &Path, mesh: &Mesh) -> Result<()> {
+/// Writes `mesh` (f64 or f32) to `path` in the format its extension names, atomically.
+pub fn write_mesh<'a>(path: &Path, mesh: impl Into<AnyMesh<'a>>) -> Result<()> {
     write_mesh_as(path, mesh, &[], None)
 }
 
