@@ -1,7 +1,10 @@
 //! GPU and CPU on the same batches, in vertices per second (positions + normals + uvs +
 //! indices):
 //! - `gpu dispatch`: the batch is uploaded once; one submission of the kernels, waited for;
-//! - `gpu upload+dispatch+readback`: `GpuTessellator::tessellate` into a `Mesh`;
+//! - `gpu upload+dispatch+readback`: `GpuTessellator::tessellate_each_into_f32` into a
+//!   reused `Mesh32` — plan, upload into the tessellator's kept buffers, dispatch, read back
+//!   (the steady state of a loop re-tessellating files or frames);
+//! - `gpu ... into a new f64 Mesh`: `GpuTessellator::tessellate`, widened to f64;
 //! - `cpu`: the f64 path on every core into a reused `Mesh`.
 //!
 //! Batches: 1024 rational bicubic patches at 64×64, the teapot at 256×256 per patch, the
@@ -11,8 +14,8 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::DVec3;
 use knotwork::geom::bezier_surface;
 use knotwork::{
-    BSplineSurface, CpuTessellator, GpuBatch, GpuContext, GpuTessellator, KnotVector, Mesh,
-    TessOptions, Tessellator,
+    BSplineSurface, BatchDescriptor, CpuTessellator, GpuBatch, GpuContext, GpuTessellator,
+    KnotVector, Mesh, Mesh32, TessOptions, Tessellator,
 };
 use std::path::Path;
 
@@ -80,10 +83,11 @@ fn bench_gpu(c: &mut Criterion) {
         group.throughput(Throughput::Elements(
             u64::from(*n) * u64::from(*n) * surfaces.len() as u64,
         ));
-        let batch = GpuBatch::new(&context, surfaces, &options).expect("fits the adapter");
+        let batch = GpuBatch::new(&context, &BatchDescriptor::new(surfaces, &options))
+            .expect("fits the adapter");
         group.bench_function(format!("gpu dispatch, {name}"), |b| {
             b.iter(|| {
-                let submission = batch.dispatch(&context).expect("dispatch");
+                let submission = batch.dispatch().expect("dispatch");
                 context
                     .device()
                     .poll(wgpu::PollType::Wait {
@@ -93,17 +97,27 @@ fn bench_gpu(c: &mut Criterion) {
                     .expect("completes");
             })
         });
-        let tessellator = GpuTessellator::from_context(
-            GpuContext::from_device(context.device().clone(), context.queue().clone())
-                .expect("context"),
-        );
+        let tessellator = GpuTessellator::from_context(&context);
+        let grids = vec![options; surfaces.len()];
+        let mut mesh32 = Mesh32::default();
         group.bench_function(format!("gpu upload+dispatch+readback, {name}"), |b| {
             b.iter(|| {
                 tessellator
-                    .tessellate(surfaces, &options)
+                    .tessellate_each_into_f32(surfaces, &grids, &mut mesh32)
                     .expect("tessellates")
             })
         });
+        group.bench_function(
+            format!("gpu upload+dispatch+readback into a new f64 Mesh, {name}"),
+            |b| {
+                b.iter(|| {
+                    tessellator
+                        .tessellate(surfaces, &options)
+                        .expect("tessellates")
+                })
+            },
+        );
+        tessellator.release_buffers();
         let mut mesh = Mesh::default();
         group.bench_function(format!("cpu, {name}"), |b| {
             b.iter(|| {

@@ -6,7 +6,7 @@
 //! `cargo run --release --example embed` writes `embed_frames/frame_00.png` … `_07.png`.
 
 use glam::DVec3;
-use knotwork::{BSplineSurface, GpuBatch, GpuContext, TessOptions};
+use knotwork::{BSplineSurface, BatchDescriptor, GpuBatch, GpuContext, TessOptions};
 use std::path::Path;
 
 fn main() -> knotwork::Result<()> {
@@ -14,7 +14,8 @@ fn main() -> knotwork::Result<()> {
     let context = GpuContext::new()?;
     let context = GpuContext::from_device(context.device().clone(), context.queue().clone())?;
     let surfaces = knotwork::io::read_scene(Path::new("data/teapot.bpt"))?.surfaces;
-    let mut batch = GpuBatch::new(&context, &surfaces, &TessOptions::DEFAULT.with_grid(24, 24))?;
+    let grid = TessOptions::DEFAULT.with_grid(24, 24);
+    let mut batch = GpuBatch::new(&context, &BatchDescriptor::new(&surfaces, &grid))?;
     let frames = Path::new("embed_frames");
     std::fs::create_dir_all(frames).map_err(|source| knotwork::Error::Io {
         path: frames.into(),
@@ -35,9 +36,9 @@ fn main() -> knotwork::Result<()> {
         let lift = DVec3::new(0.0, 0.0, 0.12 * f64::from(frame));
         for index in lid.clone() {
             moved[index] = translated(&surfaces[index], lift)?;
-            batch.update_surface(&context, index, &moved[index])?;
+            batch.update_surface(index, &moved[index])?;
         }
-        batch.dispatch(&context)?;
+        batch.dispatch()?;
         let image = preview.render(&context, &batch, &moved)?;
         let path = frames.join(format!("frame_{frame:02}.png"));
         knotwork::render::save_png(&path, &image)?;

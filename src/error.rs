@@ -129,7 +129,9 @@ pub enum Error {
     NoAdapter { reason: String },
     #[error("GPU error: {message}")]
     Gpu { message: String },
-    #[error("the GPU job cannot fit: {what} needs {bytes} bytes, the adapter allows {limit}")]
+    #[error(
+        "the GPU job cannot fit: {what} needs {bytes} bytes, over the {limit}-byte limit it is planned within (the device's, or one given for the batch)"
+    )]
     GpuJobTooLarge {
         what: &'static str,
         bytes: u64,

@@ -46,10 +46,16 @@ pub mod plan;
 #[cfg(feature = "render")]
 pub mod render;
 
+/// The vector types of the API (f64 `DVec3` positions and the like).
+pub use glam;
+/// The wgpu this crate is built on: a renderer uses the same version for the device it hands
+/// over and the buffers it draws.
+pub use wgpu;
+
 pub use cpu::CpuTessellator;
 pub use error::{Error, Result};
 pub use geom::{BSplineCurve, BSplineSurface, BezierPatch, Interval, KnotVector};
-pub use gpu::{GpuBatch, GpuContext, GpuMesh, GpuTessellator};
+pub use gpu::{BatchDescriptor, GpuBatch, GpuContext, GpuMesh, GpuTessellator};
 pub use mesh::{AnyMesh, Mesh, Mesh32, MeshPart, Polyline, TessOptions, Vertex};
 
 /// One interface for every tessellation backend: the same surfaces and options give a
@@ -78,6 +84,22 @@ pub trait Tessellator {
         options: &[TessOptions],
         mesh: &mut Mesh,
     ) -> Result<()>;
+    /// As [`Tessellator::tessellate_each_into`], into an f32 [`Mesh32`] (what GPUs and the
+    /// binary formats carry): the GPU reads back without widening; the default rounds the
+    /// f64 result. Its polylines are left alone.
+    fn tessellate_each_into_f32(
+        &self,
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        mesh: &mut Mesh32,
+    ) -> Result<()> {
+        let mut wide = Mesh::default();
+        self.tessellate_each_into(surfaces, options, &mut wide)?;
+        let polylines = std::mem::take(&mut mesh.polylines);
+        *mesh = Mesh32::from(&wide);
+        mesh.polylines = polylines;
+        Ok(())
+    }
     /// Tessellates Coons patches evaluated directly (any blend, see [`geom::patches::CoonsPatch`])
     /// into `mesh`, patch k on the grid of `options[k]` over (u, v) ∈ [0, 1]², in the same
     /// layout as surfaces; `mesh` is replaced (its allocations reused).

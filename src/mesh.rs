@@ -111,7 +111,8 @@ impl Mesh32 {
         };
         let widen = |v: [f32; 3]| DVec3::new(v[0].into(), v[1].into(), v[2].into());
         let vertices = || self.vertices.par_iter();
-        mesh.positions.par_extend(vertices().map(|v| widen(v.position)));
+        mesh.positions
+            .par_extend(vertices().map(|v| widen(v.position)));
         mesh.normals.par_extend(vertices().map(|v| widen(v.normal)));
         mesh.uvs
             .par_extend(vertices().map(|v| DVec2::new(v.uv[0].into(), v.uv[1].into())));

@@ -724,6 +724,15 @@ fn a_plan_refuses_other_items() {
     assert_eq!((mesh.vertex_count(), mesh.triangle_count()), (40, 48));
     let before = mesh.clone();
     let err = knotwork::cpu::execute_surfaces(&plan, &scene.surfaces[..1], &mut mesh).unwrap_err();
-    assert!(matches!(err, Error::PlanMismatch { planned: 2, given: 1 }), "{err}");
+    assert!(
+        matches!(
+            err,
+            Error::PlanMismatch {
+                planned: 2,
+                given: 1
+            }
+        ),
+        "{err}"
+    );
     assert_eq!(mesh, before);
 }

@@ -9,8 +9,8 @@ use glam::DVec3;
 use knotwork::conformance::{self, NORMAL_BAR, POSITION_REL_BAR};
 use knotwork::gpu::Limits;
 use knotwork::{
-    BSplineCurve, BSplineSurface, Error, GpuBatch, GpuContext, GpuTessellator, KnotVector,
-    TessOptions, Tessellator,
+    BSplineCurve, BSplineSurface, BatchDescriptor, Error, GpuBatch, GpuContext, GpuTessellator,
+    KnotVector, TessOptions, Tessellator,
 };
 use std::sync::OnceLock;
 
@@ -223,14 +223,18 @@ fn chunked_batches_match_a_single_dispatch() {
         .unwrap(),
     );
     let options = TessOptions::DEFAULT.with_grid(70, 50);
-    let whole = GpuBatch::new(context, &surfaces, &options).unwrap();
-    whole.dispatch(context).unwrap();
-    let expected = whole.read_mesh(context).unwrap();
+    let whole = GpuBatch::new(context, &BatchDescriptor::new(&surfaces, &options)).unwrap();
+    whole.dispatch().unwrap();
+    let expected = whole.read_mesh().unwrap();
     let small = Limits {
         binding_bytes: 32 << 10,
         ..context.limits()
     };
-    let chunked = GpuBatch::with_limits(context, &surfaces, &options, small).unwrap();
+    let chunked = GpuBatch::new(
+        context,
+        &BatchDescriptor::new(&surfaces, &options).with_limits(small),
+    )
+    .unwrap();
     assert_eq!(whole.chunk_and_piece_counts(), (1, surfaces.len()));
     let (chunks, pieces) = chunked.chunk_and_piece_counts();
     println!("{chunks} chunks, {pieces} pieces");
@@ -238,8 +242,8 @@ fn chunked_batches_match_a_single_dispatch() {
         chunks > 5 && pieces > surfaces.len(),
         "the small limits split both the batch and the big surface"
     );
-    chunked.dispatch(context).unwrap();
-    let got = chunked.read_mesh(context).unwrap();
+    chunked.dispatch().unwrap();
+    let got = chunked.read_mesh().unwrap();
     assert_eq!(got, expected);
     let report = conformance::compare(&surfaces, &options, &got).unwrap();
     assert!(report.passes(), "{report:?}");
@@ -254,9 +258,12 @@ fn jobs_that_cannot_fit_are_refused() {
         buffer_bytes: 1 << 20,
         ..context.limits()
     };
-    let err = GpuBatch::with_limits(context, &surfaces, &options, tiny_buffers)
-        .err()
-        .expect("refused");
+    let err = GpuBatch::new(
+        context,
+        &BatchDescriptor::new(&surfaces, &options).with_limits(tiny_buffers),
+    )
+    .err()
+    .expect("refused");
     assert!(
         matches!(
             err,
@@ -271,18 +278,18 @@ fn jobs_that_cannot_fit_are_refused() {
         binding_bytes: 2 << 10,
         ..context.limits()
     };
-    let err = GpuBatch::with_limits(context, &surfaces, &options, tiny_binding)
-        .err()
-        .expect("refused");
-    assert!(matches!(err, Error::GpuJobTooLarge { .. }), "{err}");
-    // The device's own limit: 2 GiB of vertices is more than lavapipe's largest buffer.
     let err = GpuBatch::new(
         context,
-        &surfaces[..1],
-        &TessOptions::DEFAULT.with_grid(9000, 9000),
+        &BatchDescriptor::new(&surfaces, &options).with_limits(tiny_binding),
     )
     .err()
     .expect("refused");
+    assert!(matches!(err, Error::GpuJobTooLarge { .. }), "{err}");
+    // The device's own limit: 2 GiB of vertices is more than lavapipe's largest buffer.
+    let huge = TessOptions::DEFAULT.with_grid(9000, 9000);
+    let err = GpuBatch::new(context, &BatchDescriptor::new(&surfaces[..1], &huge))
+        .err()
+        .expect("refused");
     assert!(matches!(err, Error::GpuJobTooLarge { .. }), "{err}");
 }
 
@@ -291,8 +298,8 @@ fn moving_control_points_reuploads_one_surface() {
     let Some(context) = gpu() else { return };
     let mut surfaces = peer_and_teapot();
     let options = TessOptions::DEFAULT.with_grid(24, 24);
-    let mut batch = GpuBatch::new(context, &surfaces, &options).unwrap();
-    batch.dispatch(context).unwrap();
+    let mut batch = GpuBatch::new(context, &BatchDescriptor::new(&surfaces, &options)).unwrap();
+    batch.dispatch().unwrap();
     // Lift the teapot's lid patch 21 (index 21 here: the peer surface comes first).
     let lid = &surfaces[21];
     let moved: Vec<DVec3> = (0..lid.count_v())
@@ -302,11 +309,10 @@ fn moving_control_points_reuploads_one_surface() {
     let lifted =
         BSplineSurface::try_new(lid.knots_u().clone(), lid.knots_v().clone(), &moved, None)
             .unwrap();
-    batch.update_surface(context, 21, &lifted).unwrap();
-    batch.dispatch(context).unwrap();
+    batch.update_surface(21, &lifted).unwrap();
+    batch.dispatch().unwrap();
     surfaces[21] = lifted;
-    let report =
-        conformance::compare(&surfaces, &options, &batch.read_mesh(context).unwrap()).unwrap();
+    let report = conformance::compare(&surfaces, &options, &batch.read_mesh().unwrap()).unwrap();
     assert!(report.passes(), "{report:?}");
     let other_shape = BSplineSurface::try_new(
         KnotVector::clamped_uniform(2, 4).unwrap(),
@@ -316,11 +322,11 @@ fn moving_control_points_reuploads_one_surface() {
     )
     .unwrap();
     assert!(matches!(
-        batch.update_surface(context, 21, &other_shape),
+        batch.update_surface(21, &other_shape),
         Err(Error::SurfaceShapeChanged { index: 21 })
     ));
     assert!(matches!(
-        batch.update_surface(context, 99, &other_shape),
+        batch.update_surface(99, &other_shape),
         Err(Error::SurfaceIndex {
             index: 99,
             count: 33
@@ -538,9 +544,7 @@ fn classic_forms_conform_surface_by_surface() {
 }
 
 fn tessellator_on(context: &GpuContext) -> GpuTessellator {
-    GpuTessellator::from_context(
-        GpuContext::from_device(context.device().clone(), context.queue().clone()).unwrap(),
-    )
+    GpuTessellator::from_context(context)
 }
 
 /// Every case of the curve suite conforms on the GPU; one weight perturbed by 2% in the
@@ -619,8 +623,9 @@ fn teapot_render_is_not_blank() {
     let surfaces = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt"))
         .unwrap()
         .surfaces;
-    let batch = GpuBatch::new(context, &surfaces, &TessOptions::DEFAULT.with_grid(17, 17)).unwrap();
-    batch.dispatch(context).unwrap();
+    let grid = TessOptions::DEFAULT.with_grid(17, 17);
+    let batch = GpuBatch::new(context, &BatchDescriptor::new(&surfaces, &grid)).unwrap();
+    batch.dispatch().unwrap();
     for (wireframe, control_net) in [(false, false), (true, true)] {
         let options = knotwork::render::RenderOptions {
             width: 160,
@@ -714,4 +719,64 @@ fn coons_patches_with_general_blends_conform() {
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// A batch reloaded with smaller or different work keeps its buffers (the same wgpu
+/// buffers, so nothing is allocated) and still conforms, triangles included (they are
+/// rewritten when the grids change); work larger than any before grows them. A tessellator
+/// reused across calls keeps the mesh's polylines and agrees with a fresh one.
+#[test]
+fn reloads_reuse_buffers_that_fit() {
+    let Some(context) = gpu() else { return };
+    let surfaces = peer_and_teapot();
+    let big = TessOptions::DEFAULT.with_grid(40, 30);
+    let mut batch = GpuBatch::new(
+        context,
+        &BatchDescriptor::new(&surfaces, &big).for_readback(),
+    )
+    .unwrap();
+    batch.dispatch().unwrap();
+    let (vertices, indices) = (batch.mesh().vertices.clone(), batch.mesh().indices.clone());
+    let grids: Vec<TessOptions> = (0..20)
+        .map(|k| TessOptions::DEFAULT.with_grid(9 + k % 7, 31 - k))
+        .collect();
+    let mut mesh = knotwork::Mesh32::default();
+    for (items, options) in [
+        (&surfaces[..20], grids.clone()),
+        (&surfaces[3..23], grids.iter().rev().copied().collect()),
+    ] {
+        batch.reload(items, &options).unwrap();
+        assert!(batch.mesh().vertices == vertices && batch.mesh().indices == indices);
+        batch.dispatch().unwrap();
+        batch.read_into(&mut mesh).unwrap();
+        let report = conformance::compare_each(items, &options, &mesh.to_f64()).unwrap();
+        assert!(report.passes(), "{report:?}");
+    }
+    batch
+        .reload(
+            &surfaces,
+            &vec![TessOptions::DEFAULT.with_grid(50, 30); surfaces.len()],
+        )
+        .unwrap();
+    assert!(
+        batch.mesh().vertices != vertices,
+        "a larger job grows the vertex buffer"
+    );
+
+    let tessellator = GpuTessellator::from_context(context);
+    let mut reused = knotwork::Mesh::default();
+    reused.polylines.push(knotwork::Polyline::default());
+    for options in [big, TessOptions::DEFAULT.with_grid(7, 12), big] {
+        tessellator
+            .tessellate_into(&surfaces, &options, &mut reused)
+            .unwrap();
+        let fresh = GpuTessellator::from_context(context)
+            .tessellate(&surfaces, &options)
+            .unwrap();
+        assert_eq!(
+            (&reused.positions, &reused.indices, &reused.parts),
+            (&fresh.positions, &fresh.indices, &fresh.parts)
+        );
+        assert_eq!(reused.polylines.len(), 1, "polylines are left alone");
+    }
 }

@@ -1138,7 +1138,10 @@ fn f32_meshes_write_as_their_f64_sources() {
     assert_eq!(knotwork::Mesh32::from(&mesh32.to_f64()), mesh32);
     let dir = scratch_dir("f32");
     for extension in ["glb", "obj"] {
-        let (a, b) = (dir.join(format!("a.{extension}")), dir.join(format!("b.{extension}")));
+        let (a, b) = (
+            dir.join(format!("a.{extension}")),
+            dir.join(format!("b.{extension}")),
+        );
         write_mesh(&a, &mesh).unwrap();
         write_mesh(&b, &mesh32).unwrap();
         let (a, b) = (std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
@@ -1154,7 +1157,11 @@ fn f32_meshes_write_as_their_f64_sources() {
                     .collect()
             };
             let (v, vt, vn) = (values("v "), values("vt "), values("vn "));
-            assert_eq!(v.len(), mesh32.vertex_count() + 2, "surface and curve points");
+            assert_eq!(
+                v.len(),
+                mesh32.vertex_count() + 2,
+                "surface and curve points"
+            );
             for (k, vertex) in mesh32.vertices.iter().enumerate() {
                 assert_eq!(v[k], vertex.position, "vertex {k}");
                 assert_eq!(vt[k], vertex.uv, "vertex {k}");
@@ -1167,7 +1174,11 @@ fn f32_meshes_write_as_their_f64_sources() {
     let (a, b) = (dir.join("a.ply"), dir.join("b.ply"));
     write_mesh(&a, &mesh).unwrap();
     write_mesh(&b, &mesh32).unwrap();
-    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap(), "ply");
+    assert_eq!(
+        std::fs::read(&a).unwrap(),
+        std::fs::read(&b).unwrap(),
+        "ply"
+    );
     let (a, b) = (dir.join("a.stl"), dir.join("b.stl"));
     write_mesh(&a, &mesh).unwrap();
     write_mesh(&b, &mesh32).unwrap();

@@ -145,12 +145,12 @@ fn render(
     let start = Instant::now();
     let scene = knotwork::io::read_scene(input)?;
     let context = GpuContext::new()?;
-    let batch = knotwork::GpuBatch::new_each(
+    let grids = scene.options_or(TessOptions::DEFAULT.with_grid(grid.0, grid.1));
+    let batch = knotwork::GpuBatch::new(
         &context,
-        &scene.surfaces,
-        &scene.options_or(TessOptions::DEFAULT.with_grid(grid.0, grid.1)),
+        &knotwork::BatchDescriptor::each(&scene.surfaces, &grids),
     )?;
-    batch.dispatch(&context)?;
+    batch.dispatch()?;
     let image = knotwork::render::render(&context, &batch, &scene.surfaces, options)?;
     knotwork::render::save_png(output, &image)?;
     println!(

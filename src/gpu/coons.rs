@@ -4,16 +4,14 @@
 //! combines them. Patches are grouped into chunks whose buffers each fit one binding; the
 //! result is read back into a [`Mesh`] in the layout of surfaces.
 
+use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped, storage_buffer};
 use super::curves::{CurveChunk, SAMPLE_BYTES, fits};
-use super::pack::{Limits, too_large};
-use super::{
-    GpuContext, VERTEX_BYTES, bind_buffers, dispatch_flat, map_for_reading, mapped, push_vertices,
-    scoped, staged_copies, storage_buffer,
-};
+use super::readback::{Staging, copy_out, mapped};
+use super::surfaces::{Limits, VERTEX_BYTES, too_large};
 use crate::error::{Error, Result};
 use crate::geom::degenerate_cross_sq;
 use crate::geom::patches::CoonsPatch;
-use crate::mesh::{Mesh, TessOptions};
+use crate::mesh::{Mesh, Mesh32, TessOptions, Vertex};
 use crate::plan::{CoonsPlan, check_item_count};
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
@@ -26,7 +24,7 @@ const WORKGROUP: u32 = 64;
 /// One patch as the kernel reads it (`CoonsJob` in coons.wgsl).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct CoonsJob {
+pub(crate) struct CoonsJob {
     pub origin: [f32; 3],
     pub degenerate_sq: f32,
     /// S(0,0), S(1,0), S(0,1), S(1,1) relative to `origin`.
@@ -163,12 +161,12 @@ pub(crate) fn tessellate_coons(
 ) -> Result<Mesh> {
     let plan = CoonsPlan::new(patches, options)?;
     let chunks = pack_coons(&plan, patches, &limits)?;
-    let mut mesh = Mesh {
+    let mut mesh = Mesh32 {
         parts: plan.layout.parts,
-        ..Mesh::default()
+        ..Mesh32::default()
     };
     if chunks.is_empty() {
-        return Ok(mesh);
+        return Ok(mesh.to_f64());
     }
     let device = &context.device;
     let outputs = scoped(device, || {
@@ -239,18 +237,18 @@ pub(crate) fn tessellate_coons(
             ]
         })
         .collect();
-    let staged = staged_copies(context, &sources)?;
-    map_for_reading(device, &staged.iter().collect::<Vec<_>>())?;
-    for pair in staged.chunks_exact(2) {
-        let (vertices, indices) = (&pair[0], &pair[1]);
-        push_vertices(
-            bytemuck::cast_slice(&mapped(vertices, vertices.size())?),
-            &mut mesh,
-        );
-        mesh.indices
-            .extend_from_slice(bytemuck::cast_slice(&mapped(indices, indices.size())?));
-        vertices.unmap();
-        indices.unmap();
-    }
-    Ok(mesh)
+    Staging::default().read(context, &sources, |staged| {
+        let (mut vertices, mut indices) = (Vec::<Vertex>::new(), Vec::<u32>::new());
+        for (pair, (_, chunk)) in staged.chunks_exact(2).zip(outputs.iter().zip(&chunks)) {
+            copy_out(
+                &mapped(&pair[0], chunk.vertex_count * VERTEX_BYTES)?,
+                &mut vertices,
+            );
+            copy_out(&mapped(&pair[1], chunk.index_count * 4)?, &mut indices);
+            mesh.vertices.extend_from_slice(&vertices);
+            mesh.indices.extend_from_slice(&indices);
+        }
+        Ok(())
+    })?;
+    Ok(mesh.to_f64())
 }

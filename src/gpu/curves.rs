@@ -3,8 +3,9 @@
 //! control points, with basis values computed on the host in f64, and read back as
 //! [`Polyline`]s. Curves are grouped into chunks whose buffers each fit one binding.
 
-use super::pack::{Limits, local_points, push_table, too_large};
-use super::{GpuContext, map_for_reading, mapped, scoped, staged_copies};
+use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped, storage_buffer};
+use super::readback::{Staging, mapped};
+use super::surfaces::{Limits, local_points, push_table, too_large};
 use crate::error::{Error, Result};
 use crate::geom::{BSplineCurve, cartesian_box};
 use crate::mesh::Polyline;
@@ -22,7 +23,7 @@ pub(crate) const SAMPLE_BYTES: u64 = 48;
 /// One curve as the kernel reads it (`CurveJob` in curves.wgsl).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct CurveJob {
+pub(crate) struct CurveJob {
     pub origin: [f32; 3],
     pub degree: u32,
     pub first_sample: u32,
@@ -99,15 +100,14 @@ impl CurveChunk {
         output: &wgpu::Buffer,
     ) {
         let device = &context.device;
-        let input = |label, bytes: &[u8]| {
-            super::storage_buffer(device, label, bytes, wgpu::BufferUsages::empty())
-        };
+        let input =
+            |label, bytes: &[u8]| storage_buffer(device, label, bytes, wgpu::BufferUsages::empty());
         let buffers = [
             input("knotwork curve jobs", bytemuck::cast_slice(&self.jobs)),
             input("knotwork curve points", bytemuck::cast_slice(&self.points)),
             input("knotwork curve tables", bytemuck::cast_slice(&self.tables)),
         ];
-        let bind_group = super::bind_buffers(
+        let bind_group = bind_buffers(
             context,
             &context.kernels.curve_layout,
             &[&buffers[0], &buffers[1], &buffers[2], output],
@@ -118,7 +118,7 @@ impl CurveChunk {
         });
         pass.set_pipeline(&context.kernels.curve_pipeline);
         pass.set_bind_group(0, &bind_group, &[]);
-        super::dispatch_flat(&mut pass, self.sample_count, WORKGROUP);
+        dispatch_flat(&mut pass, self.sample_count, WORKGROUP);
     }
 }
 
@@ -203,12 +203,10 @@ pub fn sample_curves(
         .zip(&chunks)
         .map(|(buffer, chunk)| (buffer, chunk.sample_count * SAMPLE_BYTES))
         .collect();
-    let staged = staged_copies(context, &sources)?;
-    map_for_reading(device, &staged.iter().collect::<Vec<_>>())?;
-    let mut polylines = Vec::with_capacity(curves.len());
-    for (buffer, chunk) in staged.iter().zip(&chunks) {
-        {
-            let view = mapped(buffer, buffer.size())?;
+    Staging::default().read(context, &sources, |staged| {
+        let mut polylines = Vec::with_capacity(curves.len());
+        for (buffer, chunk) in staged.iter().zip(&chunks) {
+            let view = mapped(buffer, chunk.sample_count * SAMPLE_BYTES)?;
             let floats: &[f32] = bytemuck::cast_slice(&view);
             let vector = |v: &[f32]| DVec3::new(v[0].into(), v[1].into(), v[2].into());
             for job in &chunk.jobs {
@@ -220,9 +218,8 @@ pub fn sample_curves(
                 });
             }
         }
-        buffer.unmap();
-    }
-    Ok(polylines)
+        Ok(polylines)
+    })
 }
 
 #[cfg(test)]

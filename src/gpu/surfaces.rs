@@ -14,8 +14,8 @@ use glam::{DVec3, DVec4};
 pub(crate) const TILE: u32 = 64;
 /// Vertices per invocation of `evaluate_vertices` (`RUN` in the shader).
 pub(crate) const RUN: u32 = 8;
-/// Bytes per output vertex: position, normal (3 × f32 each), uv (2 × f32).
-pub const VERTEX_BYTES: u64 = 32;
+/// Bytes per output vertex: a [`crate::Vertex`] (position, normal, uv as f32).
+pub const VERTEX_BYTES: u64 = size_of::<crate::Vertex>() as u64;
 /// vec4 entries per (row, control column) of the contracted scratch: value, ∂v, ∂vv.
 const CONTRACTED_ENTRIES: u32 = 3;
 /// Most vertices per invocation of `evaluate_bezier_runs` (the runs of its table).
@@ -122,7 +122,7 @@ pub(crate) struct Chunk {
 }
 
 /// A batch ready to upload.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub(crate) struct Packed {
     pub parts: Vec<MeshPart>,
     pub pieces: Vec<Piece>,

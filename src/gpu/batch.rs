@@ -1,0 +1,560 @@
+//! A batch of surfaces prepared on one device: the plan's tables and the control points
+//! uploaded, the output buffers a renderer draws, dispatch, per-surface updates, reloads that
+//! reuse every buffer the new contents fit, and readback.
+
+use super::context::{CONNECT_PASS, GpuContext, MAX_GROUPS_PER_DIMENSION, UNIFORM_STRIDE, scoped};
+use super::readback::{Staging, copy_out, map_for_reading, mapped};
+use super::surfaces::{
+    self, ChunkParams, Limits, PASSES, Packed, Piece, Range, Tile, VERTEX_BYTES,
+};
+use crate::error::{Error, Result};
+use crate::geom::BSplineSurface;
+use crate::mesh::{Mesh, Mesh32, MeshPart, TessOptions};
+use crate::plan::SurfacePlan;
+use std::num::NonZeroU64;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// The output buffers of a batch, ready to bind in a render pass.
+///
+/// `vertices` holds [`Vertex`]es — position `Float32x3` at offset 0, normal `Float32x3` at
+/// 12, uv `Float32x2` at 24, stride [`VERTEX_BYTES`] — in the grid layout of [`Mesh`];
+/// `indices` holds u32 triangle-list indices. Both are also STORAGE and COPY_SRC. After a
+/// [`GpuBatch::reload`] the buffers may be larger than the data: draw `index_count` indices.
+#[derive(Debug)]
+pub struct GpuMesh {
+    pub vertices: wgpu::Buffer,
+    pub indices: wgpu::Buffer,
+    pub vertex_count: u32,
+    pub index_count: u32,
+    pub parts: Vec<MeshPart>,
+}
+
+impl GpuMesh {
+    /// The vertex attributes of `vertices`: shader locations 0 (position), 1 (normal), 2 (uv).
+    pub const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 3] =
+        wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2];
+
+    /// The layout of `vertices` for a render pipeline's vertex state.
+    pub fn vertex_buffer_layout() -> wgpu::VertexBufferLayout<'static> {
+        wgpu::VertexBufferLayout {
+            array_stride: VERTEX_BYTES,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &Self::VERTEX_ATTRIBUTES,
+        }
+    }
+}
+
+/// Everything a [`GpuBatch`] is built from.
+#[derive(Debug, Clone)]
+pub struct BatchDescriptor<'a> {
+    pub surfaces: &'a [BSplineSurface],
+    /// The grid of each surface (one entry per surface).
+    pub options: Vec<TessOptions>,
+    /// Buffer limits to plan within; `None`: the device's ([`GpuContext::limits`]).
+    pub limits: Option<Limits>,
+    /// Outputs read back rather than drawn: where the device has `MAPPABLE_PRIMARY_BUFFERS`
+    /// (unified memory) they are mapped directly, without a staging copy. (Not for drawing:
+    /// on discrete GPUs mappable buffers live in slower memory.)
+    pub readback: bool,
+}
+
+impl<'a> BatchDescriptor<'a> {
+    /// Every surface on the grid of `options`, within the device's limits, for drawing.
+    pub fn new(surfaces: &'a [BSplineSurface], options: &TessOptions) -> Self {
+        Self::each(surfaces, &vec![*options; surfaces.len()])
+    }
+
+    /// Surface k on the grid of `options[k]`.
+    pub fn each(surfaces: &'a [BSplineSurface], options: &[TessOptions]) -> Self {
+        BatchDescriptor {
+            surfaces,
+            options: options.to_vec(),
+            limits: None,
+            readback: false,
+        }
+    }
+
+    /// Planned within `limits` instead of the device's (memory budgets; tests of chunking).
+    pub fn with_limits(self, limits: Limits) -> Self {
+        Self {
+            limits: Some(limits),
+            ..self
+        }
+    }
+
+    /// For reading back rather than drawing (see [`BatchDescriptor::readback`]).
+    pub fn for_readback(self) -> Self {
+        Self {
+            readback: true,
+            ..self
+        }
+    }
+}
+
+/// The input buffers of a batch (storage, written by the host).
+#[derive(Debug)]
+struct Inputs {
+    pieces: wgpu::Buffer,
+    tiles: wgpu::Buffer,
+    points: wgpu::Buffer,
+    tables: wgpu::Buffer,
+    contracted: wgpu::Buffer,
+    uniform: wgpu::Buffer,
+}
+
+/// A batch of surfaces prepared on one device: upload once, dispatch whenever. It keeps its
+/// own handles to the device, queue and pipelines.
+///
+/// Buffer reuse: [`GpuBatch::update_surface`] rewrites one surface's control points in
+/// place; [`GpuBatch::reload`] (new surfaces or new grids) rewrites every buffer whose
+/// capacity suffices and allocates only those that must grow — so a loop that reloads and
+/// dispatches the same or smaller work allocates nothing after its first pass.
+#[derive(Debug)]
+pub struct GpuBatch {
+    context: GpuContext,
+    limits: Limits,
+    /// The output buffers can be mapped directly (see [`BatchDescriptor::readback`]).
+    mappable: bool,
+    packed: Packed,
+    /// Degrees, counts, knots and ranges of each surface: what an update may not change.
+    shapes: Vec<BSplineSurface>,
+    inputs: Inputs,
+    bind_groups: Vec<wgpu::BindGroup>,
+    /// Set once the index buffer holds the triangles of the current layout: they depend on
+    /// the grids only, so later dispatches evaluate vertices and leave the indices alone.
+    connected: AtomicBool,
+    mesh: GpuMesh,
+    staging: Staging,
+}
+
+/// Binds elements `r.origin..r.end` of `buffer` (clipped to the buffer, never empty).
+fn bind_range(buffer: &wgpu::Buffer, r: Range, bytes_each: u64) -> wgpu::BindingResource<'_> {
+    let offset = r.origin * bytes_each;
+    let size = ((r.end - r.origin) * bytes_each)
+        .max(4)
+        .min(buffer.size() - offset);
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+        buffer,
+        offset,
+        size: NonZeroU64::new(size),
+    })
+}
+
+/// Smallest buffer knotwork creates: bindings cannot be empty.
+const MIN_BUFFER_BYTES: u64 = 16;
+
+fn new_buffer(
+    device: &wgpu::Device,
+    label: &str,
+    bytes: u64,
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes
+            .max(MIN_BUFFER_BYTES)
+            .next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT),
+        usage,
+        mapped_at_creation: false,
+    })
+}
+
+/// Makes `buffer` hold at least `bytes`, replacing it with a new one only when it must grow;
+/// returns whether it did.
+fn ensure(
+    device: &wgpu::Device,
+    buffer: &mut wgpu::Buffer,
+    label: &str,
+    bytes: u64,
+    usage: wgpu::BufferUsages,
+) -> bool {
+    let grow = buffer.size() < bytes;
+    if grow {
+        *buffer = new_buffer(device, label, bytes, usage);
+    }
+    grow
+}
+
+/// Writes `contents` to the start of `buffer`, growing it first if needed.
+fn upload(context: &GpuContext, buffer: &mut wgpu::Buffer, label: &str, contents: &[u8]) {
+    let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+    ensure(&context.device, buffer, label, contents.len() as u64, usage);
+    if !contents.is_empty() {
+        context.queue.write_buffer(buffer, 0, contents);
+    }
+}
+
+impl GpuBatch {
+    /// Plans and uploads the surfaces of `descriptor`, and allocates the output buffers.
+    /// Fails with [`Error::GpuJobTooLarge`] if the outputs exceed the planning limits.
+    pub fn new(context: &GpuContext, descriptor: &BatchDescriptor) -> Result<Self> {
+        let device = &context.device;
+        let mappable = descriptor.readback
+            && device
+                .features()
+                .contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
+        let limits = descriptor.limits.unwrap_or_else(|| context.limits());
+        let packed = surfaces::pack(
+            &SurfacePlan::new(descriptor.surfaces, &descriptor.options)?,
+            descriptor.surfaces,
+            &limits,
+        )?;
+        let input = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+        let output = output_usage(mappable);
+        let mut batch = scoped(device, || GpuBatch {
+            context: context.clone(),
+            limits,
+            mappable,
+            packed: Packed::default(),
+            shapes: Vec::new(),
+            inputs: Inputs {
+                pieces: new_buffer(device, "knotwork pieces", 0, input),
+                tiles: new_buffer(device, "knotwork tiles", 0, input),
+                points: new_buffer(device, "knotwork control points", 0, input),
+                tables: new_buffer(device, "knotwork basis tables", 0, input),
+                contracted: new_buffer(
+                    device,
+                    "knotwork contracted rows",
+                    0,
+                    wgpu::BufferUsages::STORAGE,
+                ),
+                uniform: new_buffer(device, "knotwork chunk parameters", 0, uniform_usage()),
+            },
+            bind_groups: Vec::new(),
+            connected: false.into(),
+            mesh: GpuMesh {
+                vertices: new_buffer(
+                    device,
+                    "knotwork vertices",
+                    packed.vertex_count * VERTEX_BYTES,
+                    output | wgpu::BufferUsages::VERTEX,
+                ),
+                indices: new_buffer(
+                    device,
+                    "knotwork indices",
+                    packed.index_count * 4,
+                    output | wgpu::BufferUsages::INDEX,
+                ),
+                vertex_count: 0,
+                index_count: 0,
+                parts: Vec::new(),
+            },
+            staging: Staging::default(),
+        })?;
+        batch.load(packed, descriptor.surfaces)?;
+        Ok(batch)
+    }
+
+    /// Replaces the batch's surfaces and grids (surface k on the grid of `options[k]`),
+    /// planned within the batch's limits, reusing every buffer the new contents fit. On
+    /// error the batch is left empty (it dispatches nothing) until the next reload.
+    pub fn reload(&mut self, surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<()> {
+        let packed = surfaces::pack(
+            &SurfacePlan::new(surfaces, options)?,
+            surfaces,
+            &self.limits,
+        )?;
+        self.load(packed, surfaces)
+    }
+
+    /// Uploads `packed` into the batch's buffers (grown where needed) and binds them.
+    fn load(&mut self, packed: Packed, surfaces: &[BSplineSurface]) -> Result<()> {
+        let context = self.context.clone();
+        let device = &context.device;
+        let same_layout = packed.parts == self.mesh.parts;
+        self.bind_groups.clear();
+        self.packed = Packed::default();
+        self.mesh.vertex_count = 0;
+        self.mesh.index_count = 0;
+        let uniforms = chunk_uniforms(&packed);
+        let inputs = &mut self.inputs;
+        let mesh = &mut self.mesh;
+        let output = output_usage(self.mappable);
+        let bind_groups = scoped(device, || {
+            upload(
+                &context,
+                &mut inputs.pieces,
+                "knotwork pieces",
+                bytemuck::cast_slice(&packed.pieces),
+            );
+            upload(
+                &context,
+                &mut inputs.tiles,
+                "knotwork tiles",
+                bytemuck::cast_slice(&packed.tiles),
+            );
+            upload(
+                &context,
+                &mut inputs.points,
+                "knotwork control points",
+                bytemuck::cast_slice(&packed.points),
+            );
+            upload(
+                &context,
+                &mut inputs.tables,
+                "knotwork basis tables",
+                bytemuck::cast_slice(&packed.tables),
+            );
+            ensure(
+                device,
+                &mut inputs.uniform,
+                "knotwork chunk parameters",
+                uniforms.len() as u64,
+                uniform_usage(),
+            );
+            if !uniforms.is_empty() {
+                context.queue.write_buffer(&inputs.uniform, 0, &uniforms);
+            }
+            ensure(
+                device,
+                &mut inputs.contracted,
+                "knotwork contracted rows",
+                packed.contracted_len * 16,
+                wgpu::BufferUsages::STORAGE,
+            );
+            ensure(
+                device,
+                &mut mesh.vertices,
+                "knotwork vertices",
+                packed.vertex_count * VERTEX_BYTES,
+                output | wgpu::BufferUsages::VERTEX,
+            );
+            let new_indices = ensure(
+                device,
+                &mut mesh.indices,
+                "knotwork indices",
+                packed.index_count * 4,
+                output | wgpu::BufferUsages::INDEX,
+            );
+            let bind_groups = bind_chunks(&context, inputs, mesh, &packed);
+            (bind_groups, new_indices)
+        })?;
+        let (bind_groups, new_indices) = bind_groups;
+        if new_indices || !same_layout {
+            self.connected.store(false, Ordering::Relaxed);
+        }
+        self.bind_groups = bind_groups;
+        self.mesh.vertex_count = packed.vertex_count as u32;
+        self.mesh.index_count = packed.index_count as u32;
+        self.mesh.parts.clone_from(&packed.parts);
+        self.packed = packed;
+        self.shapes = surfaces.to_vec();
+        Ok(())
+    }
+
+    /// Chunks the batch is dispatched in (each fits the binding limits), and pieces (bands of
+    /// grid rows) its surfaces were split into.
+    pub fn chunk_and_piece_counts(&self) -> (usize, usize) {
+        (self.packed.chunks.len(), self.packed.pieces.len())
+    }
+
+    /// The output buffers.
+    pub fn mesh(&self) -> &GpuMesh {
+        &self.mesh
+    }
+
+    /// The context the batch lives on.
+    pub fn context(&self) -> &GpuContext {
+        &self.context
+    }
+
+    /// Records the kernels of every chunk into `encoder`, for callers who submit themselves.
+    /// The triangles are recorded until a [`GpuBatch::dispatch`] of them completed (they
+    /// depend on the grids only); the vertices every time.
+    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder) {
+        self.encode_passes(encoder, !self.connected.load(Ordering::Relaxed));
+    }
+
+    fn encode_passes(&self, encoder: &mut wgpu::CommandEncoder, connect: bool) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("knotwork tessellate"),
+            timestamp_writes: None,
+        });
+        for (chunk_index, (chunk, bind_group)) in
+            self.packed.chunks.iter().zip(&self.bind_groups).enumerate()
+        {
+            for (pass_index, pipeline) in self.context.kernels.pipelines.iter().enumerate() {
+                let tile_count = chunk.passes[pass_index].1;
+                if tile_count == 0 || (pass_index == CONNECT_PASS && !connect) {
+                    continue;
+                }
+                let offset = ((chunk_index * PASSES + pass_index) as u64 * UNIFORM_STRIDE) as u32;
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, bind_group, &[offset]);
+                let x = tile_count.min(MAX_GROUPS_PER_DIMENSION);
+                pass.dispatch_workgroups(x, tile_count.div_ceil(x), 1);
+            }
+        }
+    }
+
+    /// Fills the output buffers: every chunk and pass in one submission. Returns once the
+    /// work is submitted; errors the device reports while validating it are returned. The
+    /// triangles are written by the first dispatch after a layout change only.
+    pub fn dispatch(&self) -> Result<wgpu::SubmissionIndex> {
+        let connect = !self.connected.load(Ordering::Relaxed);
+        let device = &self.context.device;
+        let submission = scoped(device, || {
+            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("knotwork dispatch"),
+            });
+            self.encode_passes(&mut encoder, connect);
+            self.context.queue.submit([encoder.finish()])
+        })?;
+        self.connected.store(true, Ordering::Relaxed);
+        Ok(submission)
+    }
+
+    /// Replaces the control points (and weights) of surface `index` with those of `surface`,
+    /// which must have the same degrees, point counts, knots and range; only that surface's
+    /// points are uploaded. Takes effect at the next dispatch.
+    pub fn update_surface(&mut self, index: usize, surface: &BSplineSurface) -> Result<()> {
+        let count = self.shapes.len();
+        let old = self
+            .shapes
+            .get(index)
+            .ok_or(Error::SurfaceIndex { index, count })?;
+        let same_shape = old.knots_u() == surface.knots_u()
+            && old.knots_v() == surface.knots_v()
+            && old.range_u() == surface.range_u()
+            && old.range_v() == surface.range_v();
+        if !same_shape {
+            return Err(Error::SurfaceShapeChanged { index });
+        }
+        let slot = self.packed.surfaces[index];
+        let points = &mut self.packed.points[slot.first_point..slot.first_point + slot.point_count];
+        let mut local = Vec::with_capacity(slot.point_count);
+        surfaces::local_points(surface.homogeneous_points(), slot.origin, &mut local);
+        points.copy_from_slice(&local);
+        self.context.queue.write_buffer(
+            &self.inputs.points,
+            slot.first_point as u64 * 16,
+            bytemuck::cast_slice(&local),
+        );
+        self.shapes[index] = surface.clone();
+        Ok(())
+    }
+
+    /// Reads the outputs back into `mesh` (replacing its vertices, indices and parts, keeping
+    /// its polylines and its allocations): mapped directly for a readback batch on a
+    /// unified-memory adapter, else through staging buffers the batch keeps for next time.
+    pub fn read_into(&self, mesh: &mut Mesh32) -> Result<()> {
+        let vertex_bytes = u64::from(self.mesh.vertex_count) * VERTEX_BYTES;
+        let index_bytes = u64::from(self.mesh.index_count) * 4;
+        mesh.parts.clone_from(&self.mesh.parts);
+        if vertex_bytes == 0 {
+            mesh.vertices.clear();
+            mesh.indices.clear();
+            return Ok(());
+        }
+        let mut copy = |vertices: &wgpu::Buffer, indices: &wgpu::Buffer| -> Result<()> {
+            copy_out(&mapped(vertices, vertex_bytes)?, &mut mesh.vertices);
+            copy_out(&mapped(indices, index_bytes)?, &mut mesh.indices);
+            Ok(())
+        };
+        if self.mappable {
+            let (vertices, indices) = (&self.mesh.vertices, &self.mesh.indices);
+            map_for_reading(&self.context.device, &[vertices, indices])?;
+            let result = copy(vertices, indices);
+            vertices.unmap();
+            indices.unmap();
+            result
+        } else {
+            let sources = [
+                (&self.mesh.vertices, vertex_bytes),
+                (&self.mesh.indices, index_bytes),
+            ];
+            self.staging.read(&self.context, &sources, |staged| {
+                copy(&staged[0], &staged[1])
+            })
+        }
+    }
+
+    /// Reads the outputs back into a new f64 [`Mesh`] (every f32 value exactly).
+    pub fn read_mesh(&self) -> Result<Mesh> {
+        let mut mesh = Mesh32::default();
+        self.read_into(&mut mesh)?;
+        Ok(mesh.to_f64())
+    }
+}
+
+fn output_usage(mappable: bool) -> wgpu::BufferUsages {
+    let map = if mappable {
+        wgpu::BufferUsages::MAP_READ
+    } else {
+        wgpu::BufferUsages::empty()
+    };
+    wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | map
+}
+
+fn uniform_usage() -> wgpu::BufferUsages {
+    wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST
+}
+
+/// The per-chunk, per-pass uniforms, each padded to [`UNIFORM_STRIDE`].
+fn chunk_uniforms(packed: &Packed) -> Vec<u8> {
+    packed
+        .chunks
+        .iter()
+        .flat_map(|chunk| {
+            chunk.passes.map(|(tile_offset, tile_count)| ChunkParams {
+                tile_offset,
+                tile_count,
+                vertex_origin: chunk.vertices.origin as u32,
+                index_origin: chunk.indices.origin as u32,
+                point_origin: chunk.points.origin as u32,
+                table_origin: chunk.tables.origin as u32,
+                piece_origin: chunk.pieces.origin as u32,
+                pad: 0,
+            })
+        })
+        .flat_map(|params| {
+            let mut entry = bytemuck::bytes_of(&params).to_vec();
+            entry.resize(UNIFORM_STRIDE as usize, 0);
+            entry
+        })
+        .collect()
+}
+
+/// One bind group per chunk, over the chunk's ranges of every buffer.
+fn bind_chunks(
+    context: &GpuContext,
+    inputs: &Inputs,
+    mesh: &GpuMesh,
+    packed: &Packed,
+) -> Vec<wgpu::BindGroup> {
+    packed
+        .chunks
+        .iter()
+        .map(|chunk| {
+            let resources = [
+                wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &inputs.uniform,
+                    offset: 0,
+                    size: NonZeroU64::new(size_of::<ChunkParams>() as u64),
+                }),
+                bind_range(&inputs.pieces, chunk.pieces, size_of::<Piece>() as u64),
+                bind_range(&inputs.tiles, chunk.tiles, size_of::<Tile>() as u64),
+                bind_range(&inputs.points, chunk.points, 16),
+                bind_range(&inputs.tables, chunk.tables, 4),
+                inputs.contracted.as_entire_binding(),
+                bind_range(&mesh.vertices, chunk.vertices, VERTEX_BYTES),
+                bind_range(&mesh.indices, chunk.indices, 4),
+            ];
+            let entries: Vec<wgpu::BindGroupEntry> = resources
+                .into_iter()
+                .enumerate()
+                .map(|(binding, resource)| wgpu::BindGroupEntry {
+                    binding: binding as u32,
+                    resource,
+                })
+                .collect();
+            context
+                .device
+                .create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("knotwork chunk"),
+                    layout: &context.kernels.layout,
+                    entries: &entries,
+                })
+        })
+        .collect()
+}

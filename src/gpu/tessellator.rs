@@ -1,0 +1,106 @@
+//! The GPU executor behind the [`Tessellator`] interface: upload, dispatch and read back,
+//! with one readback batch kept and reloaded across calls, so re-tessellating every frame or
+//! every file allocates nothing once the largest job has been seen.
+
+use super::batch::{BatchDescriptor, GpuBatch};
+use super::context::GpuContext;
+use super::{coons, curves};
+use crate::Tessellator;
+use crate::error::Result;
+use crate::geom::patches::CoonsPatch;
+use crate::geom::{BSplineCurve, BSplineSurface};
+use crate::mesh::{Mesh, Mesh32, Polyline, TessOptions};
+use std::sync::Mutex;
+
+/// The GPU tessellator: uploads, dispatches and reads back on its context.
+///
+/// It keeps the batch of its last surface call (device buffers and staging buffers) and
+/// reloads it on the next, allocating only where a job needs more room than any before it;
+/// [`GpuTessellator::release_buffers`] frees them.
+#[derive(Debug)]
+pub struct GpuTessellator {
+    context: GpuContext,
+    batch: Mutex<Option<GpuBatch>>,
+}
+
+impl GpuTessellator {
+    /// Opens the default adapter.
+    pub fn new() -> Result<Self> {
+        Ok(Self::from_context(&GpuContext::new()?))
+    }
+
+    /// A tessellator on `context`'s device, sharing its compiled kernels.
+    pub fn from_context(context: &GpuContext) -> Self {
+        Self {
+            context: context.clone(),
+            batch: Mutex::new(None),
+        }
+    }
+
+    pub fn context(&self) -> &GpuContext {
+        &self.context
+    }
+
+    /// Frees the buffers kept from the last call.
+    pub fn release_buffers(&self) {
+        *self.batch.lock().unwrap_or_else(|e| e.into_inner()) = None;
+    }
+}
+
+impl Tessellator for GpuTessellator {
+    fn tessellate_each_into(
+        &self,
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        mesh: &mut Mesh,
+    ) -> Result<()> {
+        let mut mesh32 = Mesh32::default();
+        self.tessellate_each_into_f32(surfaces, options, &mut mesh32)?;
+        let polylines = std::mem::take(&mut mesh.polylines);
+        *mesh = mesh32.to_f64();
+        mesh.polylines = polylines;
+        Ok(())
+    }
+
+    fn tessellate_each_into_f32(
+        &self,
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        mesh: &mut Mesh32,
+    ) -> Result<()> {
+        let mut kept = self.batch.lock().unwrap_or_else(|e| e.into_inner());
+        let batch = match kept.take() {
+            Some(mut batch) => {
+                batch.reload(surfaces, options)?;
+                batch
+            }
+            None => GpuBatch::new(
+                &self.context,
+                &BatchDescriptor::each(surfaces, options).for_readback(),
+            )?,
+        };
+        let batch = kept.insert(batch);
+        batch.dispatch()?;
+        batch.read_into(mesh)
+    }
+
+    fn tessellate_coons_into(
+        &self,
+        patches: &[CoonsPatch],
+        options: &[TessOptions],
+        mesh: &mut Mesh,
+    ) -> Result<()> {
+        let polylines = std::mem::take(&mut mesh.polylines);
+        *mesh = coons::tessellate_coons(&self.context, patches, options, self.context.limits())?;
+        mesh.polylines = polylines;
+        Ok(())
+    }
+
+    fn tessellate_curves(&self, curves: &[BSplineCurve], samples: &[u32]) -> Result<Vec<Polyline>> {
+        curves::sample_curves(&self.context, curves, samples, self.context.limits())
+    }
+
+    fn name(&self) -> String {
+        format!("gpu: {}", self.context.adapter_summary())
+    }
+}
