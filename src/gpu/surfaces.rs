@@ -263,7 +263,7 @@ pub(crate) fn pack(
         let part = &item.part;
         let (nu, nv) = (part.grid_u, part.grid_v);
         let columns = packed.tables.len() as u32;
-        let (segments, runs, segment_table, run_table) = match &item.bezier_columns {
+        let (segments, runs, segment_table, run_table) = match item.columns.bezier_segments() {
             Some(segments) => push_bezier_columns(&item.columns, segments, &mut packed.tables),
             None => {
                 push_table(&item.columns, &mut packed.tables);
@@ -499,10 +499,10 @@ mod tests {
             let knots = KnotVector::try_new(degree, knots).unwrap();
             for range in [Interval::new(0.05, 0.97), Interval::new(0.5 + 5e-7, 0.97)] {
                 let samples = AxisSamples::uniform(&knots, range, 601);
-                let plan_segments = samples.bezier_segments(&knots).unwrap();
+                let plan_segments = samples.bezier_segments().unwrap();
                 let mut out = Vec::new();
                 let (segments, runs, segment_table, run_table) =
-                    push_bezier_columns(&samples, &plan_segments, &mut out);
+                    push_bezier_columns(&samples, plan_segments, &mut out);
                 assert_eq!(segments as usize, plan_segments.len());
                 let bits = |x: f32| x.to_bits() as usize;
                 let mut next = 0;
@@ -530,7 +530,7 @@ mod tests {
                 );
                 let entries =
                     out[segment_table as usize..run_table as usize].chunks(SEGMENT_STRIDE);
-                for (entry, segment) in entries.zip(&plan_segments) {
+                for (entry, segment) in entries.zip(plan_segments) {
                     assert_eq!(entry[1], (1.0 / segment.width) as f32);
                     let matrix = segment.matrix.iter().flatten().map(|&m| m as f32);
                     assert!(entry[2..].iter().copied().eq(matrix));

@@ -8,10 +8,13 @@ mod tables;
 
 pub use tables::{AxisSamples, BEZIER_DEGREE, BezierSegment, ROW_PADDING, SpanRun};
 
+use tables::AxisCache;
+
 use crate::error::{Error, Result};
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
 use crate::mesh::{MeshPart, TessOptions};
+use std::sync::Arc;
 
 /// Where every grid item's vertices and indices go in the output.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -93,15 +96,12 @@ pub fn cell_triangles(a: u32, grid_u: u32) -> [u32; 6] {
 }
 
 /// One surface's samples: its grid's columns (u) and rows (v) over the surface's evaluation
-/// range, and where its output goes.
+/// range, and where its output goes. Tables are shared between items that sample alike.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SurfaceSamples {
     pub part: MeshPart,
-    pub columns: AxisSamples,
-    pub rows: AxisSamples,
-    /// The cubic Bezier form of each knot span the columns touch, for degree ≤
-    /// [`BEZIER_DEGREE`] along u (one entry per run of [`AxisSamples::runs`]).
-    pub bezier_columns: Option<Vec<BezierSegment>>,
+    pub columns: Arc<AxisSamples>,
+    pub rows: Arc<AxisSamples>,
 }
 
 /// The plan for a list of surfaces.
@@ -116,26 +116,14 @@ impl SurfacePlan {
     /// Plans surface k on the grid of `options[k]`.
     pub fn new(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Self> {
         let layout = GridLayout::new(surfaces.len(), options)?;
+        let mut cache = AxisCache::default();
         let items = surfaces
             .iter()
             .zip(&layout.parts)
-            .map(|(surface, &part)| {
-                let columns = AxisSamples::uniform(
-                    surface.knots_u(),
-                    surface.range_u(),
-                    part.grid_u as usize,
-                );
-                let rows = AxisSamples::uniform(
-                    surface.knots_v(),
-                    surface.range_v(),
-                    part.grid_v as usize,
-                );
-                SurfaceSamples {
-                    part,
-                    bezier_columns: columns.bezier_segments(surface.knots_u()),
-                    columns,
-                    rows,
-                }
+            .map(|(surface, &part)| SurfaceSamples {
+                part,
+                columns: cache.uniform(surface.knots_u(), surface.range_u(), part.grid_u as usize),
+                rows: cache.uniform(surface.knots_v(), surface.range_v(), part.grid_v as usize),
             })
             .collect();
         Ok(SurfacePlan { layout, items })
@@ -150,7 +138,7 @@ pub struct CoonsSamples {
     pub part: MeshPart,
     /// In the order of [`CoonsPatch::boundaries`]: v = 0 and v = 1 at the columns, u = 0
     /// and u = 1 at the rows.
-    pub boundaries: [AxisSamples; 4],
+    pub boundaries: [Arc<AxisSamples>; 4],
     pub column_blends: Vec<[f64; 3]>,
     pub row_blends: Vec<[f64; 3]>,
 }
@@ -166,6 +154,7 @@ impl CoonsPlan {
     /// Plans patch k on the grid of `options[k]`.
     pub fn new(patches: &[CoonsPatch], options: &[TessOptions]) -> Result<Self> {
         let layout = GridLayout::new(patches.len(), options)?;
+        let mut cache = AxisCache::default();
         let items = patches
             .iter()
             .zip(&layout.parts)
@@ -174,7 +163,7 @@ impl CoonsPlan {
                 let boundaries = std::array::from_fn(|k| {
                     let curve = &patch.boundaries()[k];
                     let samples = if k < 2 { nu } else { nv };
-                    AxisSamples::uniform(curve.knots(), curve.range(), samples)
+                    cache.uniform(curve.knots(), curve.range(), samples)
                 });
                 let blends = |n: usize| -> Vec<[f64; 3]> {
                     (0..n)
@@ -198,7 +187,7 @@ impl CoonsPlan {
 pub struct CurveSamples {
     /// Index of the curve's first sample among all samples of the plan.
     pub first_sample: u64,
-    pub samples: AxisSamples,
+    pub samples: Arc<AxisSamples>,
 }
 
 /// The plan for a list of curves.
@@ -220,6 +209,7 @@ impl CurvePlan {
             });
         }
         let mut plan = CurvePlan::default();
+        let mut cache = AxisCache::default();
         for (index, (curve, &count)) in curves.iter().zip(samples).enumerate() {
             if count < 2 {
                 return Err(Error::InCurve {
@@ -229,7 +219,7 @@ impl CurvePlan {
             }
             plan.items.push(CurveSamples {
                 first_sample: plan.sample_count,
-                samples: AxisSamples::uniform(curve.knots(), curve.range(), count as usize),
+                samples: cache.uniform(curve.knots(), curve.range(), count as usize),
             });
             plan.sample_count += u64::from(count);
         }
@@ -298,5 +288,30 @@ mod tests {
         used.sort_unstable();
         used.dedup();
         assert_eq!(used, [17, 18, 24, 25]);
+    }
+
+    /// Items that sample the same knots over the same range at the same count share one
+    /// table; others get their own.
+    #[test]
+    fn alike_items_share_their_tables() {
+        let points: Vec<glam::DVec3> = (0..16)
+            .map(|k| glam::DVec3::new((k % 4) as f64, (k / 4) as f64, 0.0))
+            .collect();
+        let patch = crate::geom::bezier_surface(3, 3, &points, None).unwrap();
+        let surfaces = vec![patch; 3];
+        let options = [
+            TessOptions::DEFAULT.with_grid(9, 9),
+            TessOptions::DEFAULT.with_grid(9, 9),
+            TessOptions::DEFAULT.with_grid(9, 5),
+        ];
+        let plan = SurfacePlan::new(&surfaces, &options).unwrap();
+        let [a, b, c] = [0, 1, 2].map(|k| &plan.items[k]);
+        assert!(Arc::ptr_eq(&a.columns, &b.columns) && Arc::ptr_eq(&a.rows, &b.rows));
+        assert!(
+            Arc::ptr_eq(&a.columns, &a.rows),
+            "same knots, range and count along v"
+        );
+        assert!(Arc::ptr_eq(&a.columns, &c.columns) && !Arc::ptr_eq(&a.rows, &c.rows));
+        assert_eq!(c.rows.len(), 5);
     }
 }

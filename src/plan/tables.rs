@@ -3,6 +3,8 @@
 //! them (the GPU, to f32) but never recompute them.
 
 use crate::geom::{BasisDers, Interval, KnotVector, MAX_ORDER, basis_ders};
+use std::collections::HashMap;
+use std::sync::Arc;
 
 /// Zeros after each row of an [`AxisSamples`] table, so that 4-wide loads starting at any
 /// sample stay in bounds.
@@ -34,6 +36,8 @@ pub struct AxisSamples {
     /// `basis[d][k * stride + i]`: the d-th derivative of N_(span−p+k) at sample i.
     basis: [Vec<f64>; 3],
     runs: Vec<SpanRun>,
+    /// The cubic Bezier form of each run's span, for degree ≤ [`BEZIER_DEGREE`].
+    bezier: Option<Vec<BezierSegment>>,
 }
 
 impl AxisSamples {
@@ -50,6 +54,7 @@ impl AxisSamples {
             spans: Vec::with_capacity(samples),
             basis: std::array::from_fn(|_| vec![0.0; (p + 1) * stride]),
             runs: Vec::new(),
+            bezier: None,
         };
         let mut ders: BasisDers = [[0.0; MAX_ORDER]; 3];
         for i in 0..samples {
@@ -74,6 +79,13 @@ impl AxisSamples {
                 }),
             }
         }
+        table.bezier = (p <= BEZIER_DEGREE).then(|| {
+            table
+                .runs
+                .iter()
+                .map(|run| BezierSegment::of_span(knots, run.span))
+                .collect()
+        });
         table
     }
 
@@ -131,13 +143,40 @@ impl AxisSamples {
 
     /// The cubic Bezier form of each run's knot span (one segment per entry of
     /// [`AxisSamples::runs`]), for a basis of degree ≤ [`BEZIER_DEGREE`]; `None` above.
-    pub fn bezier_segments(&self, knots: &KnotVector) -> Option<Vec<BezierSegment>> {
-        (self.degree <= BEZIER_DEGREE).then(|| {
-            self.runs
-                .iter()
-                .map(|run| BezierSegment::of_span(knots, run.span))
-                .collect()
-        })
+    pub fn bezier_segments(&self) -> Option<&[BezierSegment]> {
+        self.bezier.as_deref()
+    }
+}
+
+/// The axis tables of one plan, shared between items that sample the same knot vector over
+/// the same range at the same count (every patch of a Bezier model, say): each distinct
+/// table is computed once.
+#[derive(Debug, Default)]
+pub(crate) struct AxisCache {
+    tables: HashMap<AxisKey, Arc<AxisSamples>>,
+}
+
+/// Degree, knot bits, range bits and sample count: equal keys give equal tables.
+type AxisKey = (usize, Vec<u64>, [u64; 2], usize);
+
+impl AxisCache {
+    /// [`AxisSamples::uniform`] of these arguments, computed once per plan.
+    pub fn uniform(
+        &mut self,
+        knots: &KnotVector,
+        range: Interval,
+        samples: usize,
+    ) -> Arc<AxisSamples> {
+        let key = (
+            knots.degree(),
+            knots.knots().iter().map(|k| k.to_bits()).collect(),
+            [range.start.to_bits(), range.end.to_bits()],
+            samples,
+        );
+        self.tables
+            .entry(key)
+            .or_insert_with(|| Arc::new(AxisSamples::uniform(knots, range, samples)))
+            .clone()
     }
 }
 
@@ -251,7 +290,7 @@ mod tests {
             // The second range starts inside the 1e-6 span, so that span has a segment.
             for range in [Interval::new(0.05, 0.97), Interval::new(0.5 + 5e-7, 0.97)] {
                 let table = AxisSamples::uniform(&knots, range, 301);
-                let segments = table.bezier_segments(&knots).unwrap();
+                let segments = table.bezier_segments().unwrap();
                 assert_eq!(segments.len(), table.runs().len());
                 for (segment, run) in segments.iter().zip(table.runs()) {
                     let (a, b) = (knots.knots()[run.span], knots.knots()[run.span + 1]);
@@ -304,6 +343,6 @@ mod tests {
         assert_eq!(tiny_spans, BEZIER_DEGREE);
         let quartic = KnotVector::clamped_uniform(4, 7).unwrap();
         let table = AxisSamples::uniform(&quartic, Interval::new(0.0, 1.0), 9);
-        assert!(table.bezier_segments(&quartic).is_none());
+        assert!(table.bezier_segments().is_none());
     }
 }
