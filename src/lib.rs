@@ -2,28 +2,39 @@
 //! triangle meshes, on the GPU through wgpu compute shaders and on the CPU through an f64
 //! reference path that every GPU result is checked against.
 //!
-//! # Pipeline
-//! 1. **Input** ([`io`]): OBJ free-form, `.bpt` and JSON scene files, or the API ([`geom`]).
-//!    Every surface is validated at construction and normalised to one canonical form, a
-//!    rational tensor-product [`BSplineSurface`] with homogeneous control points
-//!    (x·w, y·w, z·w, w); the classic forms (Hermite, Catmull–Rom and natural splines,
-//!    bilinear, ruled, Coons and Hermite patches, surfaces of revolution, the quadrics)
-//!    convert to it exactly ([`geom::curves`], [`geom::patches`], [`geom::shapes`]). Curves
-//!    become [`Polyline`]s.
-//! 2. **Tessellation** ([`Tessellator`]): each surface is sampled on a grid uniform in
-//!    parameter over its evaluation range and turned into a [`Mesh`] — by [`CpuTessellator`]
-//!    (f64) or [`GpuTessellator`] (WGSL compute kernels, f32); [`GpuBatch`] fills vertex and
-//!    index buffers a renderer draws directly.
-//! 3. **Output** ([`io`]): OBJ (every f64 exact), PLY, STL and glTF binary meshes, optionally
-//!    welded ([`Mesh::weld`]); PNG previews ([`render`]).
-//! 4. **Conformance** ([`conformance`]): the GPU result checked against the f64 reference.
+//! # Architecture
+//! ```text
+//!   geom ──► plan ──► cpu  ─┐
+//!                  └► gpu  ─┴► mesh ──► io ──► cli (src/bin)
+//! ```
+//! Arrows point one way: each module uses only those to its left.
+//! - [`geom`] — the mathematics, free of any executor: knot vectors, basis functions, every
+//!   form's evaluation, limit normals and the one degeneracy rule. Every surface is validated
+//!   at construction and normalised to a rational tensor-product [`BSplineSurface`] in
+//!   homogeneous coordinates; the classic forms convert to it exactly ([`geom::curves`],
+//!   [`geom::patches`], [`geom::shapes`]).
+//! - [`plan`] — what to sample, decided once for both executors: each item's samples, the
+//!   output layout (checked against u32 before anything is allocated), and the f64 tables
+//!   the executors consume.
+//! - [`cpu`] and [`gpu`] — the executors of a plan: [`CpuTessellator`] in f64 on rayon,
+//!   [`GpuTessellator`] and [`GpuBatch`] in f32 WGSL compute kernels on wgpu; the same plan
+//!   gives the same layout, vertex for vertex, which [`conformance`] checks.
+//! - [`mesh`] — [`Mesh`] (f64: the reference, OBJ) and [`Mesh32`] (f32: what GPUs, glTF, PLY
+//!   and STL carry), in one layout.
+//! - [`io`] — readers (OBJ free-form, `.bpt`, JSON) and writers (OBJ, PLY, STL, glb) of
+//!   either mesh; `render` — PNG previews (feature `render`).
+//!
+//! Cargo features: `json`, `gltf`, `render`, `cli` (the default, all of them). Without
+//! default features the library needs wgpu, glam, bytemuck, pollster, thiserror and rayon
+//! only; [`wgpu`] and [`glam`] are re-exported so a renderer uses the same versions.
 //!
 //! # Conventions
 //! - Grid: grid_u × grid_v vertices per surface; vertex (i, j) at index j·grid_u + i (u
 //!   fastest); the last sample lands exactly on the range end; surfaces in input order.
 //! - Control nets are stored the same way: point (i, j) at j·count_u + i.
-//! - Triangles are counter-clockwise seen from the side the normal points to; the normal is
-//!   unit(S_u × S_v), and its limit where S_u × S_v vanishes (see [`BSplineSurface::evaluate`]).
+//! - Triangles are counter-clockwise seen from the side the normal points to
+//!   ([`plan::cell_triangles`]); the normal is unit(S_u × S_v), and its limit where
+//!   S_u × S_v vanishes (see [`BSplineSurface::evaluate`], [`geom::degenerate_cross_sq`]).
 //! - `uv` is the surface parameter mapped to [0, 1]² over the evaluation range.
 //!
 //! # Precision
@@ -93,11 +104,12 @@ pub trait Tessellator {
         options: &[TessOptions],
         mesh: &mut Mesh32,
     ) -> Result<()> {
-        let mut wide = Mesh::default();
+        let mut wide = Mesh {
+            polylines: std::mem::take(&mut mesh.polylines),
+            ..Mesh::default()
+        };
         self.tessellate_each_into(surfaces, options, &mut wide)?;
-        let polylines = std::mem::take(&mut mesh.polylines);
-        *mesh = Mesh32::from(&wide);
-        mesh.polylines = polylines;
+        *mesh = Mesh32::from(wide);
         Ok(())
     }
     /// Tessellates Coons patches evaluated directly (any blend, see [`geom::patches::CoonsPatch`])

@@ -101,6 +101,23 @@ impl Mesh32 {
         self.indices.len() / 3
     }
 
+    /// As [`Mesh::append`].
+    pub fn append(&mut self, other: Mesh32) -> Result<()> {
+        let (vertices, indices) = append_offsets(
+            (self.vertex_count(), self.indices.len()),
+            (other.vertex_count(), other.indices.len()),
+        )?;
+        self.vertices.extend(other.vertices);
+        append_topology(
+            (&mut self.indices, &mut self.parts, &mut self.polylines),
+            other.indices,
+            other.parts,
+            other.polylines,
+            (vertices, indices),
+        );
+        Ok(())
+    }
+
     /// The same mesh in f64 (every f32 value exactly).
     pub fn to_f64(&self) -> Mesh {
         let mut mesh = Mesh {
@@ -132,6 +149,18 @@ impl From<&Mesh> for Mesh32 {
     }
 }
 
+impl From<Mesh> for Mesh32 {
+    /// The mesh rounded to f32, its indices, parts and polylines moved, not copied.
+    fn from(mesh: Mesh) -> Self {
+        Mesh32 {
+            vertices: narrow_vertices(&mesh),
+            indices: mesh.indices,
+            parts: mesh.parts,
+            polylines: mesh.polylines,
+        }
+    }
+}
+
 /// The vertices of `mesh` rounded to f32, in parallel.
 fn narrow_vertices(mesh: &Mesh) -> Vec<Vertex> {
     let narrow = |v: DVec3| v.as_vec3().to_array();
@@ -148,6 +177,34 @@ fn narrow_vertices(mesh: &Mesh) -> Vec<Vertex> {
             }),
     );
     vertices
+}
+
+/// The vertex and index offsets at which a mesh of (vertices, indices) `other` is appended
+/// to one of `base`, or the error if the result would not fit u32.
+fn append_offsets(base: (usize, usize), other: (usize, usize)) -> Result<(u32, u32)> {
+    let vertices = (base.0 + other.0) as u64;
+    if vertices > u64::from(u32::MAX) || (base.1 + other.1) as u64 > u64::from(u32::MAX) {
+        return Err(Error::MeshTooLarge { vertices });
+    }
+    Ok((base.0 as u32, base.1 as u32))
+}
+
+/// Appends indices (shifted by the vertex offset), parts (shifted by both offsets) and
+/// polylines to a mesh's.
+fn append_topology(
+    (indices, parts, polylines): (&mut Vec<u32>, &mut Vec<MeshPart>, &mut Vec<Polyline>),
+    other_indices: Vec<u32>,
+    other_parts: Vec<MeshPart>,
+    other_polylines: Vec<Polyline>,
+    (vertex_offset, index_offset): (u32, u32),
+) {
+    indices.extend(other_indices.iter().map(|i| i + vertex_offset));
+    parts.extend(other_parts.iter().map(|p| MeshPart {
+        first_vertex: p.first_vertex + vertex_offset,
+        first_index: p.first_index + index_offset,
+        ..*p
+    }));
+    polylines.extend(other_polylines);
 }
 
 /// A mesh of either precision, as the writers take it.
@@ -235,24 +292,20 @@ impl Mesh {
     /// Appends `other`'s surfaces (vertices, triangles, parts) and polylines after this
     /// mesh's; fails, leaving `self` unchanged, if the vertex count would leave u32.
     pub fn append(&mut self, other: Mesh) -> Result<()> {
-        let offset = self.vertex_count() as u64;
-        let total = offset + other.vertex_count() as u64;
-        let total_indices = (self.indices.len() + other.indices.len()) as u64;
-        if total > u64::from(u32::MAX) || total_indices > u64::from(u32::MAX) {
-            return Err(Error::MeshTooLarge { vertices: total });
-        }
-        let (vertices, indices) = (offset as u32, self.indices.len() as u32);
+        let (vertices, indices) = append_offsets(
+            (self.vertex_count(), self.indices.len()),
+            (other.vertex_count(), other.indices.len()),
+        )?;
         self.positions.extend(other.positions);
         self.normals.extend(other.normals);
         self.uvs.extend(other.uvs);
-        self.indices
-            .extend(other.indices.iter().map(|i| i + vertices));
-        self.parts.extend(other.parts.iter().map(|p| MeshPart {
-            first_vertex: p.first_vertex + vertices,
-            first_index: p.first_index + indices,
-            ..*p
-        }));
-        self.polylines.extend(other.polylines);
+        append_topology(
+            (&mut self.indices, &mut self.parts, &mut self.polylines),
+            other.indices,
+            other.parts,
+            other.polylines,
+            (vertices, indices),
+        );
         Ok(())
     }
 }

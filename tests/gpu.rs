@@ -262,8 +262,7 @@ fn jobs_that_cannot_fit_are_refused() {
         context,
         &BatchDescriptor::new(&surfaces, &options).with_limits(tiny_buffers),
     )
-    .err()
-    .expect("refused");
+    .expect_err("refused");
     assert!(
         matches!(
             err,
@@ -282,14 +281,12 @@ fn jobs_that_cannot_fit_are_refused() {
         context,
         &BatchDescriptor::new(&surfaces, &options).with_limits(tiny_binding),
     )
-    .err()
-    .expect("refused");
+    .expect_err("refused");
     assert!(matches!(err, Error::GpuJobTooLarge { .. }), "{err}");
     // The device's own limit: 2 GiB of vertices is more than lavapipe's largest buffer.
     let huge = TessOptions::DEFAULT.with_grid(9000, 9000);
-    let err = GpuBatch::new(context, &BatchDescriptor::new(&surfaces[..1], &huge))
-        .err()
-        .expect("refused");
+    let err =
+        GpuBatch::new(context, &BatchDescriptor::new(&surfaces[..1], &huge)).expect_err("refused");
     assert!(matches!(err, Error::GpuJobTooLarge { .. }), "{err}");
 }
 

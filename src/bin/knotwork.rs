@@ -268,20 +268,35 @@ fn process(
     job: &Job,
 ) -> knotwork::Result<Tally> {
     let scene = knotwork::io::read_scene_as(input, job.input_format)?;
-    let mut mesh = scene.tessellate(tessellator, job.options)?;
+    let polylines = tessellator.tessellate_curves(&scene.curves, &scene.samples_or(job.samples))?;
+    // Binary formats carry f32: an f32 mesh goes to them without widening and narrowing
+    // (from the GPU, straight from its buffers); OBJ and welding take the f64 mesh.
+    let format = job.format.or_else(|| {
+        output
+            .extension()
+            .and_then(|e| MeshFormat::from_extension(&e.to_string_lossy()))
+    });
     let mut merged = 0;
-    if job.weld {
-        let (welded, report) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
-        (mesh, merged) = (welded, report.merged_vertices);
-    }
-    mesh.polylines =
-        tessellator.tessellate_curves(&scene.curves, &scene.samples_or(job.samples))?;
-    knotwork::io::write_mesh_as(output, &mesh, &scene.groups, job.format)?;
+    let (vertices, triangles) = if matches!(format, Some(MeshFormat::Obj) | None) || job.weld {
+        let mut mesh = scene.tessellate(tessellator, job.options)?;
+        if job.weld {
+            let (welded, report) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
+            (mesh, merged) = (welded, report.merged_vertices);
+        }
+        mesh.polylines = polylines;
+        knotwork::io::write_mesh_as(output, &mesh, &scene.groups, job.format)?;
+        (mesh.vertex_count(), mesh.triangle_count())
+    } else {
+        let mut mesh = scene.tessellate_f32(tessellator, job.options)?;
+        mesh.polylines = polylines;
+        knotwork::io::write_mesh_as(output, &mesh, &scene.groups, job.format)?;
+        (mesh.vertex_count(), mesh.triangle_count())
+    };
     Ok(Tally {
         surfaces: scene.surfaces.len() + scene.coons_patches.len(),
         curves: scene.curves.len(),
-        vertices: mesh.vertex_count(),
-        triangles: mesh.triangle_count(),
+        vertices,
+        triangles,
         merged,
     })
 }

@@ -25,7 +25,7 @@ use crate::Tessellator;
 use crate::error::{Error, Result};
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
-use crate::mesh::{AnyMesh, Mesh, TessOptions};
+use crate::mesh::{AnyMesh, Mesh, Mesh32, TessOptions};
 use std::io::Write;
 use std::path::Path;
 
@@ -96,6 +96,27 @@ impl Scene {
             let mut patches = Mesh::default();
             tessellator.tessellate_coons_into(&self.coons_patches, &options, &mut patches)?;
             mesh.append(patches)?;
+        }
+        Ok(mesh)
+    }
+
+    /// As [`Scene::tessellate`], into an f32 mesh (the GPU reads back without widening).
+    pub fn tessellate_f32(
+        &self,
+        tessellator: &dyn Tessellator,
+        default: TessOptions,
+    ) -> Result<Mesh32> {
+        let mut mesh = Mesh32::default();
+        tessellator.tessellate_each_into_f32(
+            &self.surfaces,
+            &self.options_or(default),
+            &mut mesh,
+        )?;
+        if !self.coons_patches.is_empty() {
+            let options = own_or(&self.coons_options, self.coons_patches.len(), default);
+            let mut patches = Mesh::default();
+            tessellator.tessellate_coons_into(&self.coons_patches, &options, &mut patches)?;
+            mesh.append(Mesh32::from(patches))?;
         }
         Ok(mesh)
     }
