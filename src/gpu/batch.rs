@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 /// The output buffers of a batch, ready to bind in a render pass.
 ///
-/// `vertices` holds [`Vertex`]es — position `Float32x3` at offset 0, normal `Float32x3` at
+/// `vertices` holds [`crate::Vertex`]es — position `Float32x3` at offset 0, normal `Float32x3` at
 /// 12, uv `Float32x2` at 24, stride [`VERTEX_BYTES`] — in the grid layout of [`Mesh`];
 /// `indices` holds u32 triangle-list indices. Both are also STORAGE and COPY_SRC. After a
 /// [`GpuBatch::reload`] the buffers may be larger than the data: draw `index_count` indices.
