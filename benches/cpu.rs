@@ -14,10 +14,10 @@ use std::path::Path;
 fn bench_cpu(c: &mut Criterion) {
     let peer = knotwork::io::read_scene(Path::new("data/peer_bicubic_32x32.obj"))
         .expect("benchmark surface")
-        .surfaces;
+        .surface_list();
     let teapot = knotwork::io::read_scene(Path::new("data/teapot.bpt"))
         .expect("teapot")
-        .surfaces;
+        .surface_list();
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let cases = [
         ("peer_bicubic_32x32 1000x1000", &peer, 1000u32),

@@ -63,7 +63,7 @@ fn bench_gpu(c: &mut Criterion) {
     let read = |p: &str| {
         knotwork::io::read_scene(Path::new(p))
             .expect("bench input")
-            .surfaces
+            .surface_list()
     };
     let cases = [
         ("1024 rational bicubic patches 64x64", patches_1024(), 64u32),

@@ -6,20 +6,15 @@
 
 use knotwork::io::{MeshFormat, SceneFormat};
 use knotwork::mesh::WELD_REL_TOLERANCE;
-use knotwork::{CpuTessellator, Mesh, TessOptions, Tessellator};
+use knotwork::{CpuTessellator, SceneOptions, Tessellator};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
 fn convert(input: &Path, output: &Path) -> knotwork::Result<usize> {
     let scene = knotwork::io::read_scene(input)?;
-    let mut mesh = Mesh::default();
-    CpuTessellator.tessellate_each_into(
-        &scene.surfaces,
-        &scene.options_or(TessOptions::DEFAULT),
-        &mut mesh,
-    )?;
+    let mesh = CpuTessellator.tessellate_scene(&scene, &SceneOptions::default())?;
     let (welded, _) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
-    knotwork::io::write_mesh_as(output, &welded, &scene.groups, Some(MeshFormat::Glb))?;
+    knotwork::io::write_mesh_as(output, &welded, &scene.groups(), Some(MeshFormat::Glb))?;
     Ok(welded.triangle_count())
 }
 

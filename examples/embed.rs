@@ -1,50 +1,256 @@
-//! A renderer's loop with knotwork embedded: the renderer owns the device; every frame the
-//! teapot's lid is lifted a little (its control points move), knotwork re-uploads only that
-//! patch's points and re-tessellates into the same vertex buffer, and a render pass draws that
-//! buffer directly — the mesh never travels through the CPU. Frames are saved as PNG.
+//! What a renderer embedding knotwork does: it owns the device and its own render pipeline;
+//! knotwork fills vertex and index buffers on that device, and the renderer draws them with
+//! `GpuMesh::vertex_buffer_layout()` — the mesh never travels through the CPU. Every frame
+//! the teapot's lid is lifted a little: knotwork re-uploads only those patches' control
+//! points and re-evaluates into the same buffers. Frames are read back only to save them
+//! (binary PPM, so the example needs no image crate).
 //!
-//! `cargo run --release --example embed` writes `embed_frames/frame_00.png` … `_07.png`.
+//! `cargo run --release --example embed` writes `embed_frames/frame_00.ppm` … `_07.ppm`.
 
-use glam::DVec3;
-use knotwork::{BSplineSurface, BatchDescriptor, GpuBatch, GpuContext, TessOptions};
+use knotwork::glam::camera::rh::{proj::directx::perspective, view::look_at_mat4};
+use knotwork::glam::{DVec3, Vec3};
+use knotwork::wgpu;
+use knotwork::{BSplineSurface, BatchDescriptor, GpuBatch, GpuContext, GpuMesh, TessOptions};
 use std::path::Path;
 
-fn main() -> knotwork::Result<()> {
-    // The renderer's device and queue (here opened headless); knotwork works on them.
-    let context = GpuContext::new()?;
-    let context = GpuContext::from_device(context.device().clone(), context.queue().clone())?;
-    let surfaces = knotwork::io::read_scene(Path::new("data/teapot.bpt"))?.surfaces;
+const WIDTH: u32 = 320;
+const HEIGHT: u32 = 240;
+const COLOUR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// The renderer's own shader: knotwork's vertex layout in, Lambert shading out.
+const SHADER: &str = "
+struct Camera { view_projection: mat4x4<f32> }
+@group(0) @binding(0) var<uniform> camera: Camera;
+struct Out { @builtin(position) clip: vec4<f32>, @location(0) normal: vec3<f32> }
+@vertex fn vs(@location(0) position: vec3<f32>, @location(1) normal: vec3<f32>) -> Out {
+    return Out(camera.view_projection * vec4<f32>(position, 1.0), normal);
+}
+@fragment fn fs(in: Out) -> @location(0) vec4<f32> {
+    let light = normalize(vec3<f32>(0.4, -0.6, 0.7));
+    let shade = 0.2 + 0.8 * abs(dot(normalize(in.normal), light));
+    return vec4<f32>(vec3<f32>(0.9, 0.6, 0.3) * shade, 1.0);
+}";
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    // The renderer's device and queue (headless here).
+    let instance = knotwork::gpu::headless_instance();
+    let adapter = pollster::block_on(instance.request_adapter(&Default::default()))?;
+    let (device, queue) = pollster::block_on(adapter.request_device(&Default::default()))?;
+    // knotwork works on them.
+    let context = GpuContext::from_device(device.clone(), queue.clone())?;
+    let surfaces = knotwork::io::read_scene(Path::new("data/teapot.bpt"))?.surface_list();
     let grid = TessOptions::DEFAULT.with_grid(24, 24);
     let mut batch = GpuBatch::new(&context, &BatchDescriptor::new(&surfaces, &grid))?;
+
+    let renderer = Renderer::new(&device);
     let frames = Path::new("embed_frames");
-    std::fs::create_dir_all(frames).map_err(|source| knotwork::Error::Io {
-        path: frames.into(),
-        source,
-    })?;
+    std::fs::create_dir_all(frames)?;
     let lid = 20..28; // patches 21–28: the lid and its knob
-    let mut moved = surfaces.clone();
-    let preview = knotwork::render::Preview::new(
-        &context,
-        &knotwork::render::RenderOptions {
-            width: 320,
-            height: 240,
-            wireframe: false,
-            control_net: false,
-        },
-    )?;
     for frame in 0..8 {
         let lift = DVec3::new(0.0, 0.0, 0.12 * f64::from(frame));
         for index in lid.clone() {
-            moved[index] = translated(&surfaces[index], lift)?;
-            batch.update_surface(index, &moved[index])?;
+            batch.update_surface(index, &translated(&surfaces[index], lift)?)?;
         }
         batch.dispatch()?;
-        let image = preview.render(&context, &batch, &moved)?;
-        let path = frames.join(format!("frame_{frame:02}.png"));
-        knotwork::render::save_png(&path, &image)?;
+        let pixels = renderer.draw(&device, &queue, batch.mesh())?;
+        let path = frames.join(format!("frame_{frame:02}.ppm"));
+        let mut ppm = format!("P6\n{WIDTH} {HEIGHT}\n255\n").into_bytes();
+        ppm.extend(
+            pixels
+                .chunks_exact(4)
+                .flat_map(|rgba| [rgba[0], rgba[1], rgba[2]]),
+        );
+        std::fs::write(&path, ppm)?;
         println!("{}", path.display());
     }
     Ok(())
+}
+
+/// An offscreen colour and depth target, a pipeline for knotwork's vertices, and a buffer
+/// to read the picture back.
+struct Renderer {
+    pipeline: wgpu::RenderPipeline,
+    bind_group: wgpu::BindGroup,
+    colour: wgpu::Texture,
+    depth: wgpu::TextureView,
+    readback: wgpu::Buffer,
+}
+
+/// Bytes per row of the read-back picture (a multiple of wgpu's 256-byte row alignment).
+const ROW_BYTES: u32 = WIDTH * 4;
+const _: () = assert!(ROW_BYTES.is_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT));
+
+impl Renderer {
+    fn new(device: &wgpu::Device) -> Self {
+        use wgpu::util::DeviceExt;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("renderer"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
+        let view = look_at_mat4(Vec3::new(6.0, -8.0, 5.5), Vec3::new(0.0, 0.0, 1.4), Vec3::Z);
+        // WebGPU's clip space is DirectX's: y up, depth 0..1.
+        let projection = perspective(0.6, WIDTH as f32 / HEIGHT as f32, 0.1, 100.0);
+        let camera = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("camera"),
+            contents: bytemuck::cast_slice(&(projection * view).to_cols_array()),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: None,
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: camera.as_entire_binding(),
+            }],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: None,
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("renderer"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs"),
+                compilation_options: Default::default(),
+                buffers: &[Some(GpuMesh::vertex_buffer_layout())],
+            },
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs"),
+                compilation_options: Default::default(),
+                targets: &[Some(COLOUR.into())],
+            }),
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            multiview_mask: None,
+            cache: None,
+        });
+        let target = |format, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: None,
+                size: wgpu::Extent3d {
+                    width: WIDTH,
+                    height: HEIGHT,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let colour = target(
+            COLOUR,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        );
+        let depth =
+            target(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT).create_view(&Default::default());
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("picture"),
+            size: u64::from(ROW_BYTES * HEIGHT),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Renderer {
+            pipeline,
+            bind_group,
+            colour,
+            depth,
+            readback,
+        }
+    }
+
+    /// Draws knotwork's buffers as they are and returns the RGBA picture.
+    fn draw(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        mesh: &GpuMesh,
+    ) -> Result<Vec<u8>, Box<dyn std::error::Error>> {
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let view = self.colour.create_view(&Default::default());
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: None,
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::WHITE),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &self.depth,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.bind_group, &[]);
+            pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+            pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+        }
+        encoder.copy_texture_to_buffer(
+            self.colour.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &self.readback,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(ROW_BYTES),
+                    rows_per_image: None,
+                },
+            },
+            wgpu::Extent3d {
+                width: WIDTH,
+                height: HEIGHT,
+                depth_or_array_layers: 1,
+            },
+        );
+        queue.submit([encoder.finish()]);
+        let (sender, receiver) = std::sync::mpsc::channel();
+        self.readback
+            .map_async(wgpu::MapMode::Read, .., move |r| drop(sender.send(r)));
+        device.poll(wgpu::PollType::wait_indefinitely())?;
+        receiver.recv()??;
+        let pixels = self.readback.get_mapped_range(..)?.to_vec();
+        self.readback.unmap();
+        Ok(pixels)
+    }
 }
 
 /// `surface` with every control point moved by `offset` (same knots, same weights).

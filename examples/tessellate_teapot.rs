@@ -8,8 +8,10 @@ use std::path::Path;
 
 fn main() -> knotwork::Result<()> {
     let scene = knotwork::io::read_scene(Path::new("data/teapot.bpt"))?;
-    let mesh =
-        CpuTessellator.tessellate(&scene.surfaces, &TessOptions::DEFAULT.with_grid(24, 24))?;
+    let mesh = CpuTessellator.tessellate(
+        &scene.surface_list(),
+        &TessOptions::DEFAULT.with_grid(24, 24),
+    )?;
     // Every normal is a unit vector, also at the collapsed edges of the lid and the bottom.
     let worst = mesh
         .normals
@@ -18,7 +20,7 @@ fn main() -> knotwork::Result<()> {
         .fold(0.0, f64::max);
     println!(
         "{} patches -> {} vertices, {} triangles; worst | |n| - 1 | = {worst:.1e}",
-        scene.surfaces.len(),
+        scene.surface_list().len(),
         mesh.vertex_count(),
         mesh.triangle_count()
     );

@@ -56,6 +56,7 @@ pub mod mesh;
 pub mod plan;
 #[cfg(feature = "render")]
 pub mod render;
+pub mod scene;
 
 /// The vector types of the API (f64 `DVec3` positions and the like).
 pub use glam;
@@ -68,62 +69,4 @@ pub use error::{Error, Result};
 pub use geom::{BSplineCurve, BSplineSurface, BezierPatch, Interval, KnotVector};
 pub use gpu::{BatchDescriptor, GpuBatch, GpuContext, GpuMesh, GpuTessellator};
 pub use mesh::{AnyMesh, Mesh, Mesh32, MeshPart, Polyline, TessOptions, Vertex};
-
-/// One interface for every tessellation backend: the same surfaces and options give a
-/// [`Mesh`] with the same layout, whichever backend runs.
-pub trait Tessellator {
-    /// Tessellates `surfaces` on the grid of `options` into a new mesh.
-    fn tessellate(&self, surfaces: &[BSplineSurface], options: &TessOptions) -> Result<Mesh> {
-        let mut mesh = Mesh::default();
-        self.tessellate_into(surfaces, options, &mut mesh)?;
-        Ok(mesh)
-    }
-    /// Tessellates into `mesh`, replacing its contents and reusing its allocations — for
-    /// re-tessellating every frame without fresh memory. On error `mesh` is left unchanged.
-    fn tessellate_into(
-        &self,
-        surfaces: &[BSplineSurface],
-        options: &TessOptions,
-        mesh: &mut Mesh,
-    ) -> Result<()> {
-        self.tessellate_each_into(surfaces, &vec![*options; surfaces.len()], mesh)
-    }
-    /// As [`Tessellator::tessellate_into`], with options (a grid) of its own for every surface.
-    fn tessellate_each_into(
-        &self,
-        surfaces: &[BSplineSurface],
-        options: &[TessOptions],
-        mesh: &mut Mesh,
-    ) -> Result<()>;
-    /// As [`Tessellator::tessellate_each_into`], into an f32 [`Mesh32`] (what GPUs and the
-    /// binary formats carry): the GPU reads back without widening; the default rounds the
-    /// f64 result. Its polylines are left alone.
-    fn tessellate_each_into_f32(
-        &self,
-        surfaces: &[BSplineSurface],
-        options: &[TessOptions],
-        mesh: &mut Mesh32,
-    ) -> Result<()> {
-        let mut wide = Mesh {
-            polylines: std::mem::take(&mut mesh.polylines),
-            ..Mesh::default()
-        };
-        self.tessellate_each_into(surfaces, options, &mut wide)?;
-        *mesh = Mesh32::from(wide);
-        Ok(())
-    }
-    /// Tessellates Coons patches evaluated directly (any blend, see [`geom::patches::CoonsPatch`])
-    /// into `mesh`, patch k on the grid of `options[k]` over (u, v) ∈ [0, 1]², in the same
-    /// layout as surfaces; `mesh` is replaced (its allocations reused).
-    fn tessellate_coons_into(
-        &self,
-        patches: &[geom::patches::CoonsPatch],
-        options: &[TessOptions],
-        mesh: &mut Mesh,
-    ) -> Result<()>;
-    /// Samples curve k at `samples[k]` (≥ 2) parameters uniform over its range into a
-    /// polyline (positions and first derivatives), in input order; errors name the curve.
-    fn tessellate_curves(&self, curves: &[BSplineCurve], samples: &[u32]) -> Result<Vec<Polyline>>;
-    /// A human-readable name of the backend (and adapter), for summaries.
-    fn name(&self) -> String;
-}
+pub use scene::{Geometry, Item, ItemGroup, Scene, SceneOptions, Tessellator};

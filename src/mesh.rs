@@ -42,6 +42,9 @@ impl Default for TessOptions {
 /// the vertex range is then the span of the vertices its triangles use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MeshPart {
+    /// The item the part came from: its index among the tessellated items (a scene's item
+    /// index for [`crate::Tessellator::tessellate_scene`], else the position in the input).
+    pub item: u32,
     pub grid_u: u32,
     pub grid_v: u32,
     pub first_vertex: u32,
@@ -207,6 +210,76 @@ fn append_topology(
     polylines.extend(other_polylines);
 }
 
+/// What scene tessellation needs of a mesh of either precision.
+pub(crate) trait GridMesh {
+    fn parts_and_polylines_mut(&mut self) -> (&mut [MeshPart], &mut [Polyline]);
+    /// Rearranges whole parts — each's vertices and triangles — into the order `order` (a
+    /// permutation of the part indices); every part's triangles must use its own vertices.
+    fn reorder_parts(&mut self, order: &[usize]);
+}
+
+/// The new parts and indices of [`GridMesh::reorder_parts`], and for each new part the old
+/// vertex range to copy.
+fn reordered(
+    parts: &[MeshPart],
+    indices: &[u32],
+    order: &[usize],
+) -> (Vec<MeshPart>, Vec<u32>, Vec<std::ops::Range<usize>>) {
+    let (mut new_parts, mut new_indices, mut ranges) = (Vec::new(), Vec::new(), Vec::new());
+    let mut first_vertex = 0u32;
+    for &k in order {
+        let old = parts[k];
+        let shift = |i: &u32| i - old.first_vertex + first_vertex;
+        let first_index = new_indices.len() as u32;
+        let range = old.first_index as usize..(old.first_index + old.index_count) as usize;
+        new_indices.extend(indices[range].iter().map(shift));
+        new_parts.push(MeshPart {
+            first_vertex,
+            first_index,
+            ..old
+        });
+        ranges.push(old.first_vertex as usize..(old.first_vertex + old.vertex_count) as usize);
+        first_vertex += old.vertex_count;
+    }
+    (new_parts, new_indices, ranges)
+}
+
+impl GridMesh for Mesh {
+    fn parts_and_polylines_mut(&mut self) -> (&mut [MeshPart], &mut [Polyline]) {
+        (&mut self.parts, &mut self.polylines)
+    }
+    fn reorder_parts(&mut self, order: &[usize]) {
+        let (parts, indices, ranges) = reordered(&self.parts, &self.indices, order);
+        let gather = |v: &[DVec3]| {
+            ranges
+                .iter()
+                .flat_map(|r| v[r.clone()].iter().copied())
+                .collect()
+        };
+        self.positions = gather(&self.positions);
+        self.normals = gather(&self.normals);
+        self.uvs = ranges
+            .iter()
+            .flat_map(|r| self.uvs[r.clone()].iter().copied())
+            .collect();
+        (self.parts, self.indices) = (parts, indices);
+    }
+}
+
+impl GridMesh for Mesh32 {
+    fn parts_and_polylines_mut(&mut self) -> (&mut [MeshPart], &mut [Polyline]) {
+        (&mut self.parts, &mut self.polylines)
+    }
+    fn reorder_parts(&mut self, order: &[usize]) {
+        let (parts, indices, ranges) = reordered(&self.parts, &self.indices, order);
+        self.vertices = ranges
+            .iter()
+            .flat_map(|r| self.vertices[r.clone()].iter().copied())
+            .collect();
+        (self.parts, self.indices) = (parts, indices);
+    }
+}
+
 /// A mesh of either precision, as the writers take it.
 #[derive(Debug, Clone, Copy)]
 pub enum AnyMesh<'a> {
@@ -277,6 +350,8 @@ impl<'a> AnyMesh<'a> {
 /// derivatives, model units per unit of parameter); the last sample lands on the range end.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Polyline {
+    /// The item the curve is: as [`MeshPart::item`].
+    pub item: u32,
     pub positions: Vec<DVec3>,
     pub tangents: Vec<DVec3>,
 }

@@ -5,7 +5,8 @@
 
 use crate::error::{Error, Result};
 use crate::geom::BSplineSurface;
-use crate::gpu::{GpuBatch, GpuContext, GpuMesh, VERTEX_BYTES, scoped};
+use crate::gpu::context::scoped;
+use crate::gpu::{GpuBatch, GpuContext, GpuMesh, VERTEX_BYTES};
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 use wgpu::util::DeviceExt;

@@ -395,9 +395,9 @@ fn grid_layout_winding_and_normals() {
 #[test]
 fn teapot_normals_point_out_and_are_never_degenerate() {
     let scene = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt")).unwrap();
-    assert_eq!(scene.surfaces.len(), 32);
+    assert_eq!(scene.surface_list().len(), 32);
     let mesh = CpuTessellator
-        .tessellate(&scene.surfaces, &TessOptions::DEFAULT.with_grid(9, 9))
+        .tessellate(&scene.surface_list(), &TessOptions::DEFAULT.with_grid(9, 9))
         .unwrap();
     assert!(
         mesh.normals
@@ -513,7 +513,7 @@ fn bezier_surface_matches_tensor_bernstein() {
 fn evaluate_grid_and_reused_meshes_match_fresh_tessellation() {
     let teapot = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt"))
         .unwrap()
-        .surfaces;
+        .surface_list();
     let options = TessOptions::DEFAULT.with_grid(7, 5);
     let fresh = CpuTessellator.tessellate(&teapot, &options).unwrap();
     // A mesh that held something else (bigger, other layout) is overwritten completely.
@@ -718,12 +718,13 @@ fn every_geometry_error_is_reported() {
 fn a_plan_refuses_other_items() {
     let scene = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt")).unwrap();
     let options = vec![TessOptions::DEFAULT.with_grid(4, 5); 2];
-    let plan = knotwork::plan::SurfacePlan::new(&scene.surfaces[..2], &options).unwrap();
+    let plan = knotwork::plan::SurfacePlan::new(&scene.surface_list()[..2], &options).unwrap();
     let mut mesh = knotwork::Mesh::default();
-    knotwork::cpu::execute_surfaces(&plan, &scene.surfaces[..2], &mut mesh).unwrap();
+    knotwork::cpu::execute_surfaces(&plan, &scene.surface_list()[..2], &mut mesh).unwrap();
     assert_eq!((mesh.vertex_count(), mesh.triangle_count()), (40, 48));
     let before = mesh.clone();
-    let err = knotwork::cpu::execute_surfaces(&plan, &scene.surfaces[..1], &mut mesh).unwrap_err();
+    let err =
+        knotwork::cpu::execute_surfaces(&plan, &scene.surface_list()[..1], &mut mesh).unwrap_err();
     assert!(
         matches!(
             err,

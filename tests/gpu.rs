@@ -121,7 +121,7 @@ fn conformance_suite_passes_on_this_adapter() {
     }
     let teapot = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt"))
         .unwrap()
-        .surfaces;
+        .surface_list();
     let options = TessOptions::DEFAULT.with_grid(33, 33);
     let report = conformance::compare(
         &teapot,
@@ -192,7 +192,7 @@ fn peer_and_teapot() -> Vec<BSplineSurface> {
     let read = |p: &str| {
         knotwork::io::read_scene(std::path::Path::new(p))
             .unwrap()
-            .surfaces
+            .surface_list()
     };
     let mut surfaces = read("data/peer_bicubic_32x32.obj");
     surfaces.extend(read("data/teapot.bpt"));
@@ -473,13 +473,13 @@ fn cli_conformance_prints_a_table_and_a_verdict() {
 fn per_surface_grids_conform() {
     let Some(context) = gpu() else { return };
     let scene = knotwork::io::read_scene(std::path::Path::new("data/scene.json")).unwrap();
-    let options = scene.options_or(TessOptions::DEFAULT.with_grid(13, 7));
+    let options = scene.surface_grids(TessOptions::DEFAULT.with_grid(13, 7));
     let tessellator = tessellator_on(context);
     let mut mesh = knotwork::Mesh::default();
     tessellator
-        .tessellate_each_into(&scene.surfaces, &options, &mut mesh)
+        .tessellate_each_into(&scene.surface_list(), &options, &mut mesh)
         .unwrap();
-    let report = conformance::compare_each(&scene.surfaces, &options, &mesh).unwrap();
+    let report = conformance::compare_each(&scene.surface_list(), &options, &mesh).unwrap();
     assert!(
         report.passes() && report.vertices == 24 * 24 + 3 * 13 * 7,
         "{report:?}"
@@ -495,8 +495,8 @@ fn classic_forms_conform_surface_by_surface() {
     let scene = knotwork::io::read_scene(std::path::Path::new("data/forms.json")).unwrap();
     let tessellator = tessellator_on(context);
     let options = TessOptions::DEFAULT.with_grid(29, 23);
-    assert_eq!(scene.surfaces.len(), 17);
-    for (k, surface) in scene.surfaces.iter().enumerate() {
+    assert_eq!(scene.surface_list().len(), 17);
+    for (k, surface) in scene.surface_list().iter().enumerate() {
         let one = std::slice::from_ref(surface);
         let mesh = tessellator.tessellate(one, &options).unwrap();
         let report = conformance::compare(one, &options, &mesh).unwrap();
@@ -510,34 +510,37 @@ fn classic_forms_conform_surface_by_surface() {
         );
         assert!(report.passes(), "surface {k}: {report:?}");
     }
-    let options = vec![TessOptions::DEFAULT.with_grid(29, 23); scene.coons_patches.len()];
+    let options = vec![TessOptions::DEFAULT.with_grid(29, 23); scene.coons_patch_list().len()];
     let mut mesh = knotwork::Mesh::default();
     tessellator
-        .tessellate_coons_into(&scene.coons_patches, &options, &mut mesh)
+        .tessellate_coons_into(&scene.coons_patch_list(), &options, &mut mesh)
         .unwrap();
-    let report = conformance::compare_coons(&scene.coons_patches, &options, &mesh).unwrap();
+    let report = conformance::compare_coons(&scene.coons_patch_list(), &options, &mesh).unwrap();
     println!(
         "{} directly evaluated Coons patch(es): position {:.2e} of size, normal {:.2e} rad",
-        scene.coons_patches.len(),
+        scene.coons_patch_list().len(),
         report.worst_position,
         report.worst_normal
     );
     assert!(
-        scene.coons_patches.len() == 1 && report.passes(),
+        scene.coons_patch_list().len() == 1 && report.passes(),
         "{report:?}"
     );
-    let samples = scene.samples_or(65);
+    let samples = scene.curve_samples(65);
     let polylines = tessellator
-        .tessellate_curves(&scene.curves, &samples)
+        .tessellate_curves(&scene.curve_list(), &samples)
         .unwrap();
-    let report = conformance::compare_curves(&scene.curves, &samples, &polylines).unwrap();
+    let report = conformance::compare_curves(&scene.curve_list(), &samples, &polylines).unwrap();
     println!(
         "{} curves: position {:.2e} of size, tangent {:.2e} of scale",
-        scene.curves.len(),
+        scene.curve_list().len(),
         report.worst_position,
         report.worst_tangent
     );
-    assert!(scene.curves.len() == 9 && report.passes(), "{report:?}");
+    assert!(
+        scene.curve_list().len() == 9 && report.passes(),
+        "{report:?}"
+    );
 }
 
 fn tessellator_on(context: &GpuContext) -> GpuTessellator {
@@ -619,7 +622,7 @@ fn teapot_render_is_not_blank() {
     let Some(context) = gpu() else { return };
     let surfaces = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt"))
         .unwrap()
-        .surfaces;
+        .surface_list();
     let grid = TessOptions::DEFAULT.with_grid(17, 17);
     let batch = GpuBatch::new(context, &BatchDescriptor::new(&surfaces, &grid)).unwrap();
     batch.dispatch().unwrap();
@@ -775,5 +778,39 @@ fn reloads_reuse_buffers_that_fit() {
             (&fresh.positions, &fresh.indices, &fresh.parts)
         );
         assert_eq!(reused.polylines.len(), 1, "polylines are left alone");
+    }
+}
+
+/// A scene of every item kind (data/forms.json: surfaces, a directly evaluated Coons patch
+/// fifth in the file, curves) tessellates in item order on both executors, with the same
+/// layout: parts and polylines carry their item's index, vertex for vertex within the GPU's
+/// bound, and the GPU keeps the curves.
+#[test]
+#[cfg(feature = "json")]
+fn scenes_keep_item_order_on_both_executors() {
+    let Some(context) = gpu() else { return };
+    let scene = knotwork::io::read_scene(std::path::Path::new("data/forms.json")).unwrap();
+    let defaults = knotwork::SceneOptions::default();
+    let cpu = knotwork::CpuTessellator
+        .tessellate_scene(&scene, &defaults)
+        .unwrap();
+    let gpu = tessellator_on(context)
+        .tessellate_scene_f32(&scene, &defaults)
+        .unwrap();
+    let items: Vec<u32> = cpu.parts.iter().map(|p| p.item).collect();
+    assert_eq!(items, (0..18).collect::<Vec<u32>>());
+    assert!(matches!(
+        scene.items[4].geometry,
+        knotwork::Geometry::Coons(_)
+    ));
+    let polyline_items: Vec<u32> = cpu.polylines.iter().map(|l| l.item).collect();
+    assert_eq!(polyline_items, (18..27).collect::<Vec<u32>>());
+    assert_eq!((&gpu.parts, &gpu.indices), (&cpu.parts, &cpu.indices));
+    assert_eq!(gpu.polylines.len(), 9);
+    let size = cpu.bounding_box_diagonal();
+    for (k, (p, v)) in cpu.positions.iter().zip(&gpu.vertices).enumerate() {
+        let got = DVec3::from_array(v.position.map(f64::from));
+        let bar = POSITION_REL_BAR * size + conformance::F32_ROUNDING * p.length();
+        assert!((got - *p).length() <= bar, "vertex {k}");
     }
 }

@@ -59,7 +59,7 @@ end
 #[test]
 fn spec_bezier_patch_reads_u_fastest_and_faces_plus_z() {
     let scene = obj(SPEC_BEZIER);
-    let s = &scene.surfaces[0];
+    let s = &scene.surface_list()[0];
     assert_eq!((s.count_u(), s.count_v()), (4, 4));
     // u runs along +y, v along -x (the first CV is vertex 13 at (2.3, -1.8)).
     assert_eq!(s.control_point(0, 0), DVec3::new(2.3, -1.8, 0.0));
@@ -95,13 +95,16 @@ parm v 0 0 1 1
 end
 ";
     let scene = obj(text);
-    assert_eq!(scene.surfaces.len(), 2);
-    let second = &scene.surfaces[1];
+    assert_eq!(scene.surface_list().len(), 2);
+    let second = &scene.surface_list()[1];
     assert_eq!(second.range_u(), Interval::new(0.25, 0.75));
     assert_eq!(second.point(0.5, 0.5), DVec3::new(1.0, 1.0, 5.0));
     // A sub-range is what the grid covers: the first column of vertices sits at u = 0.25.
     let mesh = CpuTessellator
-        .tessellate(&scene.surfaces[1..], &TessOptions::DEFAULT.with_grid(3, 2))
+        .tessellate(
+            &scene.surface_list()[1..],
+            &TessOptions::DEFAULT.with_grid(3, 2),
+        )
         .unwrap();
     assert_eq!(mesh.positions[0], DVec3::new(0.5, 0.0, 5.0));
     assert_eq!(mesh.positions[2], DVec3::new(1.5, 0.0, 5.0));
@@ -115,9 +118,10 @@ fn weights_are_separate_from_cartesian_coordinates() {
     let body = "surf 0 1 0 1 1 2 3 4\nparm u 0 0 1 1\nparm v 0 0 1 1\nend\n";
     let rational = obj(&format!("{net}cstype rat bspline\n{body}"));
     let plain = obj(&format!("{net}cstype bspline\n{body}"));
-    assert!(rational.surfaces[0].is_rational());
+    assert!(rational.surface_list()[0].is_rational());
     for (u, v) in [(0.3, 0.6), (1.0, 0.0), (0.5, 0.5)] {
-        let d = (rational.surfaces[0].point(u, v) - plain.surfaces[0].point(u, v)).length();
+        let d =
+            (rational.surface_list()[0].point(u, v) - plain.surface_list()[0].point(u, v)).length();
         assert!(d < 1e-15, "{d:e}");
     }
     // An unequal weight pulls the surface towards its point (which stays where x y z says).
@@ -126,14 +130,14 @@ fn weights_are_separate_from_cartesian_coordinates() {
         net.replacen("v 1 1 0 7.3", "v 1 1 0 70", 1)
     ));
     assert_eq!(
-        heavy.surfaces[0].control_point(1, 1),
+        heavy.surface_list()[0].control_point(1, 1),
         DVec3::new(1.0, 1.0, 0.0)
     );
     assert!(
-        heavy.surfaces[0]
+        heavy.surface_list()[0]
             .point(0.5, 0.5)
             .distance(DVec3::new(1.0, 1.0, 0.0))
-            < plain.surfaces[0]
+            < plain.surface_list()[0]
                 .point(0.5, 0.5)
                 .distance(DVec3::new(1.0, 1.0, 0.0))
     );
@@ -150,8 +154,8 @@ parm u -3 -2 -1 0 1 2 3 4 5
 end
 ";
     let scene = obj(text);
-    assert_eq!(scene.curves.len(), 1);
-    let c = &scene.curves[0];
+    assert_eq!(scene.curve_list().len(), 1);
+    let c = &scene.curve_list()[0];
     assert_eq!(c.range(), Interval::new(0.0, 2.0));
     // Uniform cubic at a knot: (P0 + 4 P1 + P2) / 6.
     let expected =
@@ -163,25 +167,25 @@ end
 #[test]
 fn real_files_load() {
     let ducky = read_scene(Path::new("data/ducky.obj")).unwrap();
-    assert_eq!(ducky.surfaces.len(), 3);
-    let body = &ducky.surfaces[0];
-    assert!(body.is_rational() && !ducky.surfaces[1].is_rational());
+    assert_eq!(ducky.surface_list().len(), 3);
+    let body = &ducky.surface_list()[0];
+    assert!(body.is_rational() && !ducky.surface_list()[1].is_rational());
     assert_eq!((body.count_u(), body.count_v()), (13, 14));
     let peer = read_scene(Path::new("data/peer_bicubic_32x32.obj")).unwrap();
-    let s = &peer.surfaces[0];
+    let s = &peer.surface_list()[0];
     assert_eq!(
         (s.count_u(), s.count_v(), s.degree_u(), s.degree_v()),
         (32, 32, 3, 3)
     );
     let teapot = read_scene(Path::new("data/teapot.bpt")).unwrap();
-    assert_eq!(teapot.surfaces.len(), 32);
+    assert_eq!(teapot.surface_list().len(), 32);
     // The rim's first control point and its corner on the surface (Bezier end interpolation).
     assert_eq!(
-        teapot.surfaces[0].point(0.0, 0.0),
+        teapot.surface_list()[0].point(0.0, 0.0),
         DVec3::new(1.4, 0.0, 2.4)
     );
     let mesh = CpuTessellator
-        .tessellate(&ducky.surfaces, &TessOptions::DEFAULT)
+        .tessellate(&ducky.surface_list(), &TessOptions::DEFAULT)
         .unwrap();
     assert!(
         mesh.normals
@@ -200,9 +204,12 @@ fn bpt_reads_patches_and_rejects_bad_ones() {
         text
     };
     let scene = read_bpt(&format!("2\n{}{}", patch(3, 3), patch(1, 2))).unwrap();
-    assert_eq!(scene.surfaces.len(), 2);
+    assert_eq!(scene.surface_list().len(), 2);
     assert_eq!(
-        (scene.surfaces[1].degree_u(), scene.surfaces[1].degree_v()),
+        (
+            scene.surface_list()[1].degree_u(),
+            scene.surface_list()[1].degree_v()
+        ),
         (2, 1)
     );
     let err = read_bpt(&format!("3\n{}", patch(1, 1))).unwrap_err();
@@ -384,7 +391,7 @@ proptest! {
 fn obj_mesh_round_trips_every_double() {
     let scene = read_scene(Path::new("data/ducky.obj")).unwrap();
     let mesh = CpuTessellator
-        .tessellate(&scene.surfaces, &TessOptions::DEFAULT.with_grid(9, 7))
+        .tessellate(&scene.surface_list(), &TessOptions::DEFAULT.with_grid(9, 7))
         .unwrap();
     let dir = scratch_dir("round-trip");
     let path = dir.join("duck.obj");
@@ -572,7 +579,7 @@ fn cli_reports_bad_input_in_one_line_and_writes_nothing() {
 fn teapot_mesh(n: u32) -> knotwork::Mesh {
     let scene = read_scene(Path::new("data/teapot.bpt")).unwrap();
     CpuTessellator
-        .tessellate(&scene.surfaces, &TessOptions::DEFAULT.with_grid(n, n))
+        .tessellate(&scene.surface_list(), &TessOptions::DEFAULT.with_grid(n, n))
         .unwrap()
 }
 
@@ -861,24 +868,24 @@ fn batch_cli_processes_a_folder_and_reports_bad_files() {
 #[test]
 fn json_scene_reads_every_kind_with_its_own_grid() {
     let scene = read_scene(Path::new("data/scene.json")).unwrap();
-    assert_eq!(scene.surfaces.len(), 4);
-    let options = scene.options_or(TessOptions::DEFAULT.with_grid(9, 9));
+    assert_eq!(scene.surface_list().len(), 4);
+    let options = scene.surface_grids(TessOptions::DEFAULT.with_grid(9, 9));
     assert_eq!((options[0].grid_u, options[0].grid_v), (24, 24));
     assert_eq!((options[1].grid_u, options[1].grid_v), (9, 9));
-    assert!(scene.surfaces[0].is_rational() && !scene.surfaces[1].is_rational());
-    assert_eq!(scene.surfaces[1].range_v(), Interval::new(0.0, 0.5));
+    assert!(scene.surface_list()[0].is_rational() && !scene.surface_list()[1].is_rational());
+    assert_eq!(scene.surface_list()[1].range_v(), Interval::new(0.0, 0.5));
     assert_eq!(
-        scene.surfaces[1].knots_u().knots(),
+        scene.surface_list()[1].knots_u().knots(),
         &[0.0, 0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 2.0]
     );
-    let ball = &scene.surfaces[2];
+    let ball = &scene.surface_list()[2];
     for (u, v) in [(0.1, 0.2), (0.7, 0.9), (0.5, 0.0)] {
         let d = (ball.point(u, v) - DVec3::new(1.5, 6.0, 1.0)).length();
         assert!((d - 1.0).abs() < 1e-14, "sphere point at distance {d}");
     }
     let mut mesh = knotwork::Mesh::default();
     CpuTessellator
-        .tessellate_each_into(&scene.surfaces, &options, &mut mesh)
+        .tessellate_each_into(&scene.surface_list(), &options, &mut mesh)
         .unwrap();
     assert_eq!(mesh.vertex_count(), 24 * 24 + 3 * 81);
 }
@@ -920,7 +927,9 @@ fn json_errors_name_the_line_or_the_surface() {
         Error::GridTooSmall { nu: 1, nv: 5 }
     ));
     let few_options = CpuTessellator.tessellate_each_into(
-        &read_scene(Path::new("data/scene.json")).unwrap().surfaces,
+        &read_scene(Path::new("data/scene.json"))
+            .unwrap()
+            .surface_list(),
         &[TessOptions::DEFAULT],
         &mut knotwork::Mesh::default(),
     );
@@ -935,28 +944,32 @@ fn json_errors_name_the_line_or_the_surface() {
 
 #[test]
 fn glb_has_one_mesh_per_surface_group() {
-    use knotwork::io::{SurfaceGroup, write_mesh_as};
+    use knotwork::io::{ItemGroup, write_mesh_as};
     let ducky = read_scene(Path::new("data/ducky.obj")).unwrap();
-    let names: Vec<&str> = ducky.groups.iter().map(|g| g.name.as_str()).collect();
+    let names: Vec<String> = ducky.groups().into_iter().map(|g| g.name).collect();
     assert_eq!(names, ["duck1", "duck2", "duck3"], "OBJ `g` groups");
     assert_eq!(
-        read_scene(Path::new("data/teapot.bpt")).unwrap().groups,
-        [SurfaceGroup {
+        read_scene(Path::new("data/teapot.bpt")).unwrap().groups(),
+        [ItemGroup {
             name: "patches".into(),
-            surfaces: 0..32
+            items: 0..32
         }]
     );
     let json = read_scene(Path::new("data/scene.json")).unwrap();
-    assert_eq!(json.groups.len(), 4, "every JSON surface is named");
+    assert!(
+        json.items.iter().all(|item| item.name.is_some()),
+        "every JSON surface is named"
+    );
+    assert_eq!(json.groups().len(), 4);
     let mesh = teapot_mesh(5);
     let groups = [
-        SurfaceGroup {
+        ItemGroup {
             name: "rim and body".into(),
-            surfaces: 0..12,
+            items: 0..12,
         },
-        SurfaceGroup {
+        ItemGroup {
             name: "lid".into(),
-            surfaces: 20..28,
+            items: 20..28,
         },
     ];
     let path = scratch_dir("glb-groups").join("teapot.glb");
@@ -974,9 +987,9 @@ fn glb_has_one_mesh_per_surface_group() {
         .collect();
     let cells = 6 * 4 * 4;
     let mut expected = vec![("rim and body".to_string(), 12 * cells)];
-    expected.extend((12..20).map(|k| (format!("surface {k}"), cells)));
+    expected.extend((12..20).map(|k| (format!("item {k}"), cells)));
     expected.push(("lid".to_string(), 8 * cells));
-    expected.extend((28..32).map(|k| (format!("surface {k}"), cells)));
+    expected.extend((28..32).map(|k| (format!("item {k}"), cells)));
     assert_eq!(
         meshes, expected,
         "named groups, and a mesh per surface outside them"
@@ -988,10 +1001,13 @@ fn glb_has_one_mesh_per_surface_group() {
 #[test]
 fn classic_forms_scene_writes_polylines() {
     let scene = read_scene(Path::new("data/forms.json")).unwrap();
-    assert_eq!((scene.surfaces.len(), scene.curves.len()), (17, 9));
+    assert_eq!(
+        (scene.surface_list().len(), scene.curve_list().len()),
+        (17, 9)
+    );
     // The cosine-blend Coons patch has no B-spline form: it is evaluated directly and its
     // triangles follow the surfaces'.
-    assert_eq!(scene.coons_patches.len(), 1);
+    assert_eq!(scene.coons_patch_list().len(), 1);
     let dir = scratch_dir("forms");
     let obj_path = dir.join("forms.obj");
     let run = knotwork(&[
@@ -1057,12 +1073,18 @@ fn classic_forms_scene_writes_polylines() {
     let bytes = std::fs::read(&glb_path).unwrap();
     let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
     let blob = gltf.blob.as_deref().unwrap();
-    let curves = gltf
-        .meshes()
-        .find(|m| m.name() == Some("curves"))
-        .expect("a curves mesh");
-    assert_eq!(curves.primitives().count(), 9);
-    for primitive in curves.primitives() {
+    // One mesh and node per group of items, in file order: the 18 surfaces (the directly
+    // evaluated Coons patch in its own place, fifth; "two sheets" is one entry of two
+    // surfaces), then the 9 unnamed curves, each a LINE_STRIP with tangents.
+    let names: Vec<&str> = gltf.nodes().map(|n| n.name().unwrap()).collect();
+    assert_eq!(names.len(), 26);
+    assert_eq!(names[4], "coons, cosine blend (evaluated directly)");
+    assert_eq!(names[12], "two sheets");
+    let expected: Vec<String> = (18..27).map(|k| format!("item {k}")).collect();
+    assert_eq!(names[17..], expected);
+    let curves: Vec<_> = gltf.meshes().skip(17).collect();
+    assert_eq!(curves.len(), 9);
+    for primitive in curves.iter().flat_map(|m| m.primitives()) {
         assert_eq!(primitive.mode(), gltf::mesh::Mode::LineStrip);
         let tangents = primitive
             .attributes()
@@ -1131,6 +1153,7 @@ fn classic_form_errors_name_the_item() {
 fn f32_meshes_write_as_their_f64_sources() {
     let mut mesh = teapot_mesh(5);
     mesh.polylines.push(knotwork::Polyline {
+        item: 0,
         positions: vec![DVec3::new(0.1, 0.2, 0.3), DVec3::new(1.0, 2.0, 3.0)],
         tangents: vec![DVec3::X, DVec3::Y],
     });
@@ -1197,10 +1220,40 @@ fn f32_meshes_write_as_their_f64_sources() {
 fn weld_keeps_polylines() {
     let mut mesh = teapot_mesh(4);
     mesh.polylines.push(knotwork::Polyline {
+        item: 0,
         positions: vec![DVec3::ZERO, DVec3::X],
         tangents: vec![DVec3::X, DVec3::X],
     });
     let (welded, report) = mesh.weld(1e-9);
     assert!(report.merged_vertices > 0);
     assert_eq!(welded.polylines, mesh.polylines);
+}
+
+/// OBJ output names its groups in item order (`g`), and items outside every group go to the
+/// default group; a mesh written without groups has no `g` statement.
+#[test]
+fn obj_groups_follow_the_items() {
+    let ducky = read_scene(Path::new("data/ducky.obj")).unwrap();
+    let mesh = CpuTessellator
+        .tessellate_scene(&ducky, &knotwork::SceneOptions::default())
+        .unwrap();
+    let dir = scratch_dir("obj-groups");
+    let path = dir.join("ducky.obj");
+    knotwork::io::write_mesh_as(&path, &mesh, &ducky.groups(), None).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    let groups: Vec<&str> = text.lines().filter(|l| l.starts_with("g ")).collect();
+    assert_eq!(groups, ["g duck1", "g duck2", "g duck3"]);
+    let first_face = text.lines().position(|l| l.starts_with("f ")).unwrap();
+    let first_group = text.lines().position(|l| l.starts_with("g ")).unwrap();
+    assert!(first_group < first_face);
+    let only_lid = [knotwork::ItemGroup {
+        name: "lid".into(),
+        items: 1..2,
+    }];
+    knotwork::io::write_mesh_as(&path, &mesh, &only_lid, None).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    let groups: Vec<&str> = text.lines().filter(|l| l.starts_with("g ")).collect();
+    assert_eq!(groups, ["g lid", "g default"]);
+    write_mesh(&path, &mesh).unwrap();
+    assert!(!std::fs::read_to_string(&path).unwrap().contains("\ng "));
 }

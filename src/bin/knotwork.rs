@@ -3,7 +3,9 @@
 use clap::{Parser, Subcommand, ValueEnum};
 use knotwork::io::{MeshFormat, SceneFormat};
 use knotwork::mesh::WELD_REL_TOLERANCE;
-use knotwork::{CpuTessellator, GpuContext, GpuTessellator, TessOptions, Tessellator};
+use knotwork::{
+    CpuTessellator, GpuContext, GpuTessellator, SceneOptions, TessOptions, Tessellator,
+};
 use rayon::prelude::*;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -145,18 +147,19 @@ fn render(
     let start = Instant::now();
     let scene = knotwork::io::read_scene(input)?;
     let context = GpuContext::new()?;
-    let grids = scene.options_or(TessOptions::DEFAULT.with_grid(grid.0, grid.1));
+    let surfaces = scene.surface_list();
+    let grids = scene.surface_grids(TessOptions::DEFAULT.with_grid(grid.0, grid.1));
     let batch = knotwork::GpuBatch::new(
         &context,
-        &knotwork::BatchDescriptor::each(&scene.surfaces, &grids),
+        &knotwork::BatchDescriptor::each(&surfaces, &grids),
     )?;
     batch.dispatch()?;
-    let image = knotwork::render::render(&context, &batch, &scene.surfaces, options)?;
+    let image = knotwork::render::render(&context, &batch, &surfaces, options)?;
     knotwork::render::save_png(output, &image)?;
     println!(
         "{}: {} surfaces, {} triangles rendered at {}x{} in {:.3} s ({}) -> {}",
         input.display(),
-        scene.surfaces.len(),
+        surfaces.len(),
         batch.mesh().index_count / 3,
         options.width,
         options.height,
@@ -268,7 +271,10 @@ fn process(
     job: &Job,
 ) -> knotwork::Result<Tally> {
     let scene = knotwork::io::read_scene_as(input, job.input_format)?;
-    let polylines = tessellator.tessellate_curves(&scene.curves, &scene.samples_or(job.samples))?;
+    let defaults = SceneOptions {
+        grid: job.options,
+        samples: job.samples,
+    };
     // Binary formats carry f32: an f32 mesh goes to them without widening and narrowing
     // (from the GPU, straight from its buffers); OBJ and welding take the f64 mesh.
     let format = job.format.or_else(|| {
@@ -276,25 +282,24 @@ fn process(
             .extension()
             .and_then(|e| MeshFormat::from_extension(&e.to_string_lossy()))
     });
+    let groups = scene.groups();
     let mut merged = 0;
     let (vertices, triangles) = if matches!(format, Some(MeshFormat::Obj) | None) || job.weld {
-        let mut mesh = scene.tessellate(tessellator, job.options)?;
+        let mut mesh = tessellator.tessellate_scene(&scene, &defaults)?;
         if job.weld {
             let (welded, report) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
             (mesh, merged) = (welded, report.merged_vertices);
         }
-        mesh.polylines = polylines;
-        knotwork::io::write_mesh_as(output, &mesh, &scene.groups, job.format)?;
+        knotwork::io::write_mesh_as(output, &mesh, &groups, job.format)?;
         (mesh.vertex_count(), mesh.triangle_count())
     } else {
-        let mut mesh = scene.tessellate_f32(tessellator, job.options)?;
-        mesh.polylines = polylines;
-        knotwork::io::write_mesh_as(output, &mesh, &scene.groups, job.format)?;
+        let mesh = tessellator.tessellate_scene_f32(&scene, &defaults)?;
+        knotwork::io::write_mesh_as(output, &mesh, &groups, job.format)?;
         (mesh.vertex_count(), mesh.triangle_count())
     };
     Ok(Tally {
-        surfaces: scene.surfaces.len() + scene.coons_patches.len(),
-        curves: scene.curves.len(),
+        surfaces: scene.surfaces().count() + scene.coons_patches().count(),
+        curves: scene.curves().count(),
         vertices,
         triangles,
         merged,

@@ -29,7 +29,8 @@ pub fn execute_curves(plan: &CurvePlan, curves: &[BSplineCurve]) -> Result<Vec<P
     Ok(curves
         .par_iter()
         .zip(&plan.items)
-        .map(|(curve, item)| {
+        .enumerate()
+        .map(|(index, (curve, item))| {
             let (positions, tangents) = item
                 .samples
                 .params()
@@ -37,6 +38,7 @@ pub fn execute_curves(plan: &CurvePlan, curves: &[BSplineCurve]) -> Result<Vec<P
                 .map(|&u| curve.evaluate(u))
                 .unzip();
             Polyline {
+                item: index as u32,
                 positions,
                 tangents,
             }

@@ -5,8 +5,6 @@
 use super::basis::{BasisDers, MAX_ORDER, basis_ders};
 use super::patches::CoonsPatch;
 use super::{BSplineCurve, BSplineSurface, Interval};
-use crate::error::{Error, Result};
-use crate::mesh::Polyline;
 use glam::{DVec3, DVec4};
 
 /// The scale of |S_u × S_v| for a surface whose control net spans `size` (bounding-box
@@ -198,21 +196,6 @@ impl BSplineCurve {
     /// The point at `u`.
     pub fn point(&self, u: f64) -> DVec3 {
         self.evaluate(u).0
-    }
-
-    /// `samples` (≥ 2) points and tangents uniform in parameter over the evaluation range.
-    pub fn polyline(&self, samples: u32) -> Result<Polyline> {
-        if samples < 2 {
-            return Err(Error::GridTooSmall { nu: samples, nv: 1 });
-        }
-        let range = self.range();
-        let (positions, tangents) = (0..samples)
-            .map(|k| self.evaluate(range.lerp(f64::from(k) / f64::from(samples - 1))))
-            .unzip();
-        Ok(Polyline {
-            positions,
-            tangents,
-        })
     }
 
     /// Position, first and second derivative at `u` (clamped to the knot domain).

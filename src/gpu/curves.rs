@@ -213,6 +213,7 @@ pub fn sample_curves(
                 let first = job.first_sample as usize * 12;
                 let samples = &floats[first..first + job.samples as usize * 12];
                 polylines.push(Polyline {
+                    item: polylines.len() as u32,
                     positions: samples.chunks_exact(12).map(|s| vector(&s[0..3])).collect(),
                     tangents: samples.chunks_exact(12).map(|s| vector(&s[4..7])).collect(),
                 });

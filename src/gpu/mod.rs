@@ -36,7 +36,6 @@ mod surfaces;
 pub mod tessellator;
 
 pub use batch::{BatchDescriptor, GpuBatch, GpuMesh};
-pub(crate) use context::scoped;
 pub use context::{GpuContext, headless_instance};
 pub use curves::sample_curves;
 pub use surfaces::{Limits, VERTEX_BYTES};
@@ -59,6 +58,7 @@ pub const COONS_WGSL: &str = concat!(
 mod tests {
     use super::*;
     use crate::error::Error;
+    use context::scoped;
     use curves::CurveJob;
     use surfaces::{ChunkParams, Piece, Tile};
 

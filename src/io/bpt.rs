@@ -5,9 +5,9 @@
 //! direction (degree m) and i as v (degree n), as OBJ does; this makes S_u × S_v point out of
 //! the teapot.
 
-use super::Scene;
 use crate::error::{Error, Result};
 use crate::geom::bezier_surface;
+use crate::scene::{Geometry, Item, Scene};
 use glam::DVec3;
 
 /// Parses `.bpt` text. Errors carry the 1-based line ([`Error::AtLine`]).
@@ -39,7 +39,10 @@ pub fn read_bpt(text: &str) -> Result<Scene> {
             points.push(DVec3::from_array(xyz));
         }
         let surface = bezier_surface(m, n, &points, None).map_err(|e| e.at_line(line))?;
-        scene.surfaces.push(surface);
+        scene.items.push(Item {
+            name: Some("patches".into()),
+            ..Item::new(Geometry::Surface(surface))
+        });
     }
     if let Some((line, token)) = tokens.inner.next() {
         return Err(Error::syntax(format!(
@@ -47,10 +50,6 @@ pub fn read_bpt(text: &str) -> Result<Scene> {
         ))
         .at_line(line));
     }
-    scene.groups.push(super::SurfaceGroup {
-        name: "patches".into(),
-        surfaces: 0..scene.surfaces.len(),
-    });
     Ok(scene)
 }
 

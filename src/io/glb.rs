@@ -1,8 +1,9 @@
 //! glTF 2.0 binary output (feature `gltf`), through the `gltf` crate's JSON model and GLB
 //! container writer: its schema is large and easy to get subtly wrong by hand.
 
-use super::{SurfaceGroup, cover_groups};
+use super::cover_groups;
 use crate::mesh::{AnyMesh, Vertex};
+use crate::scene::ItemGroup;
 use gltf::json;
 use json::validation::{Checked, USize64};
 use std::io::{Result, Write};
@@ -10,14 +11,14 @@ use std::io::{Result, Write};
 /// Bytes per interleaved vertex: position, normal, uv (f32).
 const VERTEX_STRIDE: usize = size_of::<Vertex>();
 
-/// glTF 2.0 binary (.glb): one buffer with POSITION, NORMAL, TEXCOORD_0 (f32) and u32
-/// indices; one mesh and node per group of surfaces (`groups`, completed by
-/// [`cover_groups`]): a primitive of triangles over the shared vertex accessors with its own
-/// index accessor; POSITION bounds filled in. Polylines form one more mesh, "curves": a
-/// LINE_STRIP primitive per curve with POSITION and `_TANGENT` (f32 vec3).
+/// glTF 2.0 binary (.glb): one buffer with POSITION, NORMAL, TEXCOORD_0 (f32, interleaved)
+/// and u32 indices; one mesh and node per group of items (`groups`, completed by
+/// [`cover_groups`]), in item order: a primitive of the group's triangles over the shared
+/// vertex accessors with its own index accessor, then a LINE_STRIP primitive per curve
+/// with POSITION and `_TANGENT` (f32 vec3); POSITION bounds filled in.
 pub fn write_glb<'a>(
     mesh: impl Into<AnyMesh<'a>>,
-    groups: &[SurfaceGroup],
+    groups: &[ItemGroup],
     w: &mut dyn Write,
 ) -> Result<()> {
     let mesh: AnyMesh = mesh.into();
@@ -104,7 +105,35 @@ pub fn write_glb<'a>(
     use json::accessor::{ComponentType, Type};
     use json::buffer::Target;
     let array = Target::ArrayBuffer;
-    let mut nodes = Vec::new();
+    let primitive = |attributes: Vec<(json::mesh::Semantic, json::Index<json::Accessor>)>,
+                     indices,
+                     mode| json::mesh::Primitive {
+        attributes: attributes
+            .into_iter()
+            .map(|(semantic, accessor)| (Checked::Valid(semantic), accessor))
+            .collect(),
+        extensions: None,
+        extras: Default::default(),
+        indices,
+        material: None,
+        mode: Checked::Valid(mode),
+        targets: None,
+    };
+    // Every group's primitives: its triangles (one index range: parts follow one another in
+    // the index buffer), then a LINE_STRIP per curve.
+    let groups = cover_groups(
+        groups,
+        mesh.parts()
+            .iter()
+            .map(|p| p.item)
+            .chain(polylines.iter().map(|l| l.item)),
+    );
+    let mut primitives: Vec<Vec<json::mesh::Primitive>> = vec![Vec::new(); groups.len()];
+    let group_of = |item: u32| {
+        groups
+            .iter()
+            .position(|g| g.items.contains(&(item as usize)))
+    };
     if !indices.is_empty() {
         let vertex_view = view(&mut root, 0, n * VERTEX_STRIDE, Some(VERTEX_STRIDE), array);
         let index_view = view(
@@ -114,7 +143,6 @@ pub fn write_glb<'a>(
             None,
             Target::ElementArrayBuffer,
         );
-        let bounds = Some((lo, hi));
         let position = accessor(
             &mut root,
             vertex_view,
@@ -122,7 +150,7 @@ pub fn write_glb<'a>(
             n,
             ComponentType::F32,
             Type::Vec3,
-            bounds,
+            Some((lo, hi)),
         );
         let normal = accessor(
             &mut root,
@@ -142,59 +170,40 @@ pub fn write_glb<'a>(
             Type::Vec2,
             None,
         );
-        for group in cover_groups(groups, mesh.parts().len()) {
-            let parts = &mesh.parts()[group.surfaces.clone()];
-            // Parts follow one another in the index buffer: a group's triangles are one range.
-            let first_index = parts[0].first_index as usize;
+        for (group, group_primitives) in groups.iter().zip(&mut primitives) {
+            let parts: Vec<&crate::MeshPart> = mesh
+                .parts()
+                .iter()
+                .filter(|p| group.items.contains(&(p.item as usize)))
+                .collect();
             let index_count: usize = parts.iter().map(|p| p.index_count as usize).sum();
             if index_count == 0 {
                 continue;
             }
-            let indices = accessor(
+            let group_indices = accessor(
                 &mut root,
                 index_view,
-                first_index * 4,
+                parts[0].first_index as usize * 4,
                 index_count,
                 ComponentType::U32,
                 Type::Scalar,
                 None,
             );
-            let attributes = [
-                (json::mesh::Semantic::Positions, position),
-                (json::mesh::Semantic::Normals, normal),
-                (json::mesh::Semantic::TexCoords(0), uv),
-            ]
-            .into_iter()
-            .map(|(semantic, accessor)| (Checked::Valid(semantic), accessor))
-            .collect();
-            let primitive = json::mesh::Primitive {
-                attributes,
-                extensions: None,
-                extras: Default::default(),
-                indices: Some(indices),
-                material: None,
-                mode: Checked::Valid(json::mesh::Mode::Triangles),
-                targets: None,
-            };
-            let mesh_index = root.push(json::Mesh {
-                extensions: None,
-                extras: Default::default(),
-                name: Some(group.name.clone()),
-                primitives: vec![primitive],
-                weights: None,
-            });
-            nodes.push(root.push(json::Node {
-                mesh: Some(mesh_index),
-                name: Some(group.name),
-                ..Default::default()
-            }));
+            group_primitives.push(primitive(
+                vec![
+                    (json::mesh::Semantic::Positions, position),
+                    (json::mesh::Semantic::Normals, normal),
+                    (json::mesh::Semantic::TexCoords(0), uv),
+                ],
+                Some(group_indices),
+                json::mesh::Mode::Triangles,
+            ));
         }
     }
     if !polylines.is_empty() {
         let bytes = curve_points.len() * 12;
         let point_view = view(&mut root, curve_offset, bytes, Some(12), array);
         let tangent_view = view(&mut root, curve_offset + bytes, bytes, Some(12), array);
-        let mut primitives = Vec::with_capacity(polylines.len());
         let mut first = 0;
         for polyline in polylines {
             let count = polyline.positions.len();
@@ -218,32 +227,33 @@ pub fn write_glb<'a>(
                 None,
             );
             first += count;
-            primitives.push(json::mesh::Primitive {
-                attributes: [
-                    (json::mesh::Semantic::Positions, position),
-                    (json::mesh::Semantic::Extras("TANGENT".into()), tangent),
-                ]
-                .into_iter()
-                .map(|(semantic, accessor)| (Checked::Valid(semantic), accessor))
-                .collect(),
-                extensions: None,
-                extras: Default::default(),
-                indices: None,
-                material: None,
-                mode: Checked::Valid(json::mesh::Mode::LineStrip),
-                targets: None,
-            });
+            if let Some(group) = group_of(polyline.item) {
+                primitives[group].push(primitive(
+                    vec![
+                        (json::mesh::Semantic::Positions, position),
+                        (json::mesh::Semantic::Extras("TANGENT".into()), tangent),
+                    ],
+                    None,
+                    json::mesh::Mode::LineStrip,
+                ));
+            }
+        }
+    }
+    let mut nodes = Vec::new();
+    for (group, primitives) in groups.into_iter().zip(primitives) {
+        if primitives.is_empty() {
+            continue;
         }
         let mesh_index = root.push(json::Mesh {
             extensions: None,
             extras: Default::default(),
-            name: Some("curves".into()),
+            name: Some(group.name.clone()),
             primitives,
             weights: None,
         });
         nodes.push(root.push(json::Node {
             mesh: Some(mesh_index),
-            name: Some("curves".into()),
+            name: Some(group.name),
             ..Default::default()
         }));
     }

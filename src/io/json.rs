@@ -21,13 +21,13 @@
 //! of a curve; `name` (optional) names its mesh in glTF output. Angles are in degrees. Bezier
 //! breakpoints default to [0, 1].
 
-use super::Scene;
 use crate::error::{Error, Result};
 use crate::geom::patches::{self, Blend, CoonsBoundaries, CoonsPatch, HermiteCorners};
 use crate::geom::{
     BSplineCurve, BSplineSurface, Interval, KnotVector, bezier_curve, curves, shapes,
 };
 use crate::mesh::TessOptions;
+use crate::scene::{Geometry, Item, Scene};
 use glam::DVec3;
 use serde::Deserialize;
 
@@ -671,20 +671,7 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
     let file: SceneFile =
         serde_json::from_str(text).map_err(|e| Error::syntax(format!("{e}")).at_line(e.line()))?;
     let mut scene = Scene::default();
-    let mut coons_names = Vec::new();
-    for (index, entry) in file.curves.into_iter().enumerate() {
-        let in_curve = |e: Error| Error::InCurve {
-            index,
-            source: Box::new(e),
-        };
-        if let Some(samples) = entry.samples
-            && samples < 2
-        {
-            return Err(in_curve(Error::GridTooSmall { nu: samples, nv: 1 }));
-        }
-        scene.curves.push(entry.curve.build().map_err(in_curve)?);
-        scene.curve_samples.push(entry.samples);
-    }
+    // Items in file order: the surfaces, then the curves.
     for (index, entry) in file.surfaces.into_iter().enumerate() {
         let in_surface = |e: Error| Error::InSurface {
             index,
@@ -700,34 +687,32 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
                 }
             })
             .transpose()?;
-        match entry.shape.build().map_err(in_surface)? {
-            Built::Surfaces(built) => {
-                let first = scene.surfaces.len();
-                scene.options.extend(std::iter::repeat_n(grid, built.len()));
-                scene.surfaces.extend(built);
-                if let Some(name) = entry.name {
-                    scene.groups.push(super::SurfaceGroup {
-                        name,
-                        surfaces: first..scene.surfaces.len(),
-                    });
-                }
-            }
-            Built::Coons(patch) => {
-                coons_names.push(entry.name);
-                scene.coons_patches.push(*patch);
-                scene.coons_options.push(grid);
-            }
-        }
+        let geometries = match entry.shape.build().map_err(in_surface)? {
+            Built::Surfaces(built) => built.into_iter().map(Geometry::Surface).collect(),
+            Built::Coons(patch) => vec![Geometry::Coons(patch)],
+        };
+        scene
+            .items
+            .extend(geometries.into_iter().map(|geometry| Item {
+                grid,
+                name: entry.name.clone(),
+                ..Item::new(geometry)
+            }));
     }
-    // Directly evaluated patches follow the B-spline surfaces in the mesh.
-    let first = scene.surfaces.len();
-    for (k, name) in coons_names.into_iter().enumerate() {
-        if let Some(name) = name {
-            scene.groups.push(super::SurfaceGroup {
-                name,
-                surfaces: first + k..first + k + 1,
-            });
+    for (index, entry) in file.curves.into_iter().enumerate() {
+        let in_curve = |e: Error| Error::InCurve {
+            index,
+            source: Box::new(e),
+        };
+        if let Some(samples) = entry.samples
+            && samples < 2
+        {
+            return Err(in_curve(Error::GridTooSmall { nu: samples, nv: 1 }));
         }
+        scene.items.push(Item {
+            samples: entry.samples,
+            ..Item::new(Geometry::Curve(entry.curve.build().map_err(in_curve)?))
+        });
     }
     Ok(scene)
 }

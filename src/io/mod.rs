@@ -21,117 +21,34 @@ pub use json::read_json_scene;
 pub use obj_freeform::read_obj_freeform;
 pub use obj_mesh::{format_f32, format_f64, write_obj_mesh};
 
-use crate::Tessellator;
+pub use crate::scene::{ItemGroup, Scene};
+
 use crate::error::{Error, Result};
-use crate::geom::patches::CoonsPatch;
-use crate::geom::{BSplineCurve, BSplineSurface};
-use crate::mesh::{AnyMesh, Mesh, Mesh32, TessOptions};
+use crate::mesh::AnyMesh;
 use std::io::Write;
 use std::path::Path;
 
-/// What an input file holds, in file order.
-#[derive(Debug, Clone, Default)]
-pub struct Scene {
-    pub surfaces: Vec<BSplineSurface>,
-    /// Coons patches whose blend has no B-spline form (JSON `"blend": "cosine"`), evaluated
-    /// directly; in the mesh they follow `surfaces`.
-    pub coons_patches: Vec<CoonsPatch>,
-    /// Tessellation options a Coons patch asks for itself, by patch index.
-    pub coons_options: Vec<Option<TessOptions>>,
-    /// Curves to tessellate into polylines.
-    pub curves: Vec<BSplineCurve>,
-    /// Polyline samples a curve asks for itself (JSON `samples`), by curve index; empty or
-    /// `None` where the file says nothing.
-    pub curve_samples: Vec<Option<u32>>,
-    /// Tessellation options a surface asks for itself (JSON `grid`), by surface index; empty
-    /// or `None` where the file says nothing.
-    pub options: Vec<Option<TessOptions>>,
-    /// Named groups of consecutive surfaces (OBJ `g`, a JSON surface's `name`, a whole `.bpt`
-    /// file); surfaces outside every group count as groups of their own.
-    pub groups: Vec<SurfaceGroup>,
-}
-
-/// A named run of consecutive surfaces: one mesh in a glTF file.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct SurfaceGroup {
-    pub name: String,
-    pub surfaces: std::ops::Range<usize>,
-}
-
-/// `groups` completed to cover surfaces 0..count in order: gaps become one group per surface
-/// ("surface k"); empty groups are dropped.
-pub fn cover_groups(groups: &[SurfaceGroup], count: usize) -> Vec<SurfaceGroup> {
-    let mut covered = Vec::new();
-    let mut next = 0;
-    let single = |k: usize| SurfaceGroup {
-        name: format!("surface {k}"),
-        surfaces: k..k + 1,
-    };
-    for group in groups
-        .iter()
-        .filter(|g| !g.surfaces.is_empty() && g.surfaces.end <= count)
-    {
-        covered.extend((next..group.surfaces.start).map(single));
-        covered.push(group.clone());
-        next = group.surfaces.end;
+/// The groups a writer emits for a mesh whose parts and polylines come from `items`: the
+/// given `groups` where they cover an item, and a group of its own ("item k") for every
+/// other item; in item order. Groups of no item in the mesh are dropped.
+pub fn cover_groups(groups: &[ItemGroup], items: impl Iterator<Item = u32>) -> Vec<ItemGroup> {
+    let mut present: Vec<usize> = items.map(|k| k as usize).collect();
+    present.sort_unstable();
+    present.dedup();
+    let mut covered: Vec<ItemGroup> = Vec::new();
+    for item in present {
+        if covered.last().is_some_and(|g| g.items.contains(&item)) {
+            continue;
+        }
+        covered.push(match groups.iter().find(|g| g.items.contains(&item)) {
+            Some(group) => group.clone(),
+            None => ItemGroup {
+                name: format!("item {item}"),
+                items: item..item + 1,
+            },
+        });
     }
-    covered.extend((next..count).map(single));
     covered
-}
-
-impl Scene {
-    /// The options of every surface: its own where the file gave some, else `default`.
-    pub fn options_or(&self, default: TessOptions) -> Vec<TessOptions> {
-        own_or(&self.options, self.surfaces.len(), default)
-    }
-
-    /// Every surface and Coons patch tessellated by `tessellator` into one mesh — surfaces
-    /// first, then the patches — each on its own grid where the file gave one, else on the
-    /// grid of `default`. Curves are left to [`crate::Tessellator::tessellate_curves`].
-    pub fn tessellate(&self, tessellator: &dyn Tessellator, default: TessOptions) -> Result<Mesh> {
-        let mut mesh = Mesh::default();
-        tessellator.tessellate_each_into(&self.surfaces, &self.options_or(default), &mut mesh)?;
-        if !self.coons_patches.is_empty() {
-            let options = own_or(&self.coons_options, self.coons_patches.len(), default);
-            let mut patches = Mesh::default();
-            tessellator.tessellate_coons_into(&self.coons_patches, &options, &mut patches)?;
-            mesh.append(patches)?;
-        }
-        Ok(mesh)
-    }
-
-    /// As [`Scene::tessellate`], into an f32 mesh (the GPU reads back without widening).
-    pub fn tessellate_f32(
-        &self,
-        tessellator: &dyn Tessellator,
-        default: TessOptions,
-    ) -> Result<Mesh32> {
-        let mut mesh = Mesh32::default();
-        tessellator.tessellate_each_into_f32(
-            &self.surfaces,
-            &self.options_or(default),
-            &mut mesh,
-        )?;
-        if !self.coons_patches.is_empty() {
-            let options = own_or(&self.coons_options, self.coons_patches.len(), default);
-            let mut patches = Mesh::default();
-            tessellator.tessellate_coons_into(&self.coons_patches, &options, &mut patches)?;
-            mesh.append(Mesh32::from(patches))?;
-        }
-        Ok(mesh)
-    }
-
-    /// The sample count of every curve: its own where the file gave one, else `default`.
-    pub fn samples_or(&self, default: u32) -> Vec<u32> {
-        own_or(&self.curve_samples, self.curves.len(), default)
-    }
-}
-
-/// `count` values: entry k of `own` where it is given (`Some`), else `default`.
-fn own_or<T: Copy>(own: &[Option<T>], count: usize, default: T) -> Vec<T> {
-    (0..count)
-        .map(|k| own.get(k).copied().flatten().unwrap_or(default))
-        .collect()
 }
 
 const INPUT_FORMATS: &str = ".obj (free-form), .bpt, .json";
@@ -236,12 +153,12 @@ impl MeshFormat {
 }
 
 /// Writes `mesh` (f64 or f32) to `path` in `format`, or in the format its extension names,
-/// atomically. `groups` name runs of surfaces (parts): glTF gets one mesh per group; other
-/// formats ignore them.
+/// atomically. `groups` name runs of items ([`Scene::groups`]): glTF gets one mesh and node
+/// per group, OBJ one `g` group each; PLY and STL ignore them.
 pub fn write_mesh_as<'a>(
     path: &Path,
     mesh: impl Into<AnyMesh<'a>>,
-    groups: &[SurfaceGroup],
+    groups: &[ItemGroup],
     format: Option<MeshFormat>,
 ) -> Result<()> {
     let mesh: AnyMesh = mesh.into();
@@ -260,9 +177,9 @@ pub fn write_mesh_as<'a>(
             },
         });
     }
-    type Writer = fn(AnyMesh, &[SurfaceGroup], &mut dyn Write) -> std::io::Result<()>;
+    type Writer = fn(AnyMesh, &[ItemGroup], &mut dyn Write) -> std::io::Result<()>;
     let write: Writer = match format {
-        MeshFormat::Obj => |mesh, _, w| write_obj_mesh(mesh, w),
+        MeshFormat::Obj => |mesh, groups, w| write_obj_mesh(mesh, groups, w),
         MeshFormat::Ply => |mesh, _, w| write_ply(mesh, w),
         MeshFormat::Stl => |mesh, _, w| write_stl(mesh, w),
         #[cfg(feature = "gltf")]
@@ -319,6 +236,7 @@ pub fn write_atomic(
 #[cfg(all(test, not(feature = "json"), not(feature = "gltf")))]
 mod tests {
     use super::*;
+    use crate::mesh::Mesh;
 
     /// A build without the `json` and `gltf` features names the missing feature and writes
     /// nothing.

@@ -8,9 +8,9 @@
 //! statements (`trim`, `hole`, `scrv`, `sp`) are read and ignored: surfaces are tessellated over
 //! their whole `surf` range. Polygonal and display statements are ignored.
 
-use super::Scene;
 use crate::error::{Error, Result};
 use crate::geom::{BSplineCurve, BSplineSurface, Interval, KnotVector};
+use crate::scene::{Geometry, Item, Scene};
 use glam::DVec3;
 
 /// Parses OBJ text. Errors carry the 1-based line ([`Error::AtLine`]).
@@ -33,17 +33,12 @@ pub fn read_obj_freeform(text: &str) -> Result<Scene> {
                 .at_line(element.line),
         );
     }
-    if reader.scene.surfaces.is_empty() && reader.scene.curves.is_empty() {
+    if reader.scene.items.is_empty() {
         return Err(Error::syntax(
             "no free-form surface or curve (`surf`/`curv` … `end`) in the file",
         ));
     }
-    let mut scene = reader.scene;
-    if let Some(open) = scene.groups.last_mut() {
-        open.surfaces.end = scene.surfaces.len();
-    }
-    scene.groups.retain(|g| !g.surfaces.is_empty());
-    Ok(scene)
+    Ok(reader.scene)
 }
 
 /// Joins `\`-continued lines and strips comments; yields (first line number, statement).
@@ -121,6 +116,8 @@ impl Element {
 #[derive(Default)]
 struct Reader {
     scene: Scene,
+    /// The current group (`g`): the name of the items that follow.
+    group: Option<String>,
     /// Cartesian position and weight of every `v`.
     vertices: Vec<(DVec3, f64)>,
     cstype: Option<CsType>,
@@ -148,6 +145,14 @@ fn degree(token: &str) -> Result<usize> {
 }
 
 impl Reader {
+    /// Adds an item named by the current group.
+    fn push(&mut self, geometry: Geometry) {
+        self.scene.items.push(Item {
+            name: self.group.clone(),
+            ..Item::new(geometry)
+        });
+    }
+
     fn statement(&mut self, statement: &str) -> Result<()> {
         let tokens: Vec<&str> = statement.split_whitespace().collect();
         let Some((&keyword, args)) = tokens.split_first() else {
@@ -225,19 +230,11 @@ impl Reader {
             }
             "curv2" => self.begin(Kind::SpaceCurve, &[])?,
             "g" => {
-                // A group holds the surfaces that follow, until the next `g`.
-                let start = self.scene.surfaces.len();
-                if let Some(open) = self.scene.groups.last_mut() {
-                    open.surfaces.end = start;
-                }
-                let name = if args.is_empty() {
+                // A group names the items that follow, until the next `g`.
+                self.group = Some(if args.is_empty() {
                     "default".to_string()
                 } else {
                     args.join(" ")
-                };
-                self.scene.groups.push(super::SurfaceGroup {
-                    name,
-                    surfaces: start..start,
                 });
             }
             "parm" | "trim" | "hole" | "scrv" | "sp" | "end" => {
@@ -370,14 +367,14 @@ impl Reader {
                 let surface = BSplineSurface::try_new(ku, kv, &points, weights.as_deref())
                     .and_then(|s| s.with_range(range_u, range_v))
                     .map_err(|e| e.at_line(line))?;
-                self.scene.surfaces.push(surface);
+                self.push(Geometry::Surface(surface));
             }
             Kind::Curve { range } => {
                 let ku = knots(element.parm_u, du, "u")?;
                 let curve = BSplineCurve::try_new(ku, &points, weights.as_deref())
                     .and_then(|c| c.with_range(range))
                     .map_err(|e| e.at_line(line))?;
-                self.scene.curves.push(curve);
+                self.push(Geometry::Curve(curve));
             }
             Kind::SpaceCurve => unreachable!("returned above"),
         }

@@ -1,7 +1,9 @@
 //! Writer for OBJ triangle meshes (`v`, `vt`, `vn`, `f a/a/a`), keeping every value exact:
 //! each f64 (or f32, for an f32 mesh) in the shortest form that parses back to it.
 
+use super::cover_groups;
 use crate::mesh::AnyMesh;
+use crate::scene::ItemGroup;
 use glam::DVec3;
 use std::fmt::Display;
 use std::io::{Result, Write};
@@ -25,9 +27,15 @@ fn shortest(x: impl Display + std::fmt::LowerExp, magnitude: f64) -> String {
     }
 }
 
-/// Writes `mesh` as an OBJ with positions, texture coordinates, normals and triangles, then
-/// its polylines as `v` points and `l` statements.
-pub fn write_obj_mesh<'a>(mesh: impl Into<AnyMesh<'a>>, w: &mut dyn Write) -> Result<()> {
+/// Writes `mesh` as an OBJ: positions, texture coordinates and normals, the polylines'
+/// points, then per group of items in item order (`groups`, spaces in names become `_`; items
+/// outside them in OBJ's default group) a `g` statement, the group's triangles and an `l`
+/// statement per curve.
+pub fn write_obj_mesh<'a>(
+    mesh: impl Into<AnyMesh<'a>>,
+    groups: &[ItemGroup],
+    w: &mut dyn Write,
+) -> Result<()> {
     let mesh: AnyMesh = mesh.into();
     writeln!(
         w,
@@ -63,21 +71,44 @@ pub fn write_obj_mesh<'a>(mesh: impl Into<AnyMesh<'a>>, w: &mut dyn Write) -> Re
             }
         }
     }
-    for triangle in mesh.indices().chunks_exact(3) {
-        let [a, b, c] = [triangle[0] + 1, triangle[1] + 1, triangle[2] + 1];
-        writeln!(w, "f {a}/{a}/{a} {b}/{b}/{b} {c}/{c}/{c}")?;
-    }
-    // Curves: their points follow the surface vertices, one `l` statement per polyline.
+    // Curve points follow the surface vertices.
+    let mut first_points = Vec::with_capacity(mesh.polylines().len());
     let mut next = mesh.vertex_count() + 1;
     for polyline in mesh.polylines() {
+        first_points.push(next);
         for p in &polyline.positions {
             write_vector(w, "v", *p)?;
         }
-        let references: Vec<String> = (next..next + polyline.positions.len())
-            .map(|k| k.to_string())
-            .collect();
-        writeln!(w, "l {}", references.join(" "))?;
         next += polyline.positions.len();
+    }
+    // Then each group in item order: its triangles, then an `l` statement per curve.
+    let items = mesh.parts().iter().map(|p| p.item);
+    let items = items.chain(mesh.polylines().iter().map(|l| l.item));
+    let mut named = false;
+    for group in cover_groups(groups, items) {
+        // Only the given groups are named; items outside them go to OBJ's default group.
+        if groups.contains(&group) {
+            writeln!(w, "g {}", group.name.replace(char::is_whitespace, "_"))?;
+            named = true;
+        } else if std::mem::take(&mut named) {
+            writeln!(w, "g default")?;
+        }
+        let in_group = |item: u32| group.items.contains(&(item as usize));
+        for part in mesh.parts().iter().filter(|p| in_group(p.item)) {
+            let range = part.first_index as usize..(part.first_index + part.index_count) as usize;
+            for triangle in mesh.indices()[range].chunks_exact(3) {
+                let [a, b, c] = [triangle[0] + 1, triangle[1] + 1, triangle[2] + 1];
+                writeln!(w, "f {a}/{a}/{a} {b}/{b}/{b} {c}/{c}/{c}")?;
+            }
+        }
+        for (polyline, &first) in mesh.polylines().iter().zip(&first_points) {
+            if in_group(polyline.item) {
+                let references: Vec<String> = (first..first + polyline.positions.len())
+                    .map(|k| k.to_string())
+                    .collect();
+                writeln!(w, "l {}", references.join(" "))?;
+            }
+        }
     }
     Ok(())
 }

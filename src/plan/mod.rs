@@ -41,7 +41,7 @@ impl GridLayout {
         }
         let (mut vertices, mut indices) = (0u64, 0u64);
         let mut parts = Vec::with_capacity(options.len());
-        for o in options {
+        for (item, o) in options.iter().enumerate() {
             let (nu, nv) = (o.grid_u, o.grid_v);
             if nu < 2 || nv < 2 {
                 return Err(Error::GridTooSmall { nu, nv });
@@ -58,6 +58,7 @@ impl GridLayout {
                 });
             }
             parts.push(MeshPart {
+                item: item as u32,
                 grid_u: nu,
                 grid_v: nv,
                 first_vertex: vertices as u32,
@@ -243,6 +244,7 @@ mod tests {
         assert_eq!(
             layout.parts[1],
             MeshPart {
+                item: 1,
                 grid_u: 5,
                 grid_v: 2,
                 first_vertex: 12,

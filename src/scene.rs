@@ -1,0 +1,315 @@
+//! The one scene model — an ordered list of items, each a geometry with its own options and
+//! name — and the [`Tessellator`] interface every executor answers, with its entry point over
+//! scenes. Every item keeps its position in every output: parts and polylines carry their
+//! item's index, the mesh's parts are in item order, writers emit groups in item order.
+
+use crate::error::Result;
+use crate::geom::patches::CoonsPatch;
+use crate::geom::{BSplineCurve, BSplineSurface};
+use crate::mesh::{GridMesh, Mesh, Mesh32, Polyline, TessOptions};
+
+/// What one item of a scene is.
+#[derive(Debug, Clone)]
+pub enum Geometry {
+    /// A rational B-spline surface (every classic form converts to one exactly).
+    Surface(BSplineSurface),
+    /// A Coons patch evaluated directly (blends with no B-spline form).
+    Coons(Box<CoonsPatch>),
+    /// A curve, tessellated into a polyline.
+    Curve(BSplineCurve),
+}
+
+/// One item of a scene: its geometry, what it asks for itself, and its name.
+#[derive(Debug, Clone)]
+pub struct Item {
+    pub geometry: Geometry,
+    /// The grid a surface or Coons patch asks for (JSON `grid`); `None`: the default.
+    pub grid: Option<TessOptions>,
+    /// The samples a curve asks for (JSON `samples`); `None`: the default.
+    pub samples: Option<u32>,
+    /// The item's name (OBJ `g`, a JSON item's `name`); consecutive items of one name form
+    /// one group (one glTF mesh and node, one OBJ group).
+    pub name: Option<String>,
+}
+
+impl Item {
+    /// An item of `geometry` that asks for nothing and has no name.
+    pub fn new(geometry: Geometry) -> Self {
+        Item {
+            geometry,
+            grid: None,
+            samples: None,
+            name: None,
+        }
+    }
+}
+
+/// What a file (or a caller) holds: items in file order.
+#[derive(Debug, Clone, Default)]
+pub struct Scene {
+    pub items: Vec<Item>,
+}
+
+/// A named run of consecutive items: one glTF mesh and node, one OBJ group.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ItemGroup {
+    pub name: String,
+    pub items: std::ops::Range<usize>,
+}
+
+/// Defaults for the items of a scene that ask for nothing themselves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SceneOptions {
+    /// Grid of surfaces and Coons patches.
+    pub grid: TessOptions,
+    /// Samples per curve (≥ 2).
+    pub samples: u32,
+}
+
+impl Default for SceneOptions {
+    fn default() -> Self {
+        SceneOptions {
+            grid: TessOptions::DEFAULT,
+            samples: 65,
+        }
+    }
+}
+
+impl Scene {
+    /// A scene of `surfaces`, in order, asking for nothing.
+    pub fn of_surfaces(surfaces: impl IntoIterator<Item = BSplineSurface>) -> Self {
+        let items = surfaces
+            .into_iter()
+            .map(|s| Item::new(Geometry::Surface(s)))
+            .collect();
+        Scene { items }
+    }
+
+    /// The surfaces, in item order.
+    pub fn surfaces(&self) -> impl Iterator<Item = &BSplineSurface> {
+        self.items.iter().filter_map(|item| match &item.geometry {
+            Geometry::Surface(s) => Some(s),
+            _ => None,
+        })
+    }
+
+    /// The directly evaluated Coons patches, in item order.
+    pub fn coons_patches(&self) -> impl Iterator<Item = &CoonsPatch> {
+        self.items.iter().filter_map(|item| match &item.geometry {
+            Geometry::Coons(p) => Some(&**p),
+            _ => None,
+        })
+    }
+
+    /// The curves, in item order.
+    pub fn curves(&self) -> impl Iterator<Item = &BSplineCurve> {
+        self.items.iter().filter_map(|item| match &item.geometry {
+            Geometry::Curve(c) => Some(c),
+            _ => None,
+        })
+    }
+
+    /// The surfaces, cloned, in item order (for the slice-based calls).
+    pub fn surface_list(&self) -> Vec<BSplineSurface> {
+        self.surfaces().cloned().collect()
+    }
+
+    /// The Coons patches, cloned, in item order.
+    pub fn coons_patch_list(&self) -> Vec<CoonsPatch> {
+        self.coons_patches().cloned().collect()
+    }
+
+    /// The curves, cloned, in item order.
+    pub fn curve_list(&self) -> Vec<BSplineCurve> {
+        self.curves().cloned().collect()
+    }
+
+    /// The sample count of every curve (in the order of [`Scene::curves`]): its own, else
+    /// `default`.
+    pub fn curve_samples(&self, default: u32) -> Vec<u32> {
+        self.items
+            .iter()
+            .filter(|item| matches!(item.geometry, Geometry::Curve(_)))
+            .map(|item| item.samples.unwrap_or(default))
+            .collect()
+    }
+
+    /// The grid of every surface (in the order of [`Scene::surfaces`]): its own, else
+    /// `default`.
+    pub fn surface_grids(&self, default: TessOptions) -> Vec<TessOptions> {
+        self.items
+            .iter()
+            .filter(|item| matches!(item.geometry, Geometry::Surface(_)))
+            .map(|item| item.grid.unwrap_or(default))
+            .collect()
+    }
+
+    /// Runs of consecutive items sharing a name, in item order; unnamed items are groups of
+    /// their own, named "item k".
+    pub fn groups(&self) -> Vec<ItemGroup> {
+        let mut groups: Vec<ItemGroup> = Vec::new();
+        for (k, item) in self.items.iter().enumerate() {
+            match (&item.name, groups.last_mut()) {
+                (Some(name), Some(last)) if &last.name == name && last.items.end == k => {
+                    last.items.end = k + 1;
+                }
+                (name, _) => groups.push(ItemGroup {
+                    name: name.clone().unwrap_or_else(|| format!("item {k}")),
+                    items: k..k + 1,
+                }),
+            }
+        }
+        groups
+    }
+}
+
+/// One interface for every tessellation backend: the same items and options give the same
+/// layout, whichever backend runs (both execute the same [`crate::plan`]).
+pub trait Tessellator {
+    /// Tessellates `surfaces` on the grid of `options` into a new mesh.
+    fn tessellate(&self, surfaces: &[BSplineSurface], options: &TessOptions) -> Result<Mesh> {
+        let mut mesh = Mesh::default();
+        self.tessellate_into(surfaces, options, &mut mesh)?;
+        Ok(mesh)
+    }
+    /// Tessellates into `mesh`, replacing its surfaces and reusing its allocations — for
+    /// re-tessellating every frame without fresh memory; its polylines are left alone. On
+    /// error `mesh` is left unchanged.
+    fn tessellate_into(
+        &self,
+        surfaces: &[BSplineSurface],
+        options: &TessOptions,
+        mesh: &mut Mesh,
+    ) -> Result<()> {
+        self.tessellate_each_into(surfaces, &vec![*options; surfaces.len()], mesh)
+    }
+    /// As [`Tessellator::tessellate_into`], with options (a grid) of its own for every surface.
+    fn tessellate_each_into(
+        &self,
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        mesh: &mut Mesh,
+    ) -> Result<()>;
+    /// As [`Tessellator::tessellate_each_into`], into an f32 [`Mesh32`] (what GPUs and the
+    /// binary formats carry): the GPU reads back without widening; the default rounds the
+    /// f64 result. Its polylines are left alone.
+    fn tessellate_each_into_f32(
+        &self,
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        mesh: &mut Mesh32,
+    ) -> Result<()> {
+        let mut wide = Mesh {
+            polylines: std::mem::take(&mut mesh.polylines),
+            ..Mesh::default()
+        };
+        self.tessellate_each_into(surfaces, options, &mut wide)?;
+        *mesh = Mesh32::from(wide);
+        Ok(())
+    }
+    /// Tessellates Coons patches evaluated directly (any blend, see [`CoonsPatch`]) into
+    /// `mesh`, patch k on the grid of `options[k]` over (u, v) ∈ [0, 1]², in the same layout
+    /// as surfaces; `mesh`'s surfaces are replaced (its allocations reused), its polylines
+    /// left alone.
+    fn tessellate_coons_into(
+        &self,
+        patches: &[CoonsPatch],
+        options: &[TessOptions],
+        mesh: &mut Mesh,
+    ) -> Result<()>;
+    /// Samples curve k at `samples[k]` (≥ 2) parameters uniform over its range into a
+    /// polyline (positions and first derivatives), in input order; errors name the curve.
+    fn tessellate_curves(&self, curves: &[BSplineCurve], samples: &[u32]) -> Result<Vec<Polyline>>;
+    /// A human-readable name of the backend (and adapter), for summaries.
+    fn name(&self) -> String;
+
+    /// Tessellates every item of `scene` — surfaces and Coons patches into triangles,
+    /// curves into polylines — each on its own grid or sample count where it asks for one,
+    /// else on `defaults`. Parts and polylines come in item order and carry their item's
+    /// index ([`crate::MeshPart::item`], [`Polyline::item`]).
+    fn tessellate_scene(&self, scene: &Scene, defaults: &SceneOptions) -> Result<Mesh> {
+        let mut mesh = Mesh::default();
+        self.tessellate_each_into(
+            &scene.surface_list(),
+            &scene.surface_grids(defaults.grid),
+            &mut mesh,
+        )?;
+        let (coons, polylines) = patches_and_curves(self, scene, defaults)?;
+        mesh.append(coons)?;
+        mesh.polylines = polylines;
+        put_in_item_order(scene, &mut mesh);
+        Ok(mesh)
+    }
+
+    /// As [`Tessellator::tessellate_scene`], into an f32 mesh (the GPU reads back without
+    /// widening).
+    fn tessellate_scene_f32(&self, scene: &Scene, defaults: &SceneOptions) -> Result<Mesh32> {
+        let mut mesh = Mesh32::default();
+        self.tessellate_each_into_f32(
+            &scene.surface_list(),
+            &scene.surface_grids(defaults.grid),
+            &mut mesh,
+        )?;
+        let (coons, polylines) = patches_and_curves(self, scene, defaults)?;
+        mesh.append(Mesh32::from(coons))?;
+        mesh.polylines = polylines;
+        put_in_item_order(scene, &mut mesh);
+        Ok(mesh)
+    }
+}
+
+/// The scene's Coons patches (one mesh) and curves (polylines), each kind in item order.
+fn patches_and_curves<T: Tessellator + ?Sized>(
+    tessellator: &T,
+    scene: &Scene,
+    defaults: &SceneOptions,
+) -> Result<(Mesh, Vec<Polyline>)> {
+    let of_kind = |wanted: fn(&Geometry) -> bool| {
+        scene
+            .items
+            .iter()
+            .filter(move |item| wanted(&item.geometry))
+    };
+    let mut coons = Mesh::default();
+    let patches = scene.coons_patch_list();
+    if !patches.is_empty() {
+        let grids: Vec<TessOptions> = of_kind(|g| matches!(g, Geometry::Coons(_)))
+            .map(|item| item.grid.unwrap_or(defaults.grid))
+            .collect();
+        tessellator.tessellate_coons_into(&patches, &grids, &mut coons)?;
+    }
+    let samples = scene.curve_samples(defaults.samples);
+    let polylines = tessellator.tessellate_curves(&scene.curve_list(), &samples)?;
+    Ok((coons, polylines))
+}
+
+/// Gives every part (surfaces first, then Coons patches, as tessellated) and every polyline
+/// its item's index, then reorders the parts by item where Coons patches stand between
+/// surfaces (a mesh already in item order is left as it is).
+fn put_in_item_order(scene: &Scene, mesh: &mut impl GridMesh) {
+    let items_of = |wanted: fn(&Geometry) -> bool| {
+        scene
+            .items
+            .iter()
+            .enumerate()
+            .filter(move |(_, item)| wanted(&item.geometry))
+            .map(|(k, _)| k as u32)
+    };
+    let grid_items = items_of(|g| matches!(g, Geometry::Surface(_)))
+        .chain(items_of(|g| matches!(g, Geometry::Coons(_))));
+    let (parts, polylines) = mesh.parts_and_polylines_mut();
+    for (part, item) in parts.iter_mut().zip(grid_items) {
+        part.item = item;
+    }
+    for (polyline, item) in polylines
+        .iter_mut()
+        .zip(items_of(|g| matches!(g, Geometry::Curve(_))))
+    {
+        polyline.item = item;
+    }
+    if !parts.windows(2).all(|w| w[0].item < w[1].item) {
+        let mut order: Vec<usize> = (0..parts.len()).collect();
+        order.sort_by_key(|&k| parts[k].item);
+        mesh.reorder_parts(&order);
+    }
+}
