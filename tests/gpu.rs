@@ -814,3 +814,59 @@ fn scenes_keep_item_order_on_both_executors() {
         assert!((got - *p).length() <= bar, "vertex {k}");
     }
 }
+
+/// A tessellator re-tessellating a scene of every kind (surfaces, a Coons patch, curves)
+/// allocates device buffers on its first call only: later calls of the same or smaller jobs
+/// reuse every buffer (input, output and staging), and give the same mesh.
+#[test]
+#[cfg(feature = "json")]
+fn repeated_scenes_allocate_nothing_after_the_first_call() {
+    let Some(context) = gpu() else { return };
+    let scene = knotwork::io::read_scene(std::path::Path::new("data/forms.json")).unwrap();
+    let tessellator = tessellator_on(context);
+    let defaults = knotwork::SceneOptions::default();
+    let first = tessellator.tessellate_scene_f32(&scene, &defaults).unwrap();
+    let allocated = tessellator.buffer_allocations();
+    assert!(allocated > 0);
+    for _ in 0..3 {
+        let again = tessellator.tessellate_scene_f32(&scene, &defaults).unwrap();
+        assert_eq!(again, first);
+        assert_eq!(tessellator.buffer_allocations(), allocated);
+    }
+    let smaller = knotwork::SceneOptions {
+        grid: TessOptions::DEFAULT.with_grid(9, 5),
+        samples: 17,
+    };
+    // In buffers longer than their contents, smaller jobs (fewer curves, coarser grids)
+    // still give what a fresh tessellator gives: bindings cover the contents only.
+    let fewer = knotwork::Scene {
+        items: scene.items[..22].to_vec(),
+    };
+    let reused = tessellator.tessellate_scene_f32(&fewer, &smaller).unwrap();
+    assert_eq!(tessellator.buffer_allocations(), allocated);
+    let fresh = tessellator_on(context)
+        .tessellate_scene_f32(&fewer, &smaller)
+        .unwrap();
+    assert_eq!(reused.polylines.len(), 4);
+    assert_eq!(reused, fresh);
+    // Kept buffers hold the previous call's records past the new ones: fewer but longer
+    // curves after many short ones must not pick those up.
+    let many_short = knotwork::SceneOptions {
+        samples: 5,
+        ..smaller
+    };
+    let few_long = knotwork::SceneOptions {
+        samples: 40,
+        ..smaller
+    };
+    tessellator
+        .tessellate_scene_f32(&scene, &many_short)
+        .unwrap();
+    let reused = tessellator.tessellate_scene_f32(&fewer, &few_long).unwrap();
+    let fresh = tessellator_on(context)
+        .tessellate_scene_f32(&fewer, &few_long)
+        .unwrap();
+    assert_eq!(reused, fresh);
+    tessellator.release_buffers();
+    assert_eq!(tessellator.buffer_allocations(), 0);
+}

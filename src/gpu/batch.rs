@@ -3,7 +3,7 @@
 //! reuse every buffer the new contents fit, and readback.
 
 use super::context::{CONNECT_PASS, GpuContext, MAX_GROUPS_PER_DIMENSION, UNIFORM_STRIDE, scoped};
-use super::readback::{Staging, copy_out, map_for_reading, mapped};
+use super::readback::{BufferPool, copy_out, map_for_reading, mapped};
 use super::surfaces::{
     self, ChunkParams, Limits, PASSES, Packed, Piece, Range, Tile, VERTEX_BYTES,
 };
@@ -124,7 +124,9 @@ pub struct GpuBatch {
     /// the grids only, so later dispatches evaluate vertices and leave the indices alone.
     connected: AtomicBool,
     mesh: GpuMesh,
-    staging: Staging,
+    staging: BufferPool,
+    /// Device buffers created for inputs and outputs (staging ones are counted by `staging`).
+    allocations: usize,
 }
 
 /// Binds elements `r.origin..r.end` of `buffer` (clipped to the buffer, never empty).
@@ -139,6 +141,10 @@ fn bind_range(buffer: &wgpu::Buffer, r: Range, bytes_each: u64) -> wgpu::Binding
         size: NonZeroU64::new(size),
     })
 }
+
+/// Buffers a batch creates when built: six inputs (pieces, tiles, points, tables,
+/// contracted rows, chunk uniforms) and two outputs (vertices, indices).
+const BATCH_BUFFERS: usize = 8;
 
 /// Smallest buffer knotwork creates: bindings cannot be empty.
 const MIN_BUFFER_BYTES: u64 = 16;
@@ -173,15 +179,6 @@ fn ensure(
         *buffer = new_buffer(device, label, bytes, usage);
     }
     grow
-}
-
-/// Writes `contents` to the start of `buffer`, growing it first if needed.
-fn upload(context: &GpuContext, buffer: &mut wgpu::Buffer, label: &str, contents: &[u8]) {
-    let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
-    ensure(&context.device, buffer, label, contents.len() as u64, usage);
-    if !contents.is_empty() {
-        context.queue.write_buffer(buffer, 0, contents);
-    }
 }
 
 impl GpuBatch {
@@ -239,7 +236,8 @@ impl GpuBatch {
                 index_count: 0,
                 parts: Vec::new(),
             },
-            staging: Staging::default(),
+            staging: BufferPool::default(),
+            allocations: BATCH_BUFFERS,
         })?;
         batch.load(packed, descriptor.surfaces)?;
         Ok(batch)
@@ -271,54 +269,68 @@ impl GpuBatch {
         let mesh = &mut self.mesh;
         let output = output_usage(self.mappable);
         let bind_groups = scoped(device, || {
-            upload(
-                &context,
-                &mut inputs.pieces,
-                "knotwork pieces",
-                bytemuck::cast_slice(&packed.pieces),
-            );
-            upload(
-                &context,
-                &mut inputs.tiles,
-                "knotwork tiles",
-                bytemuck::cast_slice(&packed.tiles),
-            );
-            upload(
-                &context,
-                &mut inputs.points,
-                "knotwork control points",
-                bytemuck::cast_slice(&packed.points),
-            );
-            upload(
-                &context,
-                &mut inputs.tables,
-                "knotwork basis tables",
-                bytemuck::cast_slice(&packed.tables),
-            );
-            ensure(
-                device,
-                &mut inputs.uniform,
-                "knotwork chunk parameters",
-                uniforms.len() as u64,
-                uniform_usage(),
-            );
+            let input = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+            let needs: [(&mut wgpu::Buffer, &str, &[u8], wgpu::BufferUsages); 4] = [
+                (
+                    &mut inputs.pieces,
+                    "knotwork pieces",
+                    bytemuck::cast_slice(&packed.pieces),
+                    input,
+                ),
+                (
+                    &mut inputs.tiles,
+                    "knotwork tiles",
+                    bytemuck::cast_slice(&packed.tiles),
+                    input,
+                ),
+                (
+                    &mut inputs.points,
+                    "knotwork control points",
+                    bytemuck::cast_slice(&packed.points),
+                    input,
+                ),
+                (
+                    &mut inputs.tables,
+                    "knotwork basis tables",
+                    bytemuck::cast_slice(&packed.tables),
+                    input,
+                ),
+            ];
+            let mut allocated = 0;
+            for (buffer, label, contents, usage) in needs {
+                allocated +=
+                    usize::from(ensure(device, buffer, label, contents.len() as u64, usage));
+                if !contents.is_empty() {
+                    context.queue.write_buffer(buffer, 0, contents);
+                }
+            }
+            let uniform_bytes = uniforms.len() as u64;
+            let sized: [(&mut wgpu::Buffer, &str, u64, wgpu::BufferUsages); 3] = [
+                (
+                    &mut inputs.uniform,
+                    "knotwork chunk parameters",
+                    uniform_bytes,
+                    uniform_usage(),
+                ),
+                (
+                    &mut inputs.contracted,
+                    "knotwork contracted rows",
+                    packed.contracted_len * 16,
+                    wgpu::BufferUsages::STORAGE,
+                ),
+                (
+                    &mut mesh.vertices,
+                    "knotwork vertices",
+                    packed.vertex_count * VERTEX_BYTES,
+                    output | wgpu::BufferUsages::VERTEX,
+                ),
+            ];
+            for (buffer, label, bytes, usage) in sized {
+                allocated += usize::from(ensure(device, buffer, label, bytes, usage));
+            }
             if !uniforms.is_empty() {
                 context.queue.write_buffer(&inputs.uniform, 0, &uniforms);
             }
-            ensure(
-                device,
-                &mut inputs.contracted,
-                "knotwork contracted rows",
-                packed.contracted_len * 16,
-                wgpu::BufferUsages::STORAGE,
-            );
-            ensure(
-                device,
-                &mut mesh.vertices,
-                "knotwork vertices",
-                packed.vertex_count * VERTEX_BYTES,
-                output | wgpu::BufferUsages::VERTEX,
-            );
             let new_indices = ensure(
                 device,
                 &mut mesh.indices,
@@ -326,10 +338,15 @@ impl GpuBatch {
                 packed.index_count * 4,
                 output | wgpu::BufferUsages::INDEX,
             );
-            let bind_groups = bind_chunks(&context, inputs, mesh, &packed);
-            (bind_groups, new_indices)
+            allocated += usize::from(new_indices);
+            (
+                bind_chunks(&context, inputs, mesh, &packed),
+                new_indices,
+                allocated,
+            )
         })?;
-        let (bind_groups, new_indices) = bind_groups;
+        let (bind_groups, new_indices, allocated) = bind_groups;
+        self.allocations += allocated;
         if new_indices || !same_layout {
             self.connected.store(false, Ordering::Relaxed);
         }
@@ -351,6 +368,12 @@ impl GpuBatch {
     /// The output buffers.
     pub fn mesh(&self) -> &GpuMesh {
         &self.mesh
+    }
+
+    /// Device buffers the batch has created so far (inputs, outputs and readback staging):
+    /// constant across reloads and readbacks that fit the buffers it has.
+    pub fn buffer_allocations(&self) -> usize {
+        self.allocations + self.staging.allocations()
     }
 
     /// The context the batch lives on.

@@ -230,18 +230,24 @@ fn compute_pipeline(
     })
 }
 
-/// A bind group of `buffers`, whole, at bindings 0, 1, 2, … of `layout`.
+/// A bind group of the first `bytes` (at least 4) of each buffer, at bindings 0, 1, 2, … of
+/// `layout`: exact ranges, since kernels take counts from `arrayLength` and kept buffers may
+/// be longer than their contents.
 pub(super) fn bind_buffers(
     context: &GpuContext,
     layout: &wgpu::BindGroupLayout,
-    buffers: &[&wgpu::Buffer],
+    buffers: &[(&wgpu::Buffer, u64)],
 ) -> wgpu::BindGroup {
     let entries: Vec<wgpu::BindGroupEntry> = buffers
         .iter()
         .enumerate()
-        .map(|(binding, buffer)| wgpu::BindGroupEntry {
+        .map(|(binding, &(buffer, bytes))| wgpu::BindGroupEntry {
             binding: binding as u32,
-            resource: buffer.as_entire_binding(),
+            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer,
+                offset: 0,
+                size: NonZeroU64::new(bytes.max(4)),
+            }),
         })
         .collect();
     context
@@ -260,29 +266,6 @@ pub(super) fn dispatch_flat(pass: &mut wgpu::ComputePass<'_>, items: u64, workgr
     let groups = items.div_ceil(u64::from(workgroup)) as u32;
     let x = groups.min(MAX_GROUPS_PER_DIMENSION);
     pass.dispatch_workgroups(x, groups.div_ceil(x), 1);
-}
-
-/// A storage buffer holding `bytes` (at least one element: empty bindings are invalid).
-pub(super) fn storage_buffer(
-    device: &wgpu::Device,
-    label: &str,
-    bytes: &[u8],
-    extra: wgpu::BufferUsages,
-) -> wgpu::Buffer {
-    use wgpu::util::DeviceExt;
-    // Zero-sized buffers cannot be bound: keep at least one element.
-    let padded;
-    let contents = if bytes.is_empty() {
-        padded = [0u8; 16];
-        &padded[..]
-    } else {
-        bytes
-    };
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(label),
-        contents,
-        usage: wgpu::BufferUsages::STORAGE | extra,
-    })
 }
 
 /// Runs `work` inside out-of-memory and validation error scopes and turns what they caught

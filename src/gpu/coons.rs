@@ -4,9 +4,9 @@
 //! combines them. Patches are grouped into chunks whose buffers each fit one binding; the
 //! result is read back into a [`Mesh`] in the layout of surfaces.
 
-use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped, storage_buffer};
+use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped};
 use super::curves::{CurveChunk, SAMPLE_BYTES, fits};
-use super::readback::{Staging, copy_out, mapped};
+use super::readback::{BufferPool, copy_out, mapped};
 use super::surfaces::{Limits, VERTEX_BYTES, too_large};
 use crate::error::{Error, Result};
 use crate::geom::degenerate_cross_sq;
@@ -151,9 +151,15 @@ fn pack_coons(
     Ok(chunks)
 }
 
+/// Buffers per Coons chunk in a pool: the boundary curves' jobs, points, tables and
+/// samples, then the patches' jobs and blends, and the vertices and indices.
+const SLOTS_PER_CHUNK: usize = 8;
+
 /// Tessellates `patches` on the GPU, patch k on the grid of `options[k]`, each chunk within
-/// `limits`, in one submission, and reads the result back.
+/// `limits`, in one submission, and reads the result back; every device and staging buffer
+/// comes from `pool`.
 pub(crate) fn tessellate_coons(
+    pool: &mut BufferPool,
     context: &GpuContext,
     patches: &[CoonsPatch],
     options: &[TessOptions],
@@ -173,46 +179,57 @@ pub(crate) fn tessellate_coons(
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("knotwork coons"),
         });
-        let scratch = |label, size: u64, usage| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: size.max(16),
-                usage: wgpu::BufferUsages::STORAGE | usage,
-                mapped_at_creation: false,
-            })
-        };
+        let storage = wgpu::BufferUsages::STORAGE;
+        let output = storage | wgpu::BufferUsages::COPY_SRC;
         let mut outputs = Vec::with_capacity(chunks.len());
-        for chunk in &chunks {
-            let samples = scratch(
+        for (k, chunk) in chunks.iter().enumerate() {
+            let slot = k * SLOTS_PER_CHUNK;
+            let samples = pool.buffer(
+                device,
+                slot + 3,
                 "knotwork coons boundary samples",
                 chunk.curves.sample_count * SAMPLE_BYTES,
-                wgpu::BufferUsages::empty(),
+                storage,
             );
-            chunk.curves.encode(context, &mut encoder, &samples);
-            let copy = wgpu::BufferUsages::COPY_SRC;
-            let vertices = scratch(
-                "knotwork coons vertices",
-                chunk.vertex_count * VERTEX_BYTES,
-                copy,
-            );
-            let indices = scratch("knotwork coons indices", chunk.index_count * 4, copy);
-            let none = wgpu::BufferUsages::empty();
-            let jobs = storage_buffer(
-                device,
+            chunk
+                .curves
+                .encode(context, pool, slot, &mut encoder, &samples);
+            let jobs = pool.upload(
+                context,
+                slot + 4,
                 "knotwork coons jobs",
                 bytemuck::cast_slice(&chunk.jobs),
-                none,
             );
-            let blends = storage_buffer(
-                device,
+            let blends = pool.upload(
+                context,
+                slot + 5,
                 "knotwork coons blends",
                 bytemuck::cast_slice(&chunk.blends),
-                none,
+            );
+            let vertices = pool.buffer(
+                device,
+                slot + 6,
+                "knotwork coons vertices",
+                chunk.vertex_count * VERTEX_BYTES,
+                output,
+            );
+            let indices = pool.buffer(
+                device,
+                slot + 7,
+                "knotwork coons indices",
+                chunk.index_count * 4,
+                output,
             );
             let bind_group = bind_buffers(
                 context,
                 &context.kernels.coons_layout,
-                &[&jobs, &samples, &blends, &vertices, &indices],
+                &[
+                    (&jobs, size_of_val(&chunk.jobs[..]) as u64),
+                    (&samples, chunk.curves.sample_count * SAMPLE_BYTES),
+                    (&blends, size_of_val(&chunk.blends[..]) as u64),
+                    (&vertices, chunk.vertex_count * VERTEX_BYTES),
+                    (&indices, chunk.index_count * 4),
+                ],
             );
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("knotwork coons"),
@@ -237,7 +254,7 @@ pub(crate) fn tessellate_coons(
             ]
         })
         .collect();
-    Staging::default().read(context, &sources, |staged| {
+    pool.read(context, &sources, |staged| {
         let (mut vertices, mut indices) = (Vec::<Vertex>::new(), Vec::<u32>::new());
         for (pair, (_, chunk)) in staged.chunks_exact(2).zip(outputs.iter().zip(&chunks)) {
             copy_out(

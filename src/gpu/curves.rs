@@ -3,8 +3,8 @@
 //! control points, with basis values computed on the host in f64, and read back as
 //! [`Polyline`]s. Curves are grouped into chunks whose buffers each fit one binding.
 
-use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped, storage_buffer};
-use super::readback::{Staging, mapped};
+use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped};
+use super::readback::{BufferPool, mapped};
 use super::surfaces::{Limits, local_points, push_table, too_large};
 use crate::error::{Error, Result};
 use crate::geom::{BSplineCurve, cartesian_box};
@@ -91,26 +91,41 @@ impl CurveChunk {
         self.sample_count += samples.len() as u64;
     }
 
-    /// Uploads the chunk and records its dispatch, writing the samples into `output`
-    /// (`sample_count` × 48 bytes: position, C′, C″ as vec4<f32> each).
+    /// Uploads the chunk into `pool` slots `first_slot..first_slot + 3` and records its
+    /// dispatch, writing the samples into `output` (`sample_count` × 48 bytes: position,
+    /// C′, C″ as vec4<f32> each).
     pub fn encode(
         &self,
         context: &GpuContext,
+        pool: &mut BufferPool,
+        first_slot: usize,
         encoder: &mut wgpu::CommandEncoder,
         output: &wgpu::Buffer,
     ) {
-        let device = &context.device;
-        let input =
-            |label, bytes: &[u8]| storage_buffer(device, label, bytes, wgpu::BufferUsages::empty());
+        let mut input =
+            |slot, label, bytes: &[u8]| pool.upload(context, first_slot + slot, label, bytes);
         let buffers = [
-            input("knotwork curve jobs", bytemuck::cast_slice(&self.jobs)),
-            input("knotwork curve points", bytemuck::cast_slice(&self.points)),
-            input("knotwork curve tables", bytemuck::cast_slice(&self.tables)),
+            input(0, "knotwork curve jobs", bytemuck::cast_slice(&self.jobs)),
+            input(
+                1,
+                "knotwork curve points",
+                bytemuck::cast_slice(&self.points),
+            ),
+            input(
+                2,
+                "knotwork curve tables",
+                bytemuck::cast_slice(&self.tables),
+            ),
         ];
         let bind_group = bind_buffers(
             context,
             &context.kernels.curve_layout,
-            &[&buffers[0], &buffers[1], &buffers[2], output],
+            &[
+                (&buffers[0], size_of_val(&self.jobs[..]) as u64),
+                (&buffers[1], size_of_val(&self.points[..]) as u64),
+                (&buffers[2], size_of_val(&self.tables[..]) as u64),
+                (output, self.sample_count * SAMPLE_BYTES),
+            ],
         );
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("knotwork curves"),
@@ -167,9 +182,23 @@ fn pack_curves(
 
 /// Samples curve k of `curves` at `samples[k]` parameters uniform over its range, on the
 /// GPU, in one submission, each chunk of curves within `limits` (the device's
-/// [`GpuContext::limits`], or smaller for memory budgets): the GPU counterpart of
-/// [`BSplineCurve::polyline`], behind [`crate::Tessellator::tessellate_curves`].
+/// [`GpuContext::limits`], or smaller for memory budgets): the GPU counterpart of the CPU
+/// executor's curves, behind [`crate::Tessellator::tessellate_curves`].
 pub fn sample_curves(
+    context: &GpuContext,
+    curves: &[BSplineCurve],
+    samples: &[u32],
+    limits: Limits,
+) -> Result<Vec<Polyline>> {
+    sample_curves_in(&mut BufferPool::default(), context, curves, samples, limits)
+}
+
+/// Buffers per curve chunk in a pool: jobs, points, tables, samples.
+const SLOTS_PER_CHUNK: usize = 4;
+
+/// As [`sample_curves`], with every device and staging buffer taken from `pool`.
+pub(super) fn sample_curves_in(
+    pool: &mut BufferPool,
     context: &GpuContext,
     curves: &[BSplineCurve],
     samples: &[u32],
@@ -185,14 +214,16 @@ pub fn sample_curves(
             label: Some("knotwork curves"),
         });
         let mut outputs = Vec::with_capacity(chunks.len());
-        for chunk in &chunks {
-            let output = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("knotwork curve samples"),
-                size: chunk.sample_count * SAMPLE_BYTES,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            });
-            chunk.encode(context, &mut encoder, &output);
+        for (k, chunk) in chunks.iter().enumerate() {
+            let slot = k * SLOTS_PER_CHUNK;
+            let output = pool.buffer(
+                device,
+                slot + 3,
+                "knotwork curve samples",
+                chunk.sample_count * SAMPLE_BYTES,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            );
+            chunk.encode(context, pool, slot, &mut encoder, &output);
             outputs.push(output);
         }
         context.queue.submit([encoder.finish()]);
@@ -203,7 +234,7 @@ pub fn sample_curves(
         .zip(&chunks)
         .map(|(buffer, chunk)| (buffer, chunk.sample_count * SAMPLE_BYTES))
         .collect();
-    Staging::default().read(context, &sources, |staged| {
+    pool.read(context, &sources, |staged| {
         let mut polylines = Vec::with_capacity(curves.len());
         for (buffer, chunk) in staged.iter().zip(&chunks) {
             let view = mapped(buffer, chunk.sample_count * SAMPLE_BYTES)?;

@@ -1,5 +1,6 @@
-//! Reading GPU buffers back to the host: staging copies (kept and reused by their owner),
-//! mapping, and copying the mapped bytes out on every core.
+//! Buffers kept between calls and reading them back to the host: a pool of device and
+//! staging buffers reused by their owner, mapping, and copying the mapped bytes out on every
+//! core.
 
 use super::context::{GpuContext, scoped};
 use crate::error::{Error, Result};
@@ -13,14 +14,68 @@ pub(super) fn mapped(buffer: &wgpu::Buffer, bytes: u64) -> Result<wgpu::BufferVi
     })
 }
 
-/// Mappable copies of other buffers, kept between readbacks: a buffer is allocated only when
-/// a readback needs more room than the one kept.
+/// Device buffers kept between calls, by slot, and the mappable staging buffers readback
+/// copies through: a buffer is allocated only when a call needs more room (or other usages)
+/// than the one kept, so a loop of calls no larger than before allocates nothing.
 #[derive(Debug, Default)]
-pub(super) struct Staging {
-    buffers: Mutex<Vec<wgpu::Buffer>>,
+pub(super) struct BufferPool {
+    slots: Vec<Option<wgpu::Buffer>>,
+    staging: Mutex<Vec<wgpu::Buffer>>,
+    allocations: std::sync::atomic::AtomicUsize,
 }
 
-impl Staging {
+impl BufferPool {
+    /// Device buffers this pool has created so far.
+    pub fn allocations(&self) -> usize {
+        self.allocations.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    fn count(&self) {
+        self.allocations
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// The buffer of `slot`: at least `bytes` (and 16) long, with `usage`.
+    pub fn buffer(
+        &mut self,
+        device: &wgpu::Device,
+        slot: usize,
+        label: &str,
+        bytes: u64,
+        usage: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        if self.slots.len() <= slot {
+            self.slots.resize(slot + 1, None);
+        }
+        let fits = |b: &wgpu::Buffer| b.size() >= bytes && b.usage().contains(usage);
+        if !self.slots[slot].as_ref().is_some_and(fits) {
+            self.count();
+            self.slots[slot] = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes.max(16).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT),
+                usage,
+                mapped_at_creation: false,
+            }));
+        }
+        self.slots[slot].clone().expect("filled above")
+    }
+
+    /// The storage buffer of `slot` holding `contents` (written through the queue).
+    pub fn upload(
+        &mut self,
+        context: &GpuContext,
+        slot: usize,
+        label: &str,
+        contents: &[u8],
+    ) -> wgpu::Buffer {
+        let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+        let buffer = self.buffer(&context.device, slot, label, contents.len() as u64, usage);
+        if !contents.is_empty() {
+            context.queue.write_buffer(&buffer, 0, contents);
+        }
+        buffer
+    }
+
     /// Copies the first `bytes` of each source into staging buffer k (grown if needed), in
     /// one submission, maps them and calls `read` with the mapped buffers; unmaps after.
     pub fn read<T>(
@@ -29,7 +84,7 @@ impl Staging {
         sources: &[(&wgpu::Buffer, u64)],
         read: impl FnOnce(&[wgpu::Buffer]) -> Result<T>,
     ) -> Result<T> {
-        let mut buffers = self.buffers.lock().unwrap_or_else(|e| e.into_inner());
+        let mut buffers = self.staging.lock().unwrap_or_else(|e| e.into_inner());
         let device = &context.device;
         scoped(device, || {
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -37,8 +92,10 @@ impl Staging {
             });
             for (k, &(source, bytes)) in sources.iter().enumerate() {
                 if buffers.len() <= k {
+                    self.count();
                     buffers.push(staging_buffer(device, bytes));
                 } else if buffers[k].size() < bytes {
+                    self.count();
                     buffers[k] = staging_buffer(device, bytes);
                 }
                 encoder.copy_buffer_to_buffer(source, 0, &buffers[k], 0, bytes);

@@ -4,6 +4,7 @@
 
 use super::batch::{BatchDescriptor, GpuBatch};
 use super::context::GpuContext;
+use super::readback::BufferPool;
 use super::{coons, curves};
 use crate::Tessellator;
 use crate::error::Result;
@@ -21,6 +22,8 @@ use std::sync::Mutex;
 pub struct GpuTessellator {
     context: GpuContext,
     batch: Mutex<Option<GpuBatch>>,
+    coons: Mutex<BufferPool>,
+    curves: Mutex<BufferPool>,
 }
 
 impl GpuTessellator {
@@ -34,6 +37,8 @@ impl GpuTessellator {
         Self {
             context: context.clone(),
             batch: Mutex::new(None),
+            coons: Mutex::default(),
+            curves: Mutex::default(),
         }
     }
 
@@ -41,10 +46,27 @@ impl GpuTessellator {
         &self.context
     }
 
-    /// Frees the buffers kept from the last call.
+    /// Frees the buffers kept from earlier calls.
     pub fn release_buffers(&self) {
-        *self.batch.lock().unwrap_or_else(|e| e.into_inner()) = None;
+        *lock(&self.batch) = None;
+        *lock(&self.coons) = BufferPool::default();
+        *lock(&self.curves) = BufferPool::default();
     }
+
+    /// Device buffers (inputs, outputs, staging) the kept batch and pools have created: a
+    /// loop of calls no larger than an earlier one leaves it unchanged.
+    pub fn buffer_allocations(&self) -> usize {
+        lock(&self.batch)
+            .as_ref()
+            .map_or(0, GpuBatch::buffer_allocations)
+            + lock(&self.coons).allocations()
+            + lock(&self.curves).allocations()
+    }
+}
+
+/// The guarded value, also after a panic elsewhere (the kept buffers stay usable).
+fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 impl Tessellator for GpuTessellator {
@@ -68,7 +90,7 @@ impl Tessellator for GpuTessellator {
         options: &[TessOptions],
         mesh: &mut Mesh32,
     ) -> Result<()> {
-        let mut kept = self.batch.lock().unwrap_or_else(|e| e.into_inner());
+        let mut kept = lock(&self.batch);
         let batch = match kept.take() {
             Some(mut batch) => {
                 batch.reload(surfaces, options)?;
@@ -91,13 +113,27 @@ impl Tessellator for GpuTessellator {
         mesh: &mut Mesh,
     ) -> Result<()> {
         let polylines = std::mem::take(&mut mesh.polylines);
-        *mesh = coons::tessellate_coons(&self.context, patches, options, self.context.limits())?;
+        let limits = self.context.limits();
+        *mesh = coons::tessellate_coons(
+            &mut lock(&self.coons),
+            &self.context,
+            patches,
+            options,
+            limits,
+        )?;
         mesh.polylines = polylines;
         Ok(())
     }
 
     fn tessellate_curves(&self, curves: &[BSplineCurve], samples: &[u32]) -> Result<Vec<Polyline>> {
-        curves::sample_curves(&self.context, curves, samples, self.context.limits())
+        let limits = self.context.limits();
+        curves::sample_curves_in(
+            &mut lock(&self.curves),
+            &self.context,
+            curves,
+            samples,
+            limits,
+        )
     }
 
     fn name(&self) -> String {
