@@ -221,8 +221,11 @@ impl Renderer {
             });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &self.bind_group, &[]);
-            pass.set_vertex_buffer(0, mesh.vertices.slice(..));
-            pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.set_vertex_buffer(0, mesh.vertices.slice(mesh.vertex_offset..));
+            pass.set_index_buffer(
+                mesh.indices.slice(mesh.index_offset..),
+                wgpu::IndexFormat::Uint32,
+            );
             pass.draw_indexed(0..mesh.index_count, 0, 0..1);
         }
         encoder.copy_texture_to_buffer(

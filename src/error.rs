@@ -127,6 +127,8 @@ pub enum Error {
     },
     #[error("no GPU adapter: {reason}")]
     NoAdapter { reason: String },
+    #[error("{what}: {problem}")]
+    OutputTarget { what: &'static str, problem: String },
     #[error("GPU error: {message}")]
     Gpu { message: String },
     #[error(

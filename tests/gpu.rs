@@ -870,3 +870,93 @@ fn repeated_scenes_allocate_nothing_after_the_first_call() {
     tessellator.release_buffers();
     assert_eq!(tessellator.buffer_allocations(), 0);
 }
+
+/// A batch writes into the caller's own buffers at the caller's offsets (OpenSubdiv-style),
+/// leaving the bytes before them alone, never reallocates them, reads back the same mesh as
+/// a batch with its own buffers, and refuses buffers it cannot use, naming the problem.
+#[test]
+fn batches_fill_caller_buffers_at_offsets() {
+    let Some(context) = gpu() else { return };
+    let surfaces = peer_and_teapot();
+    let grid = TessOptions::DEFAULT.with_grid(12, 9);
+    let own = GpuBatch::new(context, &BatchDescriptor::new(&surfaces, &grid)).unwrap();
+    own.dispatch().unwrap();
+    let expected = own.read_mesh().unwrap();
+    let device = context.device();
+    let usage = knotwork::wgpu::BufferUsages::STORAGE
+        | knotwork::wgpu::BufferUsages::VERTEX
+        | knotwork::wgpu::BufferUsages::INDEX
+        | knotwork::wgpu::BufferUsages::COPY_SRC
+        | knotwork::wgpu::BufferUsages::COPY_DST;
+    let buffer = |size: u64| {
+        device.create_buffer(&knotwork::wgpu::BufferDescriptor {
+            label: Some("the renderer's"),
+            size,
+            usage,
+            mapped_at_creation: false,
+        })
+    };
+    let offset = 2 * context.limits().offset_alignment;
+    let (vertices, indices) = (buffer(offset + (1 << 20)), buffer(offset + (1 << 20)));
+    context
+        .queue()
+        .write_buffer(&vertices, 0, &vec![7u8; offset as usize]);
+    let targets = knotwork::gpu::OutputTargets {
+        vertices: knotwork::gpu::BufferSlice {
+            buffer: vertices.clone(),
+            offset,
+        },
+        indices: knotwork::gpu::BufferSlice {
+            buffer: indices.clone(),
+            offset,
+        },
+    };
+    let descriptor = BatchDescriptor::new(&surfaces, &grid).into_targets(targets.clone());
+    let mut batch = GpuBatch::new(context, &descriptor).unwrap();
+    batch.dispatch().unwrap();
+    assert!(batch.mesh().vertices == vertices && batch.mesh().vertex_offset == offset);
+    let got = batch.read_mesh().unwrap();
+    assert_eq!(got, expected);
+    // The bytes before the offset are still the caller's.
+    let staging = device.create_buffer(&knotwork::wgpu::BufferDescriptor {
+        label: None,
+        size: offset,
+        usage: knotwork::wgpu::BufferUsages::MAP_READ | knotwork::wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    encoder.copy_buffer_to_buffer(&vertices, 0, &staging, 0, offset);
+    context.queue().submit([encoder.finish()]);
+    staging.map_async(knotwork::wgpu::MapMode::Read, .., |r| r.unwrap());
+    device
+        .poll(knotwork::wgpu::PollType::wait_indefinitely())
+        .unwrap();
+    assert!(
+        staging
+            .get_mapped_range(..)
+            .unwrap()
+            .iter()
+            .all(|&b| b == 7)
+    );
+    // Too much for the caller's buffer: refused, named, nothing reallocated.
+    let huge = vec![TessOptions::DEFAULT.with_grid(400, 400); surfaces.len()];
+    let err = batch.reload(&surfaces, &huge).unwrap_err();
+    assert!(
+        matches!(&err, Error::OutputTarget { what, .. } if what.contains("vertex")),
+        "{err}"
+    );
+    assert!(batch.mesh().vertices == vertices);
+    let misaligned = knotwork::gpu::OutputTargets {
+        vertices: knotwork::gpu::BufferSlice {
+            buffer: vertices.clone(),
+            offset: 4,
+        },
+        ..targets
+    };
+    let err = GpuBatch::new(
+        context,
+        &BatchDescriptor::new(&surfaces, &grid).into_targets(misaligned),
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("alignment"), "{err}");
+}

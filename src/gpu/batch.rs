@@ -24,6 +24,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 pub struct GpuMesh {
     pub vertices: wgpu::Buffer,
     pub indices: wgpu::Buffer,
+    /// Byte offset of the first vertex in `vertices` (0 unless the caller gave the buffer:
+    /// [`BatchDescriptor::targets`]); indices count from that vertex, so draw with
+    /// `vertices.slice(vertex_offset..)`.
+    pub vertex_offset: u64,
+    /// Byte offset of the first index in `indices` (likewise).
+    pub index_offset: u64,
     pub vertex_count: u32,
     pub index_count: u32,
     pub parts: Vec<MeshPart>,
@@ -56,6 +62,25 @@ pub struct BatchDescriptor<'a> {
     /// (unified memory) they are mapped directly, without a staging copy. (Not for drawing:
     /// on discrete GPUs mappable buffers live in slower memory.)
     pub readback: bool,
+    /// The caller's own buffers to fill, instead of buffers knotwork allocates.
+    pub targets: Option<OutputTargets>,
+}
+
+/// A caller's buffer and the byte offset at which knotwork writes into it.
+#[derive(Debug, Clone)]
+pub struct BufferSlice {
+    pub buffer: wgpu::Buffer,
+    /// A multiple of the device's `min_storage_buffer_offset_alignment` (256 on WebGPU).
+    pub offset: u64,
+}
+
+/// Output buffers a caller provides (OpenSubdiv's evaluators take theirs the same way): both
+/// need `STORAGE` usage (add `VERTEX`/`INDEX` to draw them, `COPY_SRC` to read them back).
+/// They are never reallocated: a job that does not fit them is refused.
+#[derive(Debug, Clone)]
+pub struct OutputTargets {
+    pub vertices: BufferSlice,
+    pub indices: BufferSlice,
 }
 
 impl<'a> BatchDescriptor<'a> {
@@ -71,6 +96,7 @@ impl<'a> BatchDescriptor<'a> {
             options: options.to_vec(),
             limits: None,
             readback: false,
+            targets: None,
         }
     }
 
@@ -78,6 +104,14 @@ impl<'a> BatchDescriptor<'a> {
     pub fn with_limits(self, limits: Limits) -> Self {
         Self {
             limits: Some(limits),
+            ..self
+        }
+    }
+
+    /// Written into the caller's buffers (see [`OutputTargets`]).
+    pub fn into_targets(self, targets: OutputTargets) -> Self {
+        Self {
+            targets: Some(targets),
             ..self
         }
     }
@@ -115,6 +149,8 @@ pub struct GpuBatch {
     limits: Limits,
     /// The output buffers can be mapped directly (see [`BatchDescriptor::readback`]).
     mappable: bool,
+    /// The output buffers are the batch's own (else the caller's: never reallocated).
+    owns_outputs: bool,
     packed: Packed,
     /// Degrees, counts, knots and ranges of each surface: what an update may not change.
     shapes: Vec<BSplineSurface>,
@@ -129,9 +165,15 @@ pub struct GpuBatch {
     allocations: usize,
 }
 
-/// Binds elements `r.origin..r.end` of `buffer` (clipped to the buffer, never empty).
-fn bind_range(buffer: &wgpu::Buffer, r: Range, bytes_each: u64) -> wgpu::BindingResource<'_> {
-    let offset = r.origin * bytes_each;
+/// Binds elements `r.origin..r.end` of `buffer`, counted from byte `base` (clipped to the
+/// buffer, never empty).
+fn bind_range(
+    buffer: &wgpu::Buffer,
+    base: u64,
+    r: Range,
+    bytes_each: u64,
+) -> wgpu::BindingResource<'_> {
+    let offset = base + r.origin * bytes_each;
     let size = ((r.end - r.origin) * bytes_each)
         .max(4)
         .min(buffer.size() - offset);
@@ -142,9 +184,42 @@ fn bind_range(buffer: &wgpu::Buffer, r: Range, bytes_each: u64) -> wgpu::Binding
     })
 }
 
-/// Buffers a batch creates when built: six inputs (pieces, tiles, points, tables,
-/// contracted rows, chunk uniforms) and two outputs (vertices, indices).
-const BATCH_BUFFERS: usize = 8;
+/// Input buffers a batch creates when built: pieces, tiles, points, tables, contracted rows,
+/// chunk uniforms (and two outputs, unless the caller gives them).
+const INPUT_BUFFERS: usize = 6;
+
+/// Checks that a caller's buffer can be an output: storage usage, aligned offset.
+fn check_target(what: &'static str, target: &BufferSlice, limits: &Limits) -> Result<()> {
+    let problem = if !target.buffer.usage().contains(wgpu::BufferUsages::STORAGE) {
+        "it lacks STORAGE usage".to_string()
+    } else if !target.offset.is_multiple_of(limits.offset_alignment) {
+        format!(
+            "offset {} is not a multiple of the device's storage offset alignment {}",
+            target.offset, limits.offset_alignment
+        )
+    } else if target.offset > target.buffer.size() {
+        format!(
+            "offset {} is past its end ({} bytes)",
+            target.offset,
+            target.buffer.size()
+        )
+    } else {
+        return Ok(());
+    };
+    Err(Error::OutputTarget { what, problem })
+}
+
+/// Checks that `bytes` of output fit a caller's buffer past its offset.
+fn check_room(what: &'static str, buffer: &wgpu::Buffer, offset: u64, bytes: u64) -> Result<()> {
+    let room = buffer.size() - offset;
+    if bytes > room {
+        return Err(Error::OutputTarget {
+            what,
+            problem: format!("the job needs {bytes} bytes, it holds {room} past its offset"),
+        });
+    }
+    Ok(())
+}
 
 /// Smallest buffer knotwork creates: bindings cannot be empty.
 const MIN_BUFFER_BYTES: u64 = 16;
@@ -186,11 +261,16 @@ impl GpuBatch {
     /// Fails with [`Error::GpuJobTooLarge`] if the outputs exceed the planning limits.
     pub fn new(context: &GpuContext, descriptor: &BatchDescriptor) -> Result<Self> {
         let device = &context.device;
+        let limits = descriptor.limits.unwrap_or_else(|| context.limits());
+        if let Some(targets) = &descriptor.targets {
+            check_target("the caller's vertex buffer", &targets.vertices, &limits)?;
+            check_target("the caller's index buffer", &targets.indices, &limits)?;
+        }
         let mappable = descriptor.readback
+            && descriptor.targets.is_none()
             && device
                 .features()
                 .contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
-        let limits = descriptor.limits.unwrap_or_else(|| context.limits());
         let packed = surfaces::pack(
             &SurfacePlan::new(descriptor.surfaces, &descriptor.options)?,
             descriptor.surfaces,
@@ -198,46 +278,64 @@ impl GpuBatch {
         )?;
         let input = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         let output = output_usage(mappable);
-        let mut batch = scoped(device, || GpuBatch {
-            context: context.clone(),
-            limits,
-            mappable,
-            packed: Packed::default(),
-            shapes: Vec::new(),
-            inputs: Inputs {
-                pieces: new_buffer(device, "knotwork pieces", 0, input),
-                tiles: new_buffer(device, "knotwork tiles", 0, input),
-                points: new_buffer(device, "knotwork control points", 0, input),
-                tables: new_buffer(device, "knotwork basis tables", 0, input),
-                contracted: new_buffer(
-                    device,
-                    "knotwork contracted rows",
-                    0,
-                    wgpu::BufferUsages::STORAGE,
-                ),
-                uniform: new_buffer(device, "knotwork chunk parameters", 0, uniform_usage()),
-            },
-            bind_groups: Vec::new(),
-            connected: false.into(),
-            mesh: GpuMesh {
-                vertices: new_buffer(
-                    device,
-                    "knotwork vertices",
-                    packed.vertex_count * VERTEX_BYTES,
-                    output | wgpu::BufferUsages::VERTEX,
-                ),
-                indices: new_buffer(
-                    device,
-                    "knotwork indices",
-                    packed.index_count * 4,
-                    output | wgpu::BufferUsages::INDEX,
-                ),
-                vertex_count: 0,
-                index_count: 0,
-                parts: Vec::new(),
-            },
-            staging: BufferPool::default(),
-            allocations: BATCH_BUFFERS,
+        let mut allocations = INPUT_BUFFERS;
+        let mut batch = scoped(device, || {
+            let (vertices, indices) = match &descriptor.targets {
+                Some(t) => (t.vertices.clone(), t.indices.clone()),
+                None => {
+                    allocations += 2;
+                    let vertex_bytes = packed.vertex_count * VERTEX_BYTES;
+                    let index_bytes = packed.index_count * 4;
+                    let vertices = new_buffer(
+                        device,
+                        "knotwork vertices",
+                        vertex_bytes,
+                        output | wgpu::BufferUsages::VERTEX,
+                    );
+                    let indices = new_buffer(
+                        device,
+                        "knotwork indices",
+                        index_bytes,
+                        output | wgpu::BufferUsages::INDEX,
+                    );
+                    let whole = |buffer| BufferSlice { buffer, offset: 0 };
+                    (whole(vertices), whole(indices))
+                }
+            };
+            GpuBatch {
+                context: context.clone(),
+                limits,
+                mappable,
+                owns_outputs: descriptor.targets.is_none(),
+                packed: Packed::default(),
+                shapes: Vec::new(),
+                inputs: Inputs {
+                    pieces: new_buffer(device, "knotwork pieces", 0, input),
+                    tiles: new_buffer(device, "knotwork tiles", 0, input),
+                    points: new_buffer(device, "knotwork control points", 0, input),
+                    tables: new_buffer(device, "knotwork basis tables", 0, input),
+                    contracted: new_buffer(
+                        device,
+                        "knotwork contracted rows",
+                        0,
+                        wgpu::BufferUsages::STORAGE,
+                    ),
+                    uniform: new_buffer(device, "knotwork chunk parameters", 0, uniform_usage()),
+                },
+                bind_groups: Vec::new(),
+                connected: false.into(),
+                mesh: GpuMesh {
+                    vertices: vertices.buffer,
+                    indices: indices.buffer,
+                    vertex_offset: vertices.offset,
+                    index_offset: indices.offset,
+                    vertex_count: 0,
+                    index_count: 0,
+                    parts: Vec::new(),
+                },
+                staging: BufferPool::default(),
+                allocations,
+            }
         })?;
         batch.load(packed, descriptor.surfaces)?;
         Ok(batch)
@@ -259,6 +357,23 @@ impl GpuBatch {
     fn load(&mut self, packed: Packed, surfaces: &[BSplineSurface]) -> Result<()> {
         let context = self.context.clone();
         let device = &context.device;
+        if !self.owns_outputs {
+            let mesh = &self.mesh;
+            let vertex_bytes = packed.vertex_count * VERTEX_BYTES;
+            check_room(
+                "the caller's vertex buffer",
+                &mesh.vertices,
+                mesh.vertex_offset,
+                vertex_bytes,
+            )?;
+            check_room(
+                "the caller's index buffer",
+                &mesh.indices,
+                mesh.index_offset,
+                packed.index_count * 4,
+            )?;
+        }
+        let owns_outputs = self.owns_outputs;
         let same_layout = packed.parts == self.mesh.parts;
         self.bind_groups.clear();
         self.packed = Packed::default();
@@ -304,12 +419,11 @@ impl GpuBatch {
                     context.queue.write_buffer(buffer, 0, contents);
                 }
             }
-            let uniform_bytes = uniforms.len() as u64;
-            let sized: [(&mut wgpu::Buffer, &str, u64, wgpu::BufferUsages); 3] = [
+            let sized: [(&mut wgpu::Buffer, &str, u64, wgpu::BufferUsages); 2] = [
                 (
                     &mut inputs.uniform,
                     "knotwork chunk parameters",
-                    uniform_bytes,
+                    uniforms.len() as u64,
                     uniform_usage(),
                 ),
                 (
@@ -318,12 +432,6 @@ impl GpuBatch {
                     packed.contracted_len * 16,
                     wgpu::BufferUsages::STORAGE,
                 ),
-                (
-                    &mut mesh.vertices,
-                    "knotwork vertices",
-                    packed.vertex_count * VERTEX_BYTES,
-                    output | wgpu::BufferUsages::VERTEX,
-                ),
             ];
             for (buffer, label, bytes, usage) in sized {
                 allocated += usize::from(ensure(device, buffer, label, bytes, usage));
@@ -331,14 +439,29 @@ impl GpuBatch {
             if !uniforms.is_empty() {
                 context.queue.write_buffer(&inputs.uniform, 0, &uniforms);
             }
-            let new_indices = ensure(
-                device,
-                &mut mesh.indices,
-                "knotwork indices",
-                packed.index_count * 4,
-                output | wgpu::BufferUsages::INDEX,
-            );
-            allocated += usize::from(new_indices);
+            // The caller's outputs were checked for room above; the batch's own grow.
+            let mut new_indices = false;
+            if owns_outputs {
+                let vertex_bytes = packed.vertex_count * VERTEX_BYTES;
+                let vertex_usage = output | wgpu::BufferUsages::VERTEX;
+                let index_usage = output | wgpu::BufferUsages::INDEX;
+                let index_bytes = packed.index_count * 4;
+                allocated += usize::from(ensure(
+                    device,
+                    &mut mesh.vertices,
+                    "knotwork vertices",
+                    vertex_bytes,
+                    vertex_usage,
+                ));
+                new_indices = ensure(
+                    device,
+                    &mut mesh.indices,
+                    "knotwork indices",
+                    index_bytes,
+                    index_usage,
+                );
+                allocated += usize::from(new_indices);
+            }
             (
                 bind_chunks(&context, inputs, mesh, &packed),
                 new_indices,
@@ -483,8 +606,8 @@ impl GpuBatch {
             result
         } else {
             let sources = [
-                (&self.mesh.vertices, vertex_bytes),
-                (&self.mesh.indices, index_bytes),
+                (&self.mesh.vertices, self.mesh.vertex_offset, vertex_bytes),
+                (&self.mesh.indices, self.mesh.index_offset, index_bytes),
             ];
             self.staging.read(&self.context, &sources, |staged| {
                 copy(&staged[0], &staged[1])
@@ -555,13 +678,18 @@ fn bind_chunks(
                     offset: 0,
                     size: NonZeroU64::new(size_of::<ChunkParams>() as u64),
                 }),
-                bind_range(&inputs.pieces, chunk.pieces, size_of::<Piece>() as u64),
-                bind_range(&inputs.tiles, chunk.tiles, size_of::<Tile>() as u64),
-                bind_range(&inputs.points, chunk.points, 16),
-                bind_range(&inputs.tables, chunk.tables, 4),
+                bind_range(&inputs.pieces, 0, chunk.pieces, size_of::<Piece>() as u64),
+                bind_range(&inputs.tiles, 0, chunk.tiles, size_of::<Tile>() as u64),
+                bind_range(&inputs.points, 0, chunk.points, 16),
+                bind_range(&inputs.tables, 0, chunk.tables, 4),
                 inputs.contracted.as_entire_binding(),
-                bind_range(&mesh.vertices, chunk.vertices, VERTEX_BYTES),
-                bind_range(&mesh.indices, chunk.indices, 4),
+                bind_range(
+                    &mesh.vertices,
+                    mesh.vertex_offset,
+                    chunk.vertices,
+                    VERTEX_BYTES,
+                ),
+                bind_range(&mesh.indices, mesh.index_offset, chunk.indices, 4),
             ];
             let entries: Vec<wgpu::BindGroupEntry> = resources
                 .into_iter()

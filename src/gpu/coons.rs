@@ -244,13 +244,13 @@ pub(crate) fn tessellate_coons(
         context.queue.submit([encoder.finish()]);
         outputs
     })?;
-    let sources: Vec<(&wgpu::Buffer, u64)> = outputs
+    let sources: Vec<(&wgpu::Buffer, u64, u64)> = outputs
         .iter()
         .zip(&chunks)
         .flat_map(|((vertices, indices), chunk)| {
             [
-                (vertices, chunk.vertex_count * VERTEX_BYTES),
-                (indices, chunk.index_count * 4),
+                (vertices, 0, chunk.vertex_count * VERTEX_BYTES),
+                (indices, 0, chunk.index_count * 4),
             ]
         })
         .collect();

@@ -229,10 +229,10 @@ pub(super) fn sample_curves_in(
         context.queue.submit([encoder.finish()]);
         outputs
     })?;
-    let sources: Vec<(&wgpu::Buffer, u64)> = outputs
+    let sources: Vec<(&wgpu::Buffer, u64, u64)> = outputs
         .iter()
         .zip(&chunks)
-        .map(|(buffer, chunk)| (buffer, chunk.sample_count * SAMPLE_BYTES))
+        .map(|(buffer, chunk)| (buffer, 0, chunk.sample_count * SAMPLE_BYTES))
         .collect();
     pool.read(context, &sources, |staged| {
         let mut polylines = Vec::with_capacity(curves.len());

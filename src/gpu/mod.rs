@@ -35,7 +35,7 @@ mod readback;
 mod surfaces;
 pub mod tessellator;
 
-pub use batch::{BatchDescriptor, GpuBatch, GpuMesh};
+pub use batch::{BatchDescriptor, BufferSlice, GpuBatch, GpuMesh, OutputTargets};
 pub use context::{GpuContext, headless_instance};
 pub use curves::sample_curves;
 pub use surfaces::{Limits, VERTEX_BYTES};

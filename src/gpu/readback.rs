@@ -76,12 +76,13 @@ impl BufferPool {
         buffer
     }
 
-    /// Copies the first `bytes` of each source into staging buffer k (grown if needed), in
-    /// one submission, maps them and calls `read` with the mapped buffers; unmaps after.
+    /// Copies `bytes` from byte `offset` of each (source, offset, bytes) into staging buffer
+    /// k (grown if needed), in one submission, maps them and calls `read` with the mapped
+    /// buffers; unmaps after.
     pub fn read<T>(
         &self,
         context: &GpuContext,
-        sources: &[(&wgpu::Buffer, u64)],
+        sources: &[(&wgpu::Buffer, u64, u64)],
         read: impl FnOnce(&[wgpu::Buffer]) -> Result<T>,
     ) -> Result<T> {
         let mut buffers = self.staging.lock().unwrap_or_else(|e| e.into_inner());
@@ -90,7 +91,7 @@ impl BufferPool {
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("knotwork readback"),
             });
-            for (k, &(source, bytes)) in sources.iter().enumerate() {
+            for (k, &(source, offset, bytes)) in sources.iter().enumerate() {
                 if buffers.len() <= k {
                     self.count();
                     buffers.push(staging_buffer(device, bytes));
@@ -98,7 +99,7 @@ impl BufferPool {
                     self.count();
                     buffers[k] = staging_buffer(device, bytes);
                 }
-                encoder.copy_buffer_to_buffer(source, 0, &buffers[k], 0, bytes);
+                encoder.copy_buffer_to_buffer(source, offset, &buffers[k], 0, bytes);
             }
             context.queue.submit([encoder.finish()]);
         })?;
