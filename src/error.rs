@@ -127,6 +127,11 @@ pub enum Error {
     },
     #[error("no GPU adapter: {reason}")]
     NoAdapter { reason: String },
+    #[error("{}: no surface file ({expected}) in this directory", path.display())]
+    NoInputFiles {
+        path: PathBuf,
+        expected: &'static str,
+    },
     #[error("{what}: {problem}")]
     OutputTarget { what: &'static str, problem: String },
     #[error("GPU error: {message}")]

@@ -1257,3 +1257,28 @@ fn obj_groups_follow_the_items() {
     write_mesh(&path, &mesh).unwrap();
     assert!(!std::fs::read_to_string(&path).unwrap().contains("\ng "));
 }
+
+/// A folder with no surface file in it is an error naming the folder, not a silent success
+/// that writes nothing.
+#[test]
+fn cli_refuses_a_folder_without_surface_files() {
+    let dir = scratch_dir("empty-folder");
+    std::fs::write(dir.join("duck1.nurbs"), "not a format knotwork reads").unwrap();
+    let out = dir.join("out");
+    let run = knotwork(&[
+        "tessellate",
+        dir.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("no surface file (.obj (free-form), .bpt, .json) in this directory")
+            && stderr.contains("empty-folder"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+}

@@ -325,6 +325,12 @@ fn expand_inputs(inputs: &[PathBuf]) -> knotwork::Result<Vec<PathBuf>> {
                             .is_some()
                 })
                 .collect();
+            if found.is_empty() {
+                return Err(knotwork::Error::NoInputFiles {
+                    path: input.clone(),
+                    expected: knotwork::io::INPUT_FORMATS,
+                });
+            }
             found.sort();
             files.extend(found);
         } else {

@@ -1,3 +1,6 @@
+//! The B-spline curve: a validated knot vector and homogeneous control points over an
+//! evaluation range (its evaluation is in `eval.rs`).
+
 use super::{Interval, KnotVector, homogeneous};
 use crate::error::{Error, Result};
 use glam::{DVec3, DVec4};

@@ -1,3 +1,6 @@
+//! The canonical surface: a rational tensor-product B-spline, validated at construction, with
+//! an evaluation range, its control box and reparametrisations (evaluation is in `eval.rs`).
+
 use super::piecewise::{Polygon, split_polygon};
 use super::{KnotVector, homogeneous};
 use crate::error::{Error, Result};

@@ -51,7 +51,8 @@ pub fn cover_groups(groups: &[ItemGroup], items: impl Iterator<Item = u32>) -> V
     covered
 }
 
-const INPUT_FORMATS: &str = ".obj (free-form), .bpt, .json";
+/// The input formats, as error messages name them.
+pub const INPUT_FORMATS: &str = ".obj (free-form), .bpt, .json";
 const OUTPUT_FORMATS: &str = ".obj, .ply, .stl, .glb";
 
 fn extension(path: &Path) -> String {
