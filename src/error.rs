@@ -148,8 +148,12 @@ pub enum Error {
         "surface {index} changed shape (degrees, control point counts, knots or range): upload a new batch"
     )]
     SurfaceShapeChanged { index: usize },
-    #[error("surface index {index} is out of range: the batch has {count} surfaces")]
-    SurfaceIndex { index: usize, count: usize },
+    #[error("{what} index {index} is out of range: the batch has {count}")]
+    IndexOutOfRange {
+        what: &'static str,
+        index: usize,
+        count: usize,
+    },
     #[error("line {line}: {source}")]
     AtLine { line: usize, source: Box<Error> },
     #[error("{}: {source}", path.display())]

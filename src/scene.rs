@@ -134,6 +134,16 @@ impl Scene {
             .collect()
     }
 
+    /// The grid of every Coons patch (in the order of [`Scene::coons_patches`]): its own,
+    /// else `default`.
+    pub fn coons_grids(&self, default: TessOptions) -> Vec<TessOptions> {
+        self.items
+            .iter()
+            .filter(|item| matches!(item.geometry, Geometry::Coons(_)))
+            .map(|item| item.grid.unwrap_or(default))
+            .collect()
+    }
+
     /// The grid of every surface (in the order of [`Scene::surfaces`]): its own, else
     /// `default`.
     pub fn surface_grids(&self, default: TessOptions) -> Vec<TessOptions> {
@@ -264,18 +274,10 @@ fn patches_and_curves<T: Tessellator + ?Sized>(
     scene: &Scene,
     defaults: &SceneOptions,
 ) -> Result<(Mesh, Vec<Polyline>)> {
-    let of_kind = |wanted: fn(&Geometry) -> bool| {
-        scene
-            .items
-            .iter()
-            .filter(move |item| wanted(&item.geometry))
-    };
     let mut coons = Mesh::default();
     let patches = scene.coons_patch_list();
     if !patches.is_empty() {
-        let grids: Vec<TessOptions> = of_kind(|g| matches!(g, Geometry::Coons(_)))
-            .map(|item| item.grid.unwrap_or(defaults.grid))
-            .collect();
+        let grids = scene.coons_grids(defaults.grid);
         tessellator.tessellate_coons_into(&patches, &grids, &mut coons)?;
     }
     let samples = scene.curve_samples(defaults.samples);

@@ -324,7 +324,8 @@ fn moving_control_points_reuploads_one_surface() {
     ));
     assert!(matches!(
         batch.update_surface(99, &other_shape),
-        Err(Error::SurfaceIndex {
+        Err(Error::IndexOutOfRange {
+            what: "surface",
             index: 99,
             count: 33
         })
@@ -959,4 +960,83 @@ fn batches_fill_caller_buffers_at_offsets() {
     )
     .unwrap_err();
     assert!(err.to_string().contains("alignment"), "{err}");
+}
+
+/// One batch holds a scene of every kind: the surfaces, the Coons patches (triangles a
+/// renderer can draw) and the curves (line-strip vertex buffers), dispatched together; each
+/// kind reads back what the tessellator gives; updating a patch or a curve changes only its
+/// output and reuses the buffers.
+#[test]
+#[cfg(feature = "json")]
+fn one_batch_serves_every_item_kind() {
+    let Some(context) = gpu() else { return };
+    let scene = knotwork::io::read_scene(std::path::Path::new("data/forms.json")).unwrap();
+    let defaults = knotwork::SceneOptions::default();
+    let mut batch = GpuBatch::from_scene(context, &scene, &defaults).unwrap();
+    batch.dispatch().unwrap();
+    let tessellator = tessellator_on(context);
+    let surfaces = scene.surface_list();
+    let mut expected = knotwork::Mesh::default();
+    tessellator
+        .tessellate_each_into(
+            &surfaces,
+            &scene.surface_grids(defaults.grid),
+            &mut expected,
+        )
+        .unwrap();
+    assert_eq!(batch.read_mesh().unwrap(), expected);
+    let (patches, grids) = (scene.coons_patch_list(), scene.coons_grids(defaults.grid));
+    let mut expected = knotwork::Mesh::default();
+    tessellator
+        .tessellate_coons_into(&patches, &grids, &mut expected)
+        .unwrap();
+    let mut coons = knotwork::Mesh32::default();
+    batch.read_coons_into(&mut coons).unwrap();
+    assert_eq!(coons.to_f64(), expected);
+    let (curves, samples) = (scene.curve_list(), scene.curve_samples(defaults.samples));
+    assert_eq!(
+        batch.read_curves().unwrap(),
+        tessellator.tessellate_curves(&curves, &samples).unwrap()
+    );
+    // Drawable: vertex and index usages, one line strip per curve.
+    use knotwork::wgpu::BufferUsages;
+    let mesh = &batch.coons_meshes()[0];
+    assert!(mesh.vertices.usage().contains(BufferUsages::VERTEX));
+    assert!(mesh.indices.usage().contains(BufferUsages::INDEX));
+    let lines = batch.curve_lines();
+    assert!(lines[0].samples.usage().contains(BufferUsages::VERTEX));
+    assert_eq!(lines.iter().map(|l| l.strips.len()).sum::<usize>(), 9);
+    // Updates: a lifted curve moves, in place.
+    let allocated = batch.buffer_allocations();
+    let lifted = knotwork::geom::bezier_curve(
+        1,
+        &[DVec3::new(0.0, 0.0, 5.0), DVec3::new(1.0, 0.0, 5.0)],
+        None,
+    )
+    .unwrap();
+    batch.update_curve(2, &lifted).unwrap();
+    batch.dispatch().unwrap();
+    let polylines = batch.read_curves().unwrap();
+    assert!(polylines[2].positions.iter().all(|p| p.z == 5.0));
+    assert_eq!(
+        polylines[3],
+        tessellator.tessellate_curves(&curves, &samples).unwrap()[3]
+    );
+    assert_eq!(batch.buffer_allocations(), allocated);
+    assert!(matches!(
+        batch.update_curve(9, &lifted),
+        Err(Error::IndexOutOfRange {
+            what: "curve",
+            index: 9,
+            count: 9
+        })
+    ));
+    assert!(matches!(
+        batch.update_coons_patch(1, &patches[0]),
+        Err(Error::IndexOutOfRange {
+            what: "Coons patch",
+            index: 1,
+            count: 1
+        })
+    ));
 }

@@ -3,14 +3,18 @@
 //! reuse every buffer the new contents fit, and readback.
 
 use super::context::{CONNECT_PASS, GpuContext, MAX_GROUPS_PER_DIMENSION, UNIFORM_STRIDE, scoped};
+use super::coons::CoonsWork;
+use super::curves::{CurveWork, GpuLines};
 use super::readback::{BufferPool, copy_out, map_for_reading, mapped};
 use super::surfaces::{
     self, ChunkParams, Limits, PASSES, Packed, Piece, Range, Tile, VERTEX_BYTES,
 };
 use crate::error::{Error, Result};
-use crate::geom::BSplineSurface;
-use crate::mesh::{Mesh, Mesh32, MeshPart, TessOptions};
+use crate::geom::patches::CoonsPatch;
+use crate::geom::{BSplineCurve, BSplineSurface};
+use crate::mesh::{Mesh, Mesh32, MeshPart, Polyline, TessOptions};
 use crate::plan::SurfacePlan;
+use crate::scene::{Scene, SceneOptions};
 use std::num::NonZeroU64;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -30,6 +34,9 @@ pub struct GpuMesh {
     pub vertex_offset: u64,
     /// Byte offset of the first index in `indices` (likewise).
     pub index_offset: u64,
+    /// Added to every index when drawing (`draw_indexed`'s base vertex): 0 for surfaces;
+    /// minus the first vertex of a Coons chunk, whose indices number every patch's vertices.
+    pub base_vertex: i32,
     pub vertex_count: u32,
     pub index_count: u32,
     pub parts: Vec<MeshPart>,
@@ -62,8 +69,15 @@ pub struct BatchDescriptor<'a> {
     /// (unified memory) they are mapped directly, without a staging copy. (Not for drawing:
     /// on discrete GPUs mappable buffers live in slower memory.)
     pub readback: bool,
-    /// The caller's own buffers to fill, instead of buffers knotwork allocates.
+    /// The caller's own buffers to fill with the surfaces, instead of buffers knotwork
+    /// allocates.
     pub targets: Option<OutputTargets>,
+    /// Directly evaluated Coons patches, and the grid of each.
+    pub coons: &'a [CoonsPatch],
+    pub coons_options: Vec<TessOptions>,
+    /// Curves, and the samples of each.
+    pub curves: &'a [BSplineCurve],
+    pub curve_samples: Vec<u32>,
 }
 
 /// A caller's buffer and the byte offset at which knotwork writes into it.
@@ -97,6 +111,10 @@ impl<'a> BatchDescriptor<'a> {
             limits: None,
             readback: false,
             targets: None,
+            coons: &[],
+            coons_options: Vec::new(),
+            curves: &[],
+            curve_samples: Vec::new(),
         }
     }
 
@@ -104,6 +122,24 @@ impl<'a> BatchDescriptor<'a> {
     pub fn with_limits(self, limits: Limits) -> Self {
         Self {
             limits: Some(limits),
+            ..self
+        }
+    }
+
+    /// With Coons patches too, patch k on the grid of `options[k]`.
+    pub fn with_coons(self, coons: &'a [CoonsPatch], options: &[TessOptions]) -> Self {
+        Self {
+            coons,
+            coons_options: options.to_vec(),
+            ..self
+        }
+    }
+
+    /// With curves too, curve k sampled `samples[k]` times.
+    pub fn with_curves(self, curves: &'a [BSplineCurve], samples: &[u32]) -> Self {
+        Self {
+            curves,
+            curve_samples: samples.to_vec(),
             ..self
         }
     }
@@ -163,6 +199,17 @@ pub struct GpuBatch {
     staging: BufferPool,
     /// Device buffers created for inputs and outputs (staging ones are counted by `staging`).
     allocations: usize,
+    /// Directly evaluated Coons patches: the patches, their grids, their work on the
+    /// device (`None` without patches) and the pool its buffers come from.
+    coons: Vec<CoonsPatch>,
+    coons_options: Vec<TessOptions>,
+    coons_work: Option<CoonsWork>,
+    coons_pool: BufferPool,
+    /// Curves, likewise.
+    curves: Vec<BSplineCurve>,
+    curve_samples: Vec<u32>,
+    curve_work: Option<CurveWork>,
+    curve_pool: BufferPool,
 }
 
 /// Binds elements `r.origin..r.end` of `buffer`, counted from byte `base` (clipped to the
@@ -329,16 +376,129 @@ impl GpuBatch {
                     indices: indices.buffer,
                     vertex_offset: vertices.offset,
                     index_offset: indices.offset,
+                    base_vertex: 0,
                     vertex_count: 0,
                     index_count: 0,
                     parts: Vec::new(),
                 },
                 staging: BufferPool::default(),
                 allocations,
+                coons: descriptor.coons.to_vec(),
+                coons_options: descriptor.coons_options.clone(),
+                coons_work: None,
+                coons_pool: BufferPool::default(),
+                curves: descriptor.curves.to_vec(),
+                curve_samples: descriptor.curve_samples.clone(),
+                curve_work: None,
+                curve_pool: BufferPool::default(),
             }
         })?;
         batch.load(packed, descriptor.surfaces)?;
+        batch.load_coons()?;
+        batch.load_curves()?;
         Ok(batch)
+    }
+
+    /// A batch of every item of `scene`: surfaces, Coons patches and curves, each on its own
+    /// grid or sample count where it asks for one, else on `defaults`.
+    pub fn from_scene(
+        context: &GpuContext,
+        scene: &Scene,
+        defaults: &SceneOptions,
+    ) -> Result<Self> {
+        let (surfaces, coons, curves) = (
+            scene.surface_list(),
+            scene.coons_patch_list(),
+            scene.curve_list(),
+        );
+        let descriptor = BatchDescriptor::each(&surfaces, &scene.surface_grids(defaults.grid))
+            .with_coons(&coons, &scene.coons_grids(defaults.grid))
+            .with_curves(&curves, &scene.curve_samples(defaults.samples));
+        Self::new(context, &descriptor)
+    }
+
+    /// Plans and uploads the batch's Coons patches into their pool.
+    fn load_coons(&mut self) -> Result<()> {
+        self.coons_work = None;
+        if !self.coons.is_empty() {
+            let pool = &mut self.coons_pool;
+            let (context, limits) = (&self.context, self.limits);
+            let work = CoonsWork::prepare(pool, context, &self.coons, &self.coons_options, limits)?;
+            self.coons_work = Some(work);
+        }
+        Ok(())
+    }
+
+    /// Plans and uploads the batch's curves into their pool.
+    fn load_curves(&mut self) -> Result<()> {
+        self.curve_work = None;
+        if !self.curves.is_empty() {
+            let pool = &mut self.curve_pool;
+            let (context, limits) = (&self.context, self.limits);
+            let work =
+                CurveWork::prepare(pool, context, &self.curves, &self.curve_samples, limits)?;
+            self.curve_work = Some(work);
+        }
+        Ok(())
+    }
+
+    /// Replaces Coons patch `index` (any patch; the grid stays); its chunk's buffers are
+    /// rewritten in place where they fit. Takes effect at the next dispatch.
+    pub fn update_coons_patch(&mut self, index: usize, patch: &CoonsPatch) -> Result<()> {
+        let count = self.coons.len();
+        let slot = self.coons.get_mut(index).ok_or(Error::IndexOutOfRange {
+            what: "Coons patch",
+            index,
+            count,
+        })?;
+        *slot = patch.clone();
+        self.load_coons()
+    }
+
+    /// Replaces curve `index` (any curve; the sample count stays), likewise.
+    pub fn update_curve(&mut self, index: usize, curve: &BSplineCurve) -> Result<()> {
+        let count = self.curves.len();
+        let slot = self.curves.get_mut(index).ok_or(Error::IndexOutOfRange {
+            what: "curve",
+            index,
+            count,
+        })?;
+        *slot = curve.clone();
+        self.load_curves()
+    }
+
+    /// The Coons patches' output buffers: one mesh per chunk (usually one), drawn with its
+    /// `base_vertex`.
+    pub fn coons_meshes(&self) -> &[GpuMesh] {
+        self.coons_work.as_ref().map_or(&[], CoonsWork::meshes)
+    }
+
+    /// The curves' samples: one buffer per chunk (usually one), a line strip per curve.
+    pub fn curve_lines(&self) -> &[GpuLines] {
+        self.curve_work.as_ref().map_or(&[], CurveWork::lines)
+    }
+
+    /// Reads the Coons patches back into `mesh` (its vertices, indices and parts replaced,
+    /// its polylines kept), in the layout of [`crate::Tessellator::tessellate_coons_into`].
+    pub fn read_coons_into(&self, mesh: &mut Mesh32) -> Result<()> {
+        match &self.coons_work {
+            Some(work) => work.read_into(&self.coons_pool, &self.context, mesh),
+            None => {
+                *mesh = Mesh32 {
+                    polylines: std::mem::take(&mut mesh.polylines),
+                    ..Mesh32::default()
+                };
+                Ok(())
+            }
+        }
+    }
+
+    /// Reads the curves back as polylines, in curve order.
+    pub fn read_curves(&self) -> Result<Vec<Polyline>> {
+        match &self.curve_work {
+            Some(work) => work.read(&self.curve_pool, &self.context),
+            None => Ok(Vec::new()),
+        }
     }
 
     /// Replaces the batch's surfaces and grids (surface k on the grid of `options[k]`),
@@ -496,7 +656,10 @@ impl GpuBatch {
     /// Device buffers the batch has created so far (inputs, outputs and readback staging):
     /// constant across reloads and readbacks that fit the buffers it has.
     pub fn buffer_allocations(&self) -> usize {
-        self.allocations + self.staging.allocations()
+        self.allocations
+            + self.staging.allocations()
+            + self.coons_pool.allocations()
+            + self.curve_pool.allocations()
     }
 
     /// The context the batch lives on.
@@ -509,6 +672,17 @@ impl GpuBatch {
     /// depend on the grids only); the vertices every time.
     pub fn encode(&self, encoder: &mut wgpu::CommandEncoder) {
         self.encode_passes(encoder, !self.connected.load(Ordering::Relaxed));
+        self.encode_other_kinds(encoder);
+    }
+
+    /// Records the Coons patches' and the curves' kernels.
+    fn encode_other_kinds(&self, encoder: &mut wgpu::CommandEncoder) {
+        if let Some(work) = &self.coons_work {
+            work.encode(&self.context, encoder);
+        }
+        if let Some(work) = &self.curve_work {
+            work.encode(&self.context, encoder);
+        }
     }
 
     fn encode_passes(&self, encoder: &mut wgpu::CommandEncoder, connect: bool) {
@@ -544,6 +718,7 @@ impl GpuBatch {
                 label: Some("knotwork dispatch"),
             });
             self.encode_passes(&mut encoder, connect);
+            self.encode_other_kinds(&mut encoder);
             self.context.queue.submit([encoder.finish()])
         })?;
         self.connected.store(true, Ordering::Relaxed);
@@ -555,10 +730,11 @@ impl GpuBatch {
     /// points are uploaded. Takes effect at the next dispatch.
     pub fn update_surface(&mut self, index: usize, surface: &BSplineSurface) -> Result<()> {
         let count = self.shapes.len();
-        let old = self
-            .shapes
-            .get(index)
-            .ok_or(Error::SurfaceIndex { index, count })?;
+        let old = self.shapes.get(index).ok_or(Error::IndexOutOfRange {
+            what: "surface",
+            index,
+            count,
+        })?;
         let same_shape = old.knots_u() == surface.knots_u()
             && old.knots_v() == surface.knots_v()
             && old.range_u() == surface.range_u()

@@ -4,6 +4,7 @@
 //! combines them. Patches are grouped into chunks whose buffers each fit one binding; the
 //! result is read back into a [`Mesh`] in the layout of surfaces.
 
+use super::batch::GpuMesh;
 use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped};
 use super::curves::{CurveChunk, SAMPLE_BYTES, fits};
 use super::readback::{BufferPool, copy_out, mapped};
@@ -11,7 +12,7 @@ use super::surfaces::{Limits, VERTEX_BYTES, too_large};
 use crate::error::{Error, Result};
 use crate::geom::degenerate_cross_sq;
 use crate::geom::patches::CoonsPatch;
-use crate::mesh::{Mesh, Mesh32, TessOptions, Vertex};
+use crate::mesh::{Mesh, Mesh32, MeshPart, TessOptions, Vertex};
 use crate::plan::{CoonsPlan, check_item_count};
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
@@ -40,13 +41,16 @@ pub(crate) struct CoonsJob {
 }
 
 /// Patches dispatched with one set of buffers.
-#[derive(Default)]
+#[derive(Debug, Default)]
 struct CoonsChunk {
     curves: CurveChunk,
     jobs: Vec<CoonsJob>,
     blends: Vec<f32>,
     vertex_count: u64,
     index_count: u64,
+    /// The chunk's parts: vertices numbered as in the whole plan, index ranges counted in
+    /// the chunk's index buffer.
+    parts: Vec<MeshPart>,
 }
 
 impl CoonsChunk {
@@ -144,6 +148,10 @@ fn pack_coons(
             blend_table,
             pad: 0,
         });
+        chunk.parts.push(MeshPart {
+            first_index: chunk.index_count as u32,
+            ..*part
+        });
         chunk.vertex_count += u64::from(part.vertex_count);
         chunk.index_count += u64::from(part.index_count);
     }
@@ -165,107 +173,165 @@ pub(crate) fn tessellate_coons(
     options: &[TessOptions],
     limits: Limits,
 ) -> Result<Mesh> {
-    let plan = CoonsPlan::new(patches, options)?;
-    let chunks = pack_coons(&plan, patches, &limits)?;
-    let mut mesh = Mesh32 {
-        parts: plan.layout.parts,
-        ..Mesh32::default()
-    };
-    if chunks.is_empty() {
-        return Ok(mesh.to_f64());
+    let work = CoonsWork::prepare(pool, context, patches, options, limits)?;
+    work.run(context)?;
+    let mut mesh = Mesh32::default();
+    work.read_into(pool, context, &mut mesh)?;
+    Ok(mesh.to_f64())
+}
+
+/// Coons patches packed, uploaded and bound on the device, chunk by chunk: dispatch any
+/// number of times, read back or draw. Each chunk has its own vertex and index buffers (a
+/// [`GpuMesh`] whose indices count from the first vertex of all patches: draw it with its
+/// `base_vertex`).
+#[derive(Debug)]
+pub(super) struct CoonsWork {
+    chunks: Vec<CoonsChunk>,
+    /// Per chunk: the boundary curves' bind group and the patches'.
+    bind_groups: Vec<(wgpu::BindGroup, wgpu::BindGroup)>,
+    meshes: Vec<GpuMesh>,
+    parts: Vec<MeshPart>,
+}
+
+impl CoonsWork {
+    /// Plans patch k on the grid of `options[k]`, packs the patches within `limits` and
+    /// uploads them into `pool`'s buffers.
+    pub fn prepare(
+        pool: &mut BufferPool,
+        context: &GpuContext,
+        patches: &[CoonsPatch],
+        options: &[TessOptions],
+        limits: Limits,
+    ) -> Result<Self> {
+        let plan = CoonsPlan::new(patches, options)?;
+        let chunks = pack_coons(&plan, patches, &limits)?;
+        let device = &context.device;
+        let (bind_groups, meshes) = scoped(device, || {
+            let storage = wgpu::BufferUsages::STORAGE;
+            let output = storage | wgpu::BufferUsages::COPY_SRC;
+            let mut bind_groups = Vec::with_capacity(chunks.len());
+            let mut meshes = Vec::with_capacity(chunks.len());
+            let mut first_vertex = 0u64;
+            for (k, chunk) in chunks.iter().enumerate() {
+                let slot = k * SLOTS_PER_CHUNK;
+                let sample_bytes = chunk.curves.sample_count * SAMPLE_BYTES;
+                let label = "knotwork coons boundary samples";
+                let samples = pool.buffer(device, slot + 3, label, sample_bytes, storage);
+                let curves = chunk.curves.bind(context, pool, slot, &samples);
+                let jobs = bytemuck::cast_slice(&chunk.jobs);
+                let jobs = pool.upload(context, slot + 4, "knotwork coons jobs", jobs);
+                let blends = bytemuck::cast_slice(&chunk.blends);
+                let blends = pool.upload(context, slot + 5, "knotwork coons blends", blends);
+                let (vertex_bytes, index_bytes) =
+                    (chunk.vertex_count * VERTEX_BYTES, chunk.index_count * 4);
+                let vertex_usage = output | wgpu::BufferUsages::VERTEX;
+                let index_usage = output | wgpu::BufferUsages::INDEX;
+                let label = "knotwork coons vertices";
+                let vertices = pool.buffer(device, slot + 6, label, vertex_bytes, vertex_usage);
+                let label = "knotwork coons indices";
+                let indices = pool.buffer(device, slot + 7, label, index_bytes, index_usage);
+                let patches = bind_buffers(
+                    context,
+                    &context.kernels.coons_layout,
+                    &[
+                        (&jobs, size_of_val(&chunk.jobs[..]) as u64),
+                        (&samples, sample_bytes),
+                        (&blends, size_of_val(&chunk.blends[..]) as u64),
+                        (&vertices, vertex_bytes),
+                        (&indices, index_bytes),
+                    ],
+                );
+                bind_groups.push((curves, patches));
+                meshes.push(GpuMesh {
+                    vertices,
+                    indices,
+                    vertex_offset: 0,
+                    index_offset: 0,
+                    base_vertex: -(first_vertex as i32),
+                    vertex_count: chunk.vertex_count as u32,
+                    index_count: chunk.index_count as u32,
+                    parts: chunk.parts.clone(),
+                });
+                first_vertex += chunk.vertex_count;
+            }
+            (bind_groups, meshes)
+        })?;
+        Ok(CoonsWork {
+            chunks,
+            bind_groups,
+            meshes,
+            parts: plan.layout.parts,
+        })
     }
-    let device = &context.device;
-    let outputs = scoped(device, || {
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("knotwork coons"),
-        });
-        let storage = wgpu::BufferUsages::STORAGE;
-        let output = storage | wgpu::BufferUsages::COPY_SRC;
-        let mut outputs = Vec::with_capacity(chunks.len());
-        for (k, chunk) in chunks.iter().enumerate() {
-            let slot = k * SLOTS_PER_CHUNK;
-            let samples = pool.buffer(
-                device,
-                slot + 3,
-                "knotwork coons boundary samples",
-                chunk.curves.sample_count * SAMPLE_BYTES,
-                storage,
-            );
-            chunk
-                .curves
-                .encode(context, pool, slot, &mut encoder, &samples);
-            let jobs = pool.upload(
-                context,
-                slot + 4,
-                "knotwork coons jobs",
-                bytemuck::cast_slice(&chunk.jobs),
-            );
-            let blends = pool.upload(
-                context,
-                slot + 5,
-                "knotwork coons blends",
-                bytemuck::cast_slice(&chunk.blends),
-            );
-            let vertices = pool.buffer(
-                device,
-                slot + 6,
-                "knotwork coons vertices",
-                chunk.vertex_count * VERTEX_BYTES,
-                output,
-            );
-            let indices = pool.buffer(
-                device,
-                slot + 7,
-                "knotwork coons indices",
-                chunk.index_count * 4,
-                output,
-            );
-            let bind_group = bind_buffers(
-                context,
-                &context.kernels.coons_layout,
-                &[
-                    (&jobs, size_of_val(&chunk.jobs[..]) as u64),
-                    (&samples, chunk.curves.sample_count * SAMPLE_BYTES),
-                    (&blends, size_of_val(&chunk.blends[..]) as u64),
-                    (&vertices, chunk.vertex_count * VERTEX_BYTES),
-                    (&indices, chunk.index_count * 4),
-                ],
-            );
+
+    /// Records every chunk: its boundary curves, then its patches.
+    pub fn encode(&self, context: &GpuContext, encoder: &mut wgpu::CommandEncoder) {
+        for (chunk, (curves, patches)) in self.chunks.iter().zip(&self.bind_groups) {
+            chunk.curves.record(context, encoder, curves);
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("knotwork coons"),
                 timestamp_writes: None,
             });
             pass.set_pipeline(&context.kernels.coons_pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
+            pass.set_bind_group(0, patches, &[]);
             dispatch_flat(&mut pass, chunk.vertex_count, WORKGROUP);
-            drop(pass);
-            outputs.push((vertices, indices));
         }
-        context.queue.submit([encoder.finish()]);
-        outputs
-    })?;
-    let sources: Vec<(&wgpu::Buffer, u64, u64)> = outputs
-        .iter()
-        .zip(&chunks)
-        .flat_map(|((vertices, indices), chunk)| {
-            [
-                (vertices, 0, chunk.vertex_count * VERTEX_BYTES),
-                (indices, 0, chunk.index_count * 4),
-            ]
+    }
+
+    /// Dispatches every chunk in one submission.
+    pub fn run(&self, context: &GpuContext) -> Result<()> {
+        let device = &context.device;
+        scoped(device, || {
+            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("knotwork coons"),
+            });
+            self.encode(context, &mut encoder);
+            context.queue.submit([encoder.finish()]);
         })
-        .collect();
-    pool.read(context, &sources, |staged| {
-        let (mut vertices, mut indices) = (Vec::<Vertex>::new(), Vec::<u32>::new());
-        for (pair, (_, chunk)) in staged.chunks_exact(2).zip(outputs.iter().zip(&chunks)) {
-            copy_out(
-                &mapped(&pair[0], chunk.vertex_count * VERTEX_BYTES)?,
-                &mut vertices,
-            );
-            copy_out(&mapped(&pair[1], chunk.index_count * 4)?, &mut indices);
-            mesh.vertices.extend_from_slice(&vertices);
-            mesh.indices.extend_from_slice(&indices);
+    }
+
+    /// The output buffers, one mesh per chunk.
+    pub fn meshes(&self) -> &[GpuMesh] {
+        &self.meshes
+    }
+
+    /// Reads every chunk back into `mesh` (vertices, indices and parts replaced; its
+    /// polylines kept), in the layout of the plan.
+    pub fn read_into(
+        &self,
+        pool: &BufferPool,
+        context: &GpuContext,
+        mesh: &mut Mesh32,
+    ) -> Result<()> {
+        mesh.vertices.clear();
+        mesh.indices.clear();
+        mesh.parts.clone_from(&self.parts);
+        let sources: Vec<(&wgpu::Buffer, u64, u64)> = self
+            .meshes
+            .iter()
+            .flat_map(|m| {
+                [
+                    (&m.vertices, 0, u64::from(m.vertex_count) * VERTEX_BYTES),
+                    (&m.indices, 0, u64::from(m.index_count) * 4),
+                ]
+            })
+            .collect();
+        if sources.is_empty() {
+            return Ok(());
         }
-        Ok(())
-    })?;
-    Ok(mesh.to_f64())
+        pool.read(context, &sources, |staged| {
+            let (mut vertices, mut indices) = (Vec::<Vertex>::new(), Vec::<u32>::new());
+            for (pair, m) in staged.chunks_exact(2).zip(&self.meshes) {
+                let vertex_bytes = u64::from(m.vertex_count) * VERTEX_BYTES;
+                copy_out(&mapped(&pair[0], vertex_bytes)?, &mut vertices);
+                copy_out(
+                    &mapped(&pair[1], u64::from(m.index_count) * 4)?,
+                    &mut indices,
+                );
+                mesh.vertices.extend_from_slice(&vertices);
+                mesh.indices.extend_from_slice(&indices);
+            }
+            Ok(())
+        })
+    }
 }

@@ -91,17 +91,16 @@ impl CurveChunk {
         self.sample_count += samples.len() as u64;
     }
 
-    /// Uploads the chunk into `pool` slots `first_slot..first_slot + 3` and records its
-    /// dispatch, writing the samples into `output` (`sample_count` × 48 bytes: position,
+    /// Uploads the chunk into `pool` slots `first_slot..first_slot + 3` and binds it with
+    /// `output`, where the kernel writes its samples (`sample_count` × 48 bytes: position,
     /// C′, C″ as vec4<f32> each).
-    pub fn encode(
+    pub fn bind(
         &self,
         context: &GpuContext,
         pool: &mut BufferPool,
         first_slot: usize,
-        encoder: &mut wgpu::CommandEncoder,
         output: &wgpu::Buffer,
-    ) {
+    ) -> wgpu::BindGroup {
         let mut input =
             |slot, label, bytes: &[u8]| pool.upload(context, first_slot + slot, label, bytes);
         let buffers = [
@@ -117,7 +116,7 @@ impl CurveChunk {
                 bytemuck::cast_slice(&self.tables),
             ),
         ];
-        let bind_group = bind_buffers(
+        bind_buffers(
             context,
             &context.kernels.curve_layout,
             &[
@@ -126,13 +125,22 @@ impl CurveChunk {
                 (&buffers[2], size_of_val(&self.tables[..]) as u64),
                 (output, self.sample_count * SAMPLE_BYTES),
             ],
-        );
+        )
+    }
+
+    /// Records the chunk's dispatch with its `bind_group`.
+    pub fn record(
+        &self,
+        context: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        bind_group: &wgpu::BindGroup,
+    ) {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("knotwork curves"),
             timestamp_writes: None,
         });
         pass.set_pipeline(&context.kernels.curve_pipeline);
-        pass.set_bind_group(0, &bind_group, &[]);
+        pass.set_bind_group(0, bind_group, &[]);
         dispatch_flat(&mut pass, self.sample_count, WORKGROUP);
     }
 }
@@ -190,70 +198,155 @@ pub fn sample_curves(
     samples: &[u32],
     limits: Limits,
 ) -> Result<Vec<Polyline>> {
-    sample_curves_in(&mut BufferPool::default(), context, curves, samples, limits)
+    let mut pool = BufferPool::default();
+    let work = CurveWork::prepare(&mut pool, context, curves, samples, limits)?;
+    work.run(context)?;
+    work.read(&pool, context)
 }
 
 /// Buffers per curve chunk in a pool: jobs, points, tables, samples.
 const SLOTS_PER_CHUNK: usize = 4;
 
-/// As [`sample_curves`], with every device and staging buffer taken from `pool`.
-pub(super) fn sample_curves_in(
-    pool: &mut BufferPool,
-    context: &GpuContext,
-    curves: &[BSplineCurve],
-    samples: &[u32],
-    limits: Limits,
-) -> Result<Vec<Polyline>> {
-    let chunks = pack_curves(&CurvePlan::new(curves, samples)?, curves, &limits)?;
-    if chunks.is_empty() {
-        return Ok(Vec::new());
-    }
-    let device = &context.device;
-    let outputs = scoped(device, || {
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("knotwork curves"),
-        });
-        let mut outputs = Vec::with_capacity(chunks.len());
-        for (k, chunk) in chunks.iter().enumerate() {
-            let slot = k * SLOTS_PER_CHUNK;
-            let output = pool.buffer(
-                device,
-                slot + 3,
-                "knotwork curve samples",
-                chunk.sample_count * SAMPLE_BYTES,
-                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            );
-            chunk.encode(context, pool, slot, &mut encoder, &output);
-            outputs.push(output);
-        }
-        context.queue.submit([encoder.finish()]);
-        outputs
-    })?;
-    let sources: Vec<(&wgpu::Buffer, u64, u64)> = outputs
-        .iter()
-        .zip(&chunks)
-        .map(|(buffer, chunk)| (buffer, 0, chunk.sample_count * SAMPLE_BYTES))
-        .collect();
-    pool.read(context, &sources, |staged| {
-        let mut polylines = Vec::with_capacity(curves.len());
-        for (buffer, chunk) in staged.iter().zip(&chunks) {
-            let view = mapped(buffer, chunk.sample_count * SAMPLE_BYTES)?;
-            let floats: &[f32] = bytemuck::cast_slice(&view);
-            let vector = |v: &[f32]| DVec3::new(v[0].into(), v[1].into(), v[2].into());
-            for job in &chunk.jobs {
-                let first = job.first_sample as usize * 12;
-                let samples = &floats[first..first + job.samples as usize * 12];
-                polylines.push(Polyline {
-                    item: polylines.len() as u32,
-                    positions: samples.chunks_exact(12).map(|s| vector(&s[0..3])).collect(),
-                    tangents: samples.chunks_exact(12).map(|s| vector(&s[4..7])).collect(),
-                });
-            }
-        }
-        Ok(polylines)
-    })
+/// The samples of curves on the device, ready to draw as line strips: per vertex a position
+/// (`Float32x3` at offset 0), C′ (`Float32x3` at 16) and C″ (at 32), stride [`SAMPLE_BYTES`].
+#[derive(Debug, Clone)]
+pub struct GpuLines {
+    pub samples: wgpu::Buffer,
+    /// (first sample, sample count) of each curve in `samples`: one line strip each.
+    pub strips: Vec<(u32, u32)>,
 }
 
+impl GpuLines {
+    /// Position and C′ at shader locations 0 and 1.
+    pub const VERTEX_ATTRIBUTES: [wgpu::VertexAttribute; 2] = [
+        wgpu::VertexAttribute {
+            format: wgpu::VertexFormat::Float32x3,
+            offset: 0,
+            shader_location: 0,
+        },
+        wgpu::VertexAttribute {
+            format: wgpu::VertexFormat::Float32x3,
+            offset: 16,
+            shader_location: 1,
+        },
+    ];
+
+    /// The layout of `samples` for a render pipeline's vertex state (line-strip topology).
+    pub fn vertex_buffer_layout() -> wgpu::VertexBufferLayout<'static> {
+        wgpu::VertexBufferLayout {
+            array_stride: SAMPLE_BYTES,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &Self::VERTEX_ATTRIBUTES,
+        }
+    }
+}
+
+/// Curves packed, uploaded and bound on the device, chunk by chunk: dispatch any number of
+/// times, read back or draw.
+#[derive(Debug)]
+pub(super) struct CurveWork {
+    chunks: Vec<CurveChunk>,
+    bind_groups: Vec<wgpu::BindGroup>,
+    lines: Vec<GpuLines>,
+}
+
+impl CurveWork {
+    /// Plans curve k with `samples[k]` samples, packs the curves within `limits` and uploads
+    /// them into `pool`'s buffers.
+    pub fn prepare(
+        pool: &mut BufferPool,
+        context: &GpuContext,
+        curves: &[BSplineCurve],
+        samples: &[u32],
+        limits: Limits,
+    ) -> Result<Self> {
+        let chunks = pack_curves(&CurvePlan::new(curves, samples)?, curves, &limits)?;
+        let device = &context.device;
+        let (bind_groups, lines) = scoped(device, || {
+            let mut bind_groups = Vec::with_capacity(chunks.len());
+            let mut lines = Vec::with_capacity(chunks.len());
+            for (k, chunk) in chunks.iter().enumerate() {
+                let slot = k * SLOTS_PER_CHUNK;
+                let usage = wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::VERTEX;
+                let bytes = chunk.sample_count * SAMPLE_BYTES;
+                let output = pool.buffer(device, slot + 3, "knotwork curve samples", bytes, usage);
+                bind_groups.push(chunk.bind(context, pool, slot, &output));
+                let strips = chunk
+                    .jobs
+                    .iter()
+                    .map(|j| (j.first_sample, j.samples))
+                    .collect();
+                lines.push(GpuLines {
+                    samples: output,
+                    strips,
+                });
+            }
+            (bind_groups, lines)
+        })?;
+        Ok(CurveWork {
+            chunks,
+            bind_groups,
+            lines,
+        })
+    }
+
+    /// Records every chunk's dispatch.
+    pub fn encode(&self, context: &GpuContext, encoder: &mut wgpu::CommandEncoder) {
+        for (chunk, bind_group) in self.chunks.iter().zip(&self.bind_groups) {
+            chunk.record(context, encoder, bind_group);
+        }
+    }
+
+    /// Dispatches every chunk in one submission.
+    pub fn run(&self, context: &GpuContext) -> Result<()> {
+        let device = &context.device;
+        scoped(device, || {
+            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("knotwork curves"),
+            });
+            self.encode(context, &mut encoder);
+            context.queue.submit([encoder.finish()]);
+        })
+    }
+
+    /// The samples buffers, one per chunk.
+    pub fn lines(&self) -> &[GpuLines] {
+        &self.lines
+    }
+
+    /// Reads the samples back as polylines (positions and tangents), in curve order.
+    pub fn read(&self, pool: &BufferPool, context: &GpuContext) -> Result<Vec<Polyline>> {
+        let sources: Vec<(&wgpu::Buffer, u64, u64)> = self
+            .lines
+            .iter()
+            .zip(&self.chunks)
+            .map(|(lines, chunk)| (&lines.samples, 0, chunk.sample_count * SAMPLE_BYTES))
+            .collect();
+        if sources.is_empty() {
+            return Ok(Vec::new());
+        }
+        pool.read(context, &sources, |staged| {
+            let mut polylines = Vec::new();
+            for (buffer, chunk) in staged.iter().zip(&self.chunks) {
+                let view = mapped(buffer, chunk.sample_count * SAMPLE_BYTES)?;
+                let floats: &[f32] = bytemuck::cast_slice(&view);
+                let vector = |v: &[f32]| DVec3::new(v[0].into(), v[1].into(), v[2].into());
+                for job in &chunk.jobs {
+                    let first = job.first_sample as usize * 12;
+                    let samples = &floats[first..first + job.samples as usize * 12];
+                    polylines.push(Polyline {
+                        item: polylines.len() as u32,
+                        positions: samples.chunks_exact(12).map(|s| vector(&s[0..3])).collect(),
+                        tangents: samples.chunks_exact(12).map(|s| vector(&s[4..7])).collect(),
+                    });
+                }
+            }
+            Ok(polylines)
+        })
+    }
+}
 #[cfg(test)]
 mod tests {
     use super::*;

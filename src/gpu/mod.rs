@@ -37,7 +37,7 @@ pub mod tessellator;
 
 pub use batch::{BatchDescriptor, BufferSlice, GpuBatch, GpuMesh, OutputTargets};
 pub use context::{GpuContext, headless_instance};
-pub use curves::sample_curves;
+pub use curves::{GpuLines, sample_curves};
 pub use surfaces::{Limits, VERTEX_BYTES};
 pub use tessellator::GpuTessellator;
 

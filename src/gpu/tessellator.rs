@@ -4,8 +4,9 @@
 
 use super::batch::{BatchDescriptor, GpuBatch};
 use super::context::GpuContext;
+use super::coons;
+use super::curves::CurveWork;
 use super::readback::BufferPool;
-use super::{coons, curves};
 use crate::Tessellator;
 use crate::error::Result;
 use crate::geom::patches::CoonsPatch;
@@ -126,14 +127,10 @@ impl Tessellator for GpuTessellator {
     }
 
     fn tessellate_curves(&self, curves: &[BSplineCurve], samples: &[u32]) -> Result<Vec<Polyline>> {
-        let limits = self.context.limits();
-        curves::sample_curves_in(
-            &mut lock(&self.curves),
-            &self.context,
-            curves,
-            samples,
-            limits,
-        )
+        let pool = &mut lock(&self.curves);
+        let work = CurveWork::prepare(pool, &self.context, curves, samples, self.context.limits())?;
+        work.run(&self.context)?;
+        work.read(pool, &self.context)
     }
 
     fn name(&self) -> String {
