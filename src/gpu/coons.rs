@@ -5,15 +5,16 @@
 //! result is read back into a [`Mesh`] in the layout of surfaces.
 
 use super::batch::GpuMesh;
+use super::chunks::{additive_chunk_ranges, over_budget};
 use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped};
-use super::curves::{CurveChunk, SAMPLE_BYTES, fits};
+use super::curves::{CurveChunk, SAMPLE_BYTES};
 use super::readback::{BufferPool, copy_out, mapped};
 use super::surfaces::{Limits, VERTEX_BYTES, too_large};
 use crate::error::{Error, Result};
 use crate::geom::degenerate_cross_sq;
 use crate::geom::patches::CoonsPatch;
 use crate::mesh::{Mesh, Mesh32, MeshPart, TessOptions, Vertex};
-use crate::plan::{CoonsPlan, check_item_count};
+use crate::plan::{CoonsPlan, CoonsSamples, check_item_count};
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
@@ -51,23 +52,6 @@ struct CoonsChunk {
     /// The chunk's parts: vertices numbered as in the whole plan, index ranges counted in
     /// the chunk's index buffer.
     parts: Vec<MeshPart>,
-}
-
-impl CoonsChunk {
-    /// Bytes the chunk's buffers take, in the order of [`patch_bytes`].
-    fn bytes(&self) -> [u64; 8] {
-        let [samples, points, tables, curve_list] = self.curves.bytes();
-        [
-            self.vertex_count * VERTEX_BYTES,
-            self.index_count * 4,
-            self.blends.len() as u64 * 4,
-            self.jobs.len() as u64 * size_of::<CoonsJob>() as u64,
-            samples,
-            points,
-            tables,
-            curve_list,
-        ]
-    }
 }
 
 /// Bytes a patch on an `nu × nv` grid adds to each buffer of a chunk — vertices, indices,
@@ -108,55 +92,62 @@ fn pack_coons(
 ) -> Result<Vec<CoonsChunk>> {
     check_item_count(plan.items.len(), patches.len())?;
     let budget = limits.binding_bytes.min(limits.buffer_bytes);
-    let mut chunks = vec![CoonsChunk::default()];
+    let mut needs = Vec::with_capacity(patches.len());
     for (index, (patch, item)) in patches.iter().zip(&plan.items).enumerate() {
-        let part = &item.part;
-        let (nu, nv) = (part.grid_u, part.grid_v);
-        let needs = patch_bytes(patch, nu, nv);
-        if let Some(&(what, bytes)) = needs.iter().find(|(_, b)| *b > budget) {
+        let need = patch_bytes(patch, item.part.grid_u, item.part.grid_v);
+        if let Some((what, bytes)) = over_budget(&need, budget) {
             return Err(Error::InSurface {
                 index,
                 source: Box::new(too_large(what, bytes, budget)),
             });
         }
-        let last = chunks.last().expect("one chunk at least");
-        if !fits(last.bytes(), needs, budget) {
-            chunks.push(CoonsChunk::default());
-        }
-        let chunk = chunks.last_mut().expect("one chunk at least");
-        let (lo, hi) = patch.control_box();
-        let origin = 0.5 * (lo + hi);
-        let degenerate_sq = degenerate_cross_sq(patch.cross_scale(), f64::from(f32::EPSILON));
-        let first_sample = chunk.curves.sample_count as u32;
-        for (curve, samples) in patch.boundaries().iter().zip(&item.boundaries) {
-            chunk.curves.push(curve, samples, origin, DVec3::ZERO);
-        }
-        let blend_table = chunk.blends.len() as u32;
-        for blend in item.column_blends.iter().chain(&item.row_blends) {
-            chunk.blends.extend(blend.map(|x| x as f32));
-        }
-        chunk.jobs.push(CoonsJob {
-            origin: origin.as_vec3().to_array(),
-            degenerate_sq: degenerate_sq as f32,
-            corners: patch.corners().map(|c| (c - origin).as_vec3().to_array()),
-            grid_u: nu,
-            grid_v: nv,
-            first_vertex: chunk.vertex_count as u32,
-            first_index: chunk.index_count as u32,
-            mesh_vertex: part.first_vertex,
-            first_sample,
-            blend_table,
-            pad: 0,
-        });
-        chunk.parts.push(MeshPart {
-            first_index: chunk.index_count as u32,
-            ..*part
-        });
-        chunk.vertex_count += u64::from(part.vertex_count);
-        chunk.index_count += u64::from(part.index_count);
+        needs.push(need.map(|(_, bytes)| bytes));
     }
-    chunks.retain(|chunk| !chunk.jobs.is_empty());
+    let mut chunks = Vec::new();
+    for range in additive_chunk_ranges(&needs, budget) {
+        chunks.push(CoonsChunk::default());
+        let chunk = chunks.last_mut().expect("pushed above");
+        for (patch, item) in patches[range.clone()].iter().zip(&plan.items[range]) {
+            push_patch(chunk, patch, item);
+        }
+    }
     Ok(chunks)
+}
+
+/// Adds `patch`, planned as `item`, to `chunk`: its boundary curves, blend table and record.
+fn push_patch(chunk: &mut CoonsChunk, patch: &CoonsPatch, item: &CoonsSamples) {
+    let part = &item.part;
+    let (nu, nv) = (part.grid_u, part.grid_v);
+    let (lo, hi) = patch.control_box();
+    let origin = 0.5 * (lo + hi);
+    let degenerate_sq = degenerate_cross_sq(patch.cross_scale(), f64::from(f32::EPSILON));
+    let first_sample = chunk.curves.sample_count as u32;
+    for (curve, samples) in patch.boundaries().iter().zip(&item.boundaries) {
+        chunk.curves.push(curve, samples, origin, DVec3::ZERO);
+    }
+    let blend_table = chunk.blends.len() as u32;
+    for blend in item.column_blends.iter().chain(&item.row_blends) {
+        chunk.blends.extend(blend.map(|x| x as f32));
+    }
+    chunk.jobs.push(CoonsJob {
+        origin: origin.as_vec3().to_array(),
+        degenerate_sq: degenerate_sq as f32,
+        corners: patch.corners().map(|c| (c - origin).as_vec3().to_array()),
+        grid_u: nu,
+        grid_v: nv,
+        first_vertex: chunk.vertex_count as u32,
+        first_index: chunk.index_count as u32,
+        mesh_vertex: part.first_vertex,
+        first_sample,
+        blend_table,
+        pad: 0,
+    });
+    chunk.parts.push(MeshPart {
+        first_index: chunk.index_count as u32,
+        ..*part
+    });
+    chunk.vertex_count += u64::from(part.vertex_count);
+    chunk.index_count += u64::from(part.index_count);
 }
 
 /// Buffers per Coons chunk in a pool: the boundary curves' jobs, points, tables and

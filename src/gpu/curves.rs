@@ -3,6 +3,7 @@
 //! control points, with basis values computed on the host in f64, and read back as
 //! [`Polyline`]s. Curves are grouped into chunks whose buffers each fit one binding.
 
+use super::chunks::{additive_chunk_ranges, over_budget};
 use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped};
 use super::readback::{BufferPool, mapped};
 use super::surfaces::{Limits, local_points, push_table, too_large};
@@ -55,16 +56,6 @@ impl CurveChunk {
             ),
             ("the basis table of a curve", count * entry_floats * 4),
             ("a curve record", size_of::<CurveJob>() as u64),
-        ]
-    }
-
-    /// Bytes the chunk's buffers take, in the order of [`CurveChunk::curve_bytes`].
-    pub fn bytes(&self) -> [u64; 4] {
-        [
-            self.sample_count * SAMPLE_BYTES,
-            self.points.len() as u64 * 16,
-            self.tables.len() as u64 * 4,
-            self.jobs.len() as u64 * size_of::<CurveJob>() as u64,
         ]
     }
 
@@ -145,17 +136,6 @@ impl CurveChunk {
     }
 }
 
-/// Whether a chunk using `have` bytes of each buffer can take `needs` more within `budget`.
-pub(crate) fn fits<const N: usize>(
-    have: [u64; N],
-    needs: [(&'static str, u64); N],
-    budget: u64,
-) -> bool {
-    have.iter()
-        .zip(needs)
-        .all(|(have, (_, add))| have + add <= budget)
-}
-
 /// Groups consecutive curves of `plan` (made for `curves`) into chunks whose every buffer
 /// fits one binding of `limits`. Sizes are checked before anything is allocated for them: a
 /// curve that alone exceeds a binding is refused.
@@ -166,25 +146,29 @@ fn pack_curves(
 ) -> Result<Vec<CurveChunk>> {
     check_item_count(plan.items.len(), curves.len())?;
     let budget = limits.binding_bytes.min(limits.buffer_bytes);
-    let mut chunks = vec![CurveChunk::default()];
+    let mut needs = Vec::with_capacity(curves.len());
     for (index, (curve, item)) in curves.iter().zip(&plan.items).enumerate() {
-        let needs = CurveChunk::curve_bytes(curve, item.samples.len());
-        if let Some(&(what, bytes)) = needs.iter().find(|(_, bytes)| *bytes > budget) {
+        let need = CurveChunk::curve_bytes(curve, item.samples.len());
+        if let Some((what, bytes)) = over_budget(&need, budget) {
             return Err(Error::InCurve {
                 index,
                 source: Box::new(too_large(what, bytes, budget)),
             });
         }
-        let last = chunks.last().expect("one chunk at least");
-        if !fits(last.bytes(), needs, budget) {
-            chunks.push(CurveChunk::default());
-        }
-        let (lo, hi) = cartesian_box(curve.homogeneous_points());
-        let origin = 0.5 * (lo + hi);
-        let chunk = chunks.last_mut().expect("one chunk at least");
-        chunk.push(curve, &item.samples, origin, origin);
+        needs.push(need.map(|(_, bytes)| bytes));
     }
-    chunks.retain(|chunk| !chunk.jobs.is_empty());
+    let chunks = additive_chunk_ranges(&needs, budget)
+        .into_iter()
+        .map(|range| {
+            let mut chunk = CurveChunk::default();
+            for (curve, item) in curves[range.clone()].iter().zip(&plan.items[range]) {
+                let (lo, hi) = cartesian_box(curve.homogeneous_points());
+                let origin = 0.5 * (lo + hi);
+                chunk.push(curve, &item.samples, origin, origin);
+            }
+            chunk
+        })
+        .collect();
     Ok(chunks)
 }
 

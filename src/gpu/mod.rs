@@ -28,6 +28,7 @@
 //! buffers exceed `max_buffer_size` is refused with [`crate::Error::GpuJobTooLarge`].
 
 pub mod batch;
+mod chunks;
 pub mod context;
 mod coons;
 mod curves;

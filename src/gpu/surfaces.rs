@@ -3,6 +3,7 @@
 //! as f32, basis tables of every grid column and row computed in f64 and rounded once, and
 //! the pieces grouped into chunks whose buffer ranges fit the adapter's binding limits.
 
+use super::chunks::chunk_ranges;
 use crate::error::{Error, Result};
 use crate::geom::{BSplineSurface, degenerate_cross_sq};
 use crate::mesh::MeshPart;
@@ -388,41 +389,44 @@ fn plan_chunks(packed: &mut Packed, limits: &Limits, budget: u64) {
             .map(|&n| u64::from(n.div_ceil(TILE)))
             .sum::<u64>()
     };
-    let mut start = 0;
-    while start < packed.pieces.len() {
-        // Extend the chunk while every binding still fits.
+    // Per piece, and summed up to each piece: its tiles and its contracted scratch.
+    let mut tiles_before = vec![0u64];
+    let mut contracted_before = vec![0u64];
+    for piece in &packed.pieces {
+        let scratch =
+            u64::from(piece.rows) * u64::from(scratch_per_row(piece.segments, piece.count_u));
+        tiles_before.push(tiles_before[tiles_before.len() - 1] + tiles_of(piece));
+        contracted_before.push(contracted_before[contracted_before.len() - 1] + scratch);
+    }
+    // What each binding needs for pieces first..=last: the spans of the output and input
+    // ranges they cover, and their piece, tile and scratch entries.
+    let span_bytes = |first: usize, last: usize| {
+        let (a, b) = (packed.pieces[first], packed.pieces[last]);
+        let (first_slot, last_slot) = (
+            packed.surfaces[packed.piece_surfaces[first]],
+            packed.surfaces[packed.piece_surfaces[last]],
+        );
+        [
+            (u64::from(b.first_vertex + b.rows * b.grid_u) - u64::from(a.first_vertex))
+                * VERTEX_BYTES,
+            (u64::from(b.first_index + b.cell_rows * 6 * (b.grid_u - 1))
+                - u64::from(a.first_index))
+                * 4,
+            (last_slot.first_point + last_slot.point_count - first_slot.first_point) as u64 * 16,
+            (last_slot.tables.1 - first_slot.tables.0) as u64 * 4,
+            (last + 1 - first) as u64 * size_of::<Piece>() as u64,
+            (tiles_before[last + 1] - tiles_before[first]) * size_of::<Tile>() as u64,
+            (contracted_before[last + 1] - contracted_before[first]) * 16,
+        ]
+    };
+    for range in chunk_ranges(packed.pieces.len(), budget, span_bytes) {
+        let (start, end) = (range.start, range.end);
         let first = packed.pieces[start];
         let first_slot = packed.surfaces[packed.piece_surfaces[start]];
-        let (mut end, mut contracted, mut tiles) = (start, 0u64, 0u64);
-        loop {
-            let piece = packed.pieces[end];
-            let slot = packed.surfaces[packed.piece_surfaces[end]];
-            let next_contracted = contracted
-                + u64::from(piece.rows) * u64::from(scratch_per_row(piece.segments, piece.count_u));
-            let next_tiles = tiles + tiles_of(&piece);
-            let bytes = [
-                (u64::from(piece.first_vertex + piece.rows * piece.grid_u)
-                    - u64::from(first.first_vertex))
-                    * VERTEX_BYTES,
-                (u64::from(piece.first_index + piece.cell_rows * 6 * (piece.grid_u - 1))
-                    - u64::from(first.first_index))
-                    * 4,
-                (slot.first_point + slot.point_count - first_slot.first_point) as u64 * 16,
-                (slot.tables.1 - first_slot.tables.0) as u64 * 4,
-                (end + 1 - start) as u64 * size_of::<Piece>() as u64,
-                next_tiles * size_of::<Tile>() as u64,
-                next_contracted * 16,
-            ];
-            if end > start && bytes.iter().any(|&b| b > budget) {
-                break;
-            }
-            packed.pieces[end].contracted = contracted as u32;
-            (contracted, tiles) = (next_contracted, next_tiles);
-            end += 1;
-            if end == packed.pieces.len() {
-                break;
-            }
+        for k in range {
+            packed.pieces[k].contracted = (contracted_before[k] - contracted_before[start]) as u32;
         }
+        let contracted = contracted_before[end] - contracted_before[start];
         let last = packed.pieces[end - 1];
         let last_slot = packed.surfaces[packed.piece_surfaces[end - 1]];
         let tiles_origin = align(packed.tiles.len() as u64, size_of::<Tile>() as u64);
@@ -470,7 +474,6 @@ fn plan_chunks(packed: &mut Packed, limits: &Limits, budget: u64) {
             contracted_len: contracted,
         });
         packed.contracted_len = packed.contracted_len.max(contracted);
-        start = end;
     }
 }
 
