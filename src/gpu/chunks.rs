@@ -73,7 +73,10 @@ mod tests {
             next = range.end;
         }
         assert_eq!(next, needs.len());
-        assert_eq!(additive_chunk_ranges(&[[100u64]], 10), [0..1]);
+        assert_eq!(
+            additive_chunk_ranges(&[[100u64]], 10),
+            vec![std::ops::Range { start: 0, end: 1 }]
+        );
         assert!(additive_chunk_ranges::<1>(&[], 10).is_empty());
     }
 }
