@@ -9,6 +9,8 @@ use crate::geom::{
     shapes,
 };
 use crate::mesh::{Mesh, Polyline, TessOptions};
+use crate::gpu::{GpuBatch, GpuContext};
+use crate::plan::SurfacePlan;
 use crate::{CpuTessellator, Tessellator};
 use glam::{DVec2, DVec3};
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -104,7 +106,27 @@ pub fn compare_each(
 ) -> Result<Report> {
     let mut reference = Mesh::default();
     CpuTessellator.tessellate_each_into(surfaces, options, &mut reference)?;
-    Ok(compare_with_reference(&reference, mesh, |part, uv| {
+    Ok(compare_surfaces(surfaces, &reference, mesh))
+}
+
+/// Runs both executors on one plan of `surfaces` (surface k on the grid of `options[k]`) —
+/// the f64 CPU executor and a GPU batch on `context` — and compares them vertex for vertex.
+pub fn compare_executors(
+    context: &GpuContext,
+    surfaces: &[BSplineSurface],
+    options: &[TessOptions],
+) -> Result<Report> {
+    let plan = SurfacePlan::new(surfaces, options)?;
+    let mut reference = Mesh::default();
+    crate::cpu::execute_surfaces(&plan, surfaces, &mut reference)?;
+    let batch = GpuBatch::from_plan(context, &plan, surfaces)?;
+    batch.dispatch()?;
+    Ok(compare_surfaces(surfaces, &reference, &batch.read_mesh()?))
+}
+
+/// Compares `mesh` with the f64 `reference` of `surfaces`.
+fn compare_surfaces(surfaces: &[BSplineSurface], reference: &Mesh, mesh: &Mesh) -> Report {
+    compare_with_reference(reference, mesh, |part, uv| {
         let surface = &surfaces[part];
         let sample = surface.evaluate(surface.range_u().lerp(uv.x), surface.range_v().lerp(uv.y));
         let cross = sample.du.cross(sample.dv).length();
@@ -112,7 +134,7 @@ pub fn compare_each(
             surface.control_box_diagonal(),
             cross >= REGULAR_REL * surface.cross_scale(),
         )
-    }))
+    })
 }
 
 /// Compares `mesh` (from any backend) with the f64 reference for directly evaluated Coons

@@ -101,10 +101,9 @@ fn conformance_suite_passes_on_this_adapter() {
         "case", "position/diag", "normal (rad)", "degen. (rad)"
     );
     for case in conformance::suite() {
-        let mesh = tessellator
-            .tessellate(&case.surfaces, &case.options)
-            .unwrap();
-        let report = conformance::compare(&case.surfaces, &case.options, &mesh).unwrap();
+        // Both executors run the same plan and are compared vertex for vertex.
+        let options = vec![case.options; case.surfaces.len()];
+        let report = conformance::compare_executors(context, &case.surfaces, &options).unwrap();
         println!(
             "{:<48} {:>14.3e} {:>14.3e} {:>14.3e} uv {:.1e}  ({} vertices, {} near degenerate points)",
             case.name,

@@ -307,6 +307,32 @@ impl GpuBatch {
     /// Plans and uploads the surfaces of `descriptor`, and allocates the output buffers.
     /// Fails with [`Error::GpuJobTooLarge`] if the outputs exceed the planning limits.
     pub fn new(context: &GpuContext, descriptor: &BatchDescriptor) -> Result<Self> {
+        let plan = SurfacePlan::new(descriptor.surfaces, &descriptor.options)?;
+        Self::with_plan(context, descriptor, &plan)
+    }
+
+    /// A readback batch executing `plan` (made for `surfaces`) as it is, within the device's
+    /// limits: what conformance runs beside the CPU executor on the same plan.
+    pub fn from_plan(
+        context: &GpuContext,
+        plan: &SurfacePlan,
+        surfaces: &[BSplineSurface],
+    ) -> Result<Self> {
+        let options: Vec<TessOptions> = plan
+            .items
+            .iter()
+            .map(|item| TessOptions::DEFAULT.with_grid(item.part.grid_u, item.part.grid_v))
+            .collect();
+        let descriptor = BatchDescriptor::each(surfaces, &options).for_readback();
+        Self::with_plan(context, &descriptor, plan)
+    }
+
+    /// [`GpuBatch::new`] with the surfaces' plan given.
+    fn with_plan(
+        context: &GpuContext,
+        descriptor: &BatchDescriptor,
+        plan: &SurfacePlan,
+    ) -> Result<Self> {
         let device = &context.device;
         let limits = descriptor.limits.unwrap_or_else(|| context.limits());
         if let Some(targets) = &descriptor.targets {
@@ -318,11 +344,7 @@ impl GpuBatch {
             && device
                 .features()
                 .contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
-        let packed = surfaces::pack(
-            &SurfacePlan::new(descriptor.surfaces, &descriptor.options)?,
-            descriptor.surfaces,
-            &limits,
-        )?;
+        let packed = surfaces::pack(plan, descriptor.surfaces, &limits)?;
         let input = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         let output = output_usage(mappable);
         let mut allocations = INPUT_BUFFERS;
