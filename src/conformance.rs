@@ -8,8 +8,8 @@ use crate::geom::{
     BSplineCurve, BSplineSurface, Interval, KnotVector, bezier_curve, bezier_surface, curves,
     shapes,
 };
-use crate::mesh::{Mesh, Polyline, TessOptions};
 use crate::gpu::{GpuBatch, GpuContext};
+use crate::mesh::{Mesh, Polyline, TessOptions};
 use crate::plan::SurfacePlan;
 use crate::{CpuTessellator, Tessellator};
 use glam::{DVec2, DVec3};

@@ -735,6 +735,11 @@ fn reloads_reuse_buffers_that_fit() {
         &BatchDescriptor::new(&surfaces, &big).for_readback(),
     )
     .unwrap();
+    // The triangles are written when the batch is built, before any dispatch.
+    let mut built = knotwork::Mesh32::default();
+    batch.read_into(&mut built).unwrap();
+    let reference = knotwork::CpuTessellator.tessellate(&surfaces, &big).unwrap();
+    assert_eq!(built.indices, reference.indices);
     batch.dispatch().unwrap();
     let (vertices, indices) = (batch.mesh().vertices.clone(), batch.mesh().indices.clone());
     let grids: Vec<TessOptions> = (0..20)

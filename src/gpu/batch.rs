@@ -16,7 +16,6 @@ use crate::mesh::{Mesh, Mesh32, MeshPart, Polyline, TessOptions};
 use crate::plan::SurfacePlan;
 use crate::scene::{Scene, SceneOptions};
 use std::num::NonZeroU64;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 /// The output buffers of a batch, ready to bind in a render pass.
 ///
@@ -192,9 +191,6 @@ pub struct GpuBatch {
     shapes: Vec<BSplineSurface>,
     inputs: Inputs,
     bind_groups: Vec<wgpu::BindGroup>,
-    /// Set once the index buffer holds the triangles of the current layout: they depend on
-    /// the grids only, so later dispatches evaluate vertices and leave the indices alone.
-    connected: AtomicBool,
     mesh: GpuMesh,
     staging: BufferPool,
     /// Device buffers created for inputs and outputs (staging ones are counted by `staging`).
@@ -392,7 +388,6 @@ impl GpuBatch {
                     uniform: new_buffer(device, "knotwork chunk parameters", 0, uniform_usage()),
                 },
                 bind_groups: Vec::new(),
-                connected: false.into(),
                 mesh: GpuMesh {
                     vertices: vertices.buffer,
                     indices: indices.buffer,
@@ -652,15 +647,23 @@ impl GpuBatch {
         })?;
         let (bind_groups, new_indices, allocated) = bind_groups;
         self.allocations += allocated;
-        if new_indices || !same_layout {
-            self.connected.store(false, Ordering::Relaxed);
-        }
         self.bind_groups = bind_groups;
         self.mesh.vertex_count = packed.vertex_count as u32;
         self.mesh.index_count = packed.index_count as u32;
         self.mesh.parts.clone_from(&packed.parts);
         self.packed = packed;
         self.shapes = surfaces.to_vec();
+        // The triangles depend on the grids only: written now, when the layout is new, so
+        // dispatches evaluate vertices and leave the indices alone.
+        if new_indices || !same_layout {
+            scoped(device, || {
+                let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("knotwork triangles"),
+                });
+                self.encode_passes(&mut encoder, |pass| pass == CONNECT_PASS);
+                context.queue.submit([encoder.finish()]);
+            })?;
+        }
         Ok(())
     }
 
@@ -689,11 +692,10 @@ impl GpuBatch {
         &self.context
     }
 
-    /// Records the kernels of every chunk into `encoder`, for callers who submit themselves.
-    /// The triangles are recorded until a [`GpuBatch::dispatch`] of them completed (they
-    /// depend on the grids only); the vertices every time.
+    /// Records the kernels that evaluate every item into `encoder`, for callers who submit
+    /// themselves (the triangles were written when the batch was built or reloaded).
     pub fn encode(&self, encoder: &mut wgpu::CommandEncoder) {
-        self.encode_passes(encoder, !self.connected.load(Ordering::Relaxed));
+        self.encode_passes(encoder, |pass| pass != CONNECT_PASS);
         self.encode_other_kinds(encoder);
     }
 
@@ -707,7 +709,8 @@ impl GpuBatch {
         }
     }
 
-    fn encode_passes(&self, encoder: &mut wgpu::CommandEncoder, connect: bool) {
+    /// Records the surface kernels' passes that `wanted` selects, chunk by chunk.
+    fn encode_passes(&self, encoder: &mut wgpu::CommandEncoder, wanted: impl Fn(usize) -> bool) {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("knotwork tessellate"),
             timestamp_writes: None,
@@ -717,7 +720,7 @@ impl GpuBatch {
         {
             for (pass_index, pipeline) in self.context.kernels.pipelines.iter().enumerate() {
                 let tile_count = chunk.passes[pass_index].1;
-                if tile_count == 0 || (pass_index == CONNECT_PASS && !connect) {
+                if tile_count == 0 || !wanted(pass_index) {
                     continue;
                 }
                 let offset = ((chunk_index * PASSES + pass_index) as u64 * UNIFORM_STRIDE) as u32;
@@ -729,22 +732,18 @@ impl GpuBatch {
         }
     }
 
-    /// Fills the output buffers: every chunk and pass in one submission. Returns once the
-    /// work is submitted; errors the device reports while validating it are returned. The
-    /// triangles are written by the first dispatch after a layout change only.
+    /// Evaluates every item into the output buffers: every chunk and kernel in one
+    /// submission. Returns once the work is submitted; errors the device reports while
+    /// validating it are returned.
     pub fn dispatch(&self) -> Result<wgpu::SubmissionIndex> {
-        let connect = !self.connected.load(Ordering::Relaxed);
         let device = &self.context.device;
-        let submission = scoped(device, || {
+        scoped(device, || {
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("knotwork dispatch"),
             });
-            self.encode_passes(&mut encoder, connect);
-            self.encode_other_kinds(&mut encoder);
+            self.encode(&mut encoder);
             self.context.queue.submit([encoder.finish()])
-        })?;
-        self.connected.store(true, Ordering::Relaxed);
-        Ok(submission)
+        })
     }
 
     /// Replaces the control points (and weights) of surface `index` with those of `surface`,
