@@ -737,3 +737,25 @@ fn a_plan_refuses_other_items() {
     );
     assert_eq!(mesh, before);
 }
+
+/// The CPU's f32 output (evaluated row by row, rounded once) is the f64 mesh rounded to f32,
+/// bit for bit, without an f64 mesh in between.
+#[test]
+fn f32_output_is_the_f64_mesh_rounded() {
+    let mut surfaces = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt"))
+        .unwrap()
+        .surface_list();
+    surfaces.truncate(9);
+    let options: Vec<TessOptions> = (0..9)
+        .map(|k| TessOptions::DEFAULT.with_grid(5 + k, 13 - k))
+        .collect();
+    let mut wide = knotwork::Mesh::default();
+    CpuTessellator
+        .tessellate_each_into(&surfaces, &options, &mut wide)
+        .unwrap();
+    let mut narrow = knotwork::Mesh32::default();
+    CpuTessellator
+        .tessellate_each_into_f32(&surfaces, &options, &mut narrow)
+        .unwrap();
+    assert_eq!(narrow, knotwork::Mesh32::from(&wide));
+}

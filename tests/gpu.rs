@@ -738,7 +738,9 @@ fn reloads_reuse_buffers_that_fit() {
     // The triangles are written when the batch is built, before any dispatch.
     let mut built = knotwork::Mesh32::default();
     batch.read_into(&mut built).unwrap();
-    let reference = knotwork::CpuTessellator.tessellate(&surfaces, &big).unwrap();
+    let reference = knotwork::CpuTessellator
+        .tessellate(&surfaces, &big)
+        .unwrap();
     assert_eq!(built.indices, reference.indices);
     batch.dispatch().unwrap();
     let (vertices, indices) = (batch.mesh().vertices.clone(), batch.mesh().indices.clone());

@@ -11,7 +11,7 @@ use super::lanes::Avx2;
 use super::lanes::{F64x4, Portable};
 use crate::error::{Error, Result};
 use crate::geom::{BSplineSurface, degenerate_cross_sq};
-use crate::mesh::{Mesh, MeshPart, TessOptions};
+use crate::mesh::{Mesh, Mesh32, MeshPart, TessOptions, Vertex};
 use crate::plan::{AxisSamples, GridLayout, SurfacePlan, cell_triangles, check_item_count};
 use glam::{DVec2, DVec3, DVec4};
 use rayon::prelude::*;
@@ -44,6 +44,34 @@ pub fn execute_surfaces(
             fill_uvs(&samples.columns, &samples.rows, uvs);
         },
     );
+    Ok(())
+}
+
+/// As [`execute_surfaces`], into an f32 mesh: evaluated in f64 row by row and rounded once
+/// (what the binary formats carry), without an f64 mesh in between.
+pub fn execute_surfaces_f32(
+    plan: &SurfacePlan,
+    surfaces: &[BSplineSurface],
+    mesh: &mut Mesh32,
+) -> Result<()> {
+    check_item_count(plan.items.len(), surfaces.len())?;
+    let layout = &plan.layout;
+    mesh.vertices
+        .resize(layout.vertex_count as usize, Vertex::default());
+    mesh.indices.resize(layout.index_count as usize, 0);
+    mesh.parts.clone_from(&layout.parts);
+    let mut jobs = Vec::with_capacity(surfaces.len());
+    let mut rest = &mut mesh.vertices[..];
+    for (surface, samples) in surfaces.iter().zip(&plan.items) {
+        let (part, tail) = rest.split_at_mut(samples.part.vertex_count as usize);
+        jobs.push((surface, samples, part));
+        rest = tail;
+    }
+    jobs.into_par_iter()
+        .for_each(|(surface, samples, vertices)| {
+            evaluate_tables_f32(surface, &samples.columns, &samples.rows, vertices);
+        });
+    fill_grid_indices(&layout.parts, &mut mesh.indices);
     Ok(())
 }
 
@@ -121,6 +149,15 @@ struct RowScratch {
     column_dv: Vec<DVec4>,
 }
 
+impl RowScratch {
+    fn new(count_u: usize) -> Self {
+        RowScratch {
+            column_value: vec![DVec4::ZERO; count_u],
+            column_dv: vec![DVec4::ZERO; count_u],
+        }
+    }
+}
+
 /// Vertices evaluated together, one per lane of [`F64x4`].
 const LANES: usize = 4;
 const _: () = assert!(crate::plan::ROW_PADDING >= LANES - 1);
@@ -163,36 +200,89 @@ fn evaluate_tables(
     normals: &mut [DVec3],
 ) {
     let nu = columns.len();
-    let count_u = surface.count_u();
     let fma = has_fma();
     positions
         .par_chunks_mut(nu)
         .zip(normals.par_chunks_mut(nu))
         .enumerate()
         .for_each_init(
-            || RowScratch {
-                column_value: vec![DVec4::ZERO; count_u],
-                column_dv: vec![DVec4::ZERO; count_u],
-            },
+            || RowScratch::new(surface.count_u()),
             |scratch, (j, (row_positions, row_normals))| {
-                contract_columns(surface, columns, rows, j, scratch);
-                let row = Row {
+                evaluate_row(
                     surface,
                     columns,
-                    v: rows.params()[j],
+                    rows,
+                    j,
+                    fma,
                     scratch,
-                };
-                if fma {
-                    // SAFETY: `has_fma` checked at run time that this CPU has AVX2 and FMA.
-                    #[cfg(target_arch = "x86_64")]
-                    unsafe {
-                        row.evaluate_avx2_fma(row_positions, row_normals)
-                    };
-                } else {
-                    row.evaluate::<Portable>(row_positions, row_normals);
-                }
+                    row_positions,
+                    row_normals,
+                );
             },
         );
+}
+
+/// As [`evaluate_tables`], into f32 vertices (uvs included): each row is evaluated in f64
+/// into per-thread scratch and rounded once, so no f64 mesh is ever allocated.
+fn evaluate_tables_f32(
+    surface: &BSplineSurface,
+    columns: &AxisSamples,
+    rows: &AxisSamples,
+    vertices: &mut [Vertex],
+) {
+    let nu = columns.len();
+    let fma = has_fma();
+    vertices.par_chunks_mut(nu).enumerate().for_each_init(
+        || {
+            let row = vec![DVec3::ZERO; nu];
+            (RowScratch::new(surface.count_u()), row.clone(), row)
+        },
+        |(scratch, positions, normals), (j, row_vertices)| {
+            evaluate_row(surface, columns, rows, j, fma, scratch, positions, normals);
+            let v = rows.fractions()[j] as f32;
+            let rounded = positions
+                .iter()
+                .zip(normals.iter())
+                .zip(columns.fractions());
+            for (vertex, ((p, n), &u)) in row_vertices.iter_mut().zip(rounded) {
+                *vertex = Vertex {
+                    position: p.as_vec3().to_array(),
+                    normal: n.as_vec3().to_array(),
+                    uv: [u as f32, v],
+                };
+            }
+        },
+    );
+}
+
+/// Evaluates grid row `j` into `positions` and `normals` (one row each).
+#[allow(clippy::too_many_arguments)]
+fn evaluate_row(
+    surface: &BSplineSurface,
+    columns: &AxisSamples,
+    rows: &AxisSamples,
+    j: usize,
+    fma: bool,
+    scratch: &mut RowScratch,
+    positions: &mut [DVec3],
+    normals: &mut [DVec3],
+) {
+    contract_columns(surface, columns, rows, j, scratch);
+    let row = Row {
+        surface,
+        columns,
+        v: rows.params()[j],
+        scratch,
+    };
+    if fma {
+        // SAFETY: `has_fma` checked at run time that this CPU has AVX2 and FMA.
+        #[cfg(target_arch = "x86_64")]
+        unsafe {
+            row.evaluate_avx2_fma(positions, normals)
+        };
+    } else {
+        row.evaluate::<Portable>(positions, normals);
+    }
 }
 
 /// True when the row kernel can use fused multiply-add on 4-wide f64 vectors.

@@ -7,14 +7,14 @@ mod lanes;
 
 pub use crate::geom::SurfaceSample;
 pub use coons::{execute_coons, tessellate_coons_into};
-pub use grid::{evaluate_grid_into, execute_surfaces, tessellate_grid_into};
+pub use grid::{evaluate_grid_into, execute_surfaces, execute_surfaces_f32, tessellate_grid_into};
 
 use crate::Tessellator;
 use crate::error::Result;
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
-use crate::mesh::{Mesh, Polyline, TessOptions};
-use crate::plan::{CurvePlan, check_item_count};
+use crate::mesh::{Mesh, Mesh32, Polyline, TessOptions};
+use crate::plan::{CurvePlan, SurfacePlan, check_item_count};
 use rayon::prelude::*;
 
 /// The CPU tessellator: f64 throughout, parallel over rows and surfaces on rayon's current
@@ -54,6 +54,15 @@ impl Tessellator for CpuTessellator {
         mesh: &mut Mesh,
     ) -> Result<()> {
         tessellate_grid_into(surfaces, options, mesh)
+    }
+
+    fn tessellate_each_into_f32(
+        &self,
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        mesh: &mut Mesh32,
+    ) -> Result<()> {
+        execute_surfaces_f32(&SurfacePlan::new(surfaces, options)?, surfaces, mesh)
     }
 
     fn tessellate_coons_into(
