@@ -1,5 +1,7 @@
-//! glTF 2.0 binary output (feature `gltf`), through the `gltf` crate's JSON model and GLB
-//! container writer: its schema is large and easy to get subtly wrong by hand.
+//! glTF 2.0 binary output (feature `gltf`): the JSON through the `gltf` crate's model (the
+//! schema is large and easy to get subtly wrong by hand), the GLB container — a 12-byte
+//! header and two chunks — written here, so the binary chunk streams from the mesh's own
+//! slices instead of being assembled into one more copy.
 
 use super::cover_groups;
 use crate::mesh::{AnyMesh, Vertex};
@@ -33,22 +35,25 @@ pub fn write_glb<'a>(
     }
     // The vertices interleaved as in a Mesh32 (and the GPU's buffers): one strided view.
     let vertices = mesh.vertices_f32();
-    let mut bin: Vec<u8> = Vec::with_capacity(n * VERTEX_STRIDE + indices.len() * 4);
     let (lo, hi) = bounds_of(vertices.iter().map(|v| v.position));
-    bin.extend_from_slice(bytemuck::cast_slice(&vertices));
-    let index_offset = bin.len();
-    bin.extend_from_slice(bytemuck::cast_slice(indices));
-    let curve_offset = bin.len();
     let curve_points: Vec<[f32; 3]> = polylines
         .iter()
         .flat_map(|l| l.positions.iter().map(|p| p.as_vec3().to_array()))
         .collect();
-    bin.extend_from_slice(bytemuck::cast_slice(&curve_points));
     let curve_tangents: Vec<[f32; 3]> = polylines
         .iter()
         .flat_map(|l| l.tangents.iter().map(|t| t.as_vec3().to_array()))
         .collect();
-    bin.extend_from_slice(bytemuck::cast_slice(&curve_tangents));
+    // The binary chunk, in order; written straight from these slices, never copied into one.
+    let pieces: [&[u8]; 4] = [
+        bytemuck::cast_slice(&vertices),
+        bytemuck::cast_slice(indices),
+        bytemuck::cast_slice(&curve_points),
+        bytemuck::cast_slice(&curve_tangents),
+    ];
+    let index_offset = pieces[0].len();
+    let curve_offset = index_offset + pieces[1].len();
+    let bin_length: usize = pieces.iter().map(|p| p.len()).sum();
 
     let mut root = json::Root {
         asset: json::Asset {
@@ -58,7 +63,7 @@ pub fn write_glb<'a>(
         ..Default::default()
     };
     let buffer = root.push(json::Buffer {
-        byte_length: USize64::from(bin.len()),
+        byte_length: USize64::from(bin_length),
         name: None,
         uri: None,
         extensions: None,
@@ -265,16 +270,32 @@ pub fn write_glb<'a>(
     });
     root.scene = Some(scene);
     let json_bytes = root.to_vec().map_err(std::io::Error::other)?;
-    let glb = gltf::binary::Glb {
-        header: gltf::binary::Header {
-            magic: *b"glTF",
-            version: 2,
-            length: 0,
-        },
-        json: json_bytes.into(),
-        bin: Some(bin.into()),
+    write_container(w, &json_bytes, &pieces)
+}
+
+/// Writes a GLB container (glTF 2.0 binary): the 12-byte header, the JSON chunk padded with
+/// spaces and the binary chunk — `pieces` one after another — padded with zeros, each chunk
+/// to a multiple of 4 bytes.
+fn write_container(w: &mut dyn Write, json: &[u8], pieces: &[&[u8]]) -> Result<()> {
+    let padded = |n: usize| n.next_multiple_of(4);
+    let bin_length: usize = pieces.iter().map(|p| p.len()).sum();
+    let total = 12 + 8 + padded(json.len()) + 8 + padded(bin_length);
+    let length = |n: usize| {
+        u32::try_from(n).map_err(|_| std::io::Error::other("the glTF binary is larger than 4 GiB"))
     };
-    glb.to_writer(w).map_err(std::io::Error::other)
+    w.write_all(b"glTF")?;
+    w.write_all(&2u32.to_le_bytes())?;
+    w.write_all(&length(total)?.to_le_bytes())?;
+    w.write_all(&length(padded(json.len()))?.to_le_bytes())?;
+    w.write_all(b"JSON")?;
+    w.write_all(json)?;
+    w.write_all(&b"   "[..padded(json.len()) - json.len()])?;
+    w.write_all(&length(padded(bin_length))?.to_le_bytes())?;
+    w.write_all(b"BIN\0")?;
+    for piece in pieces {
+        w.write_all(piece)?;
+    }
+    w.write_all(&[0u8; 3][..padded(bin_length) - bin_length])
 }
 
 /// Component-wise (min, max) of `points`: the bounds glTF requires on POSITION accessors.
