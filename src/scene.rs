@@ -127,9 +127,7 @@ impl Scene {
     /// The sample count of every curve (in the order of [`Scene::curves`]): its own, else
     /// `default`.
     pub fn curve_samples(&self, default: u32) -> Vec<u32> {
-        self.items
-            .iter()
-            .filter(|item| matches!(item.geometry, Geometry::Curve(_)))
+        self.of_kind(|g| matches!(g, Geometry::Curve(_)))
             .map(|item| item.samples.unwrap_or(default))
             .collect()
     }
@@ -137,9 +135,7 @@ impl Scene {
     /// The grid of every Coons patch (in the order of [`Scene::coons_patches`]): its own,
     /// else `default`.
     pub fn coons_grids(&self, default: TessOptions) -> Vec<TessOptions> {
-        self.items
-            .iter()
-            .filter(|item| matches!(item.geometry, Geometry::Coons(_)))
+        self.of_kind(|g| matches!(g, Geometry::Coons(_)))
             .map(|item| item.grid.unwrap_or(default))
             .collect()
     }
@@ -147,11 +143,14 @@ impl Scene {
     /// The grid of every surface (in the order of [`Scene::surfaces`]): its own, else
     /// `default`.
     pub fn surface_grids(&self, default: TessOptions) -> Vec<TessOptions> {
-        self.items
-            .iter()
-            .filter(|item| matches!(item.geometry, Geometry::Surface(_)))
+        self.of_kind(|g| matches!(g, Geometry::Surface(_)))
             .map(|item| item.grid.unwrap_or(default))
             .collect()
+    }
+
+    /// The items whose geometry `wanted` accepts, in order.
+    fn of_kind(&self, wanted: fn(&Geometry) -> bool) -> impl Iterator<Item = &Item> {
+        self.items.iter().filter(move |item| wanted(&item.geometry))
     }
 
     /// Runs of consecutive items sharing a name, in item order; unnamed items are groups of

@@ -192,7 +192,7 @@ pub fn sample_curves(
 const SLOTS_PER_CHUNK: usize = 4;
 
 /// The samples of curves on the device, ready to draw as line strips: per vertex a position
-/// (`Float32x3` at offset 0), C′ (`Float32x3` at 16) and C″ (at 32), stride [`SAMPLE_BYTES`].
+/// (`Float32x3` at offset 0), C′ (`Float32x3` at 16) and C″ (at 32), stride 48 bytes.
 #[derive(Debug, Clone)]
 pub struct GpuLines {
     pub samples: wgpu::Buffer,
