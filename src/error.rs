@@ -103,8 +103,10 @@ pub enum Error {
     InCurve { index: usize, source: Box<Error> },
     #[error("a buffer holds {found} elements where {expected} are needed")]
     BufferLength { expected: usize, found: usize },
-    #[error("the mesh would have {vertices} vertices, more than u32 indices can address")]
-    MeshTooLarge { vertices: u64 },
+    #[error(
+        "the mesh would have {vertices} vertices and {indices} triangle indices; u32 indices allow at most 4294967295 of each"
+    )]
+    MeshTooLarge { vertices: u64, indices: u64 },
     #[error("{message}")]
     Syntax { message: String },
     #[error(
@@ -132,6 +134,20 @@ pub enum Error {
         path: PathBuf,
         expected: &'static str,
     },
+    #[error(
+        "{} and {} would both be written to {}: rename one, or tessellate them separately",
+        first.display(), second.display(), output.display()
+    )]
+    OutputCollision {
+        output: PathBuf,
+        first: PathBuf,
+        second: PathBuf,
+    },
+    #[error(
+        "{}: with several inputs the output is a folder, and this names a file (.{extension})",
+        path.display()
+    )]
+    OutputNotAFolder { path: PathBuf, extension: String },
     #[error("{what}: {problem}")]
     OutputTarget { what: &'static str, problem: String },
     #[error("GPU error: {message}")]

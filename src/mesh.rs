@@ -185,9 +185,9 @@ fn narrow_vertices(mesh: &Mesh) -> Vec<Vertex> {
 /// The vertex and index offsets at which a mesh of (vertices, indices) `other` is appended
 /// to one of `base`, or the error if the result would not fit u32.
 fn append_offsets(base: (usize, usize), other: (usize, usize)) -> Result<(u32, u32)> {
-    let vertices = (base.0 + other.0) as u64;
-    if vertices > u64::from(u32::MAX) || (base.1 + other.1) as u64 > u64::from(u32::MAX) {
-        return Err(Error::MeshTooLarge { vertices });
+    let (vertices, indices) = ((base.0 + other.0) as u64, (base.1 + other.1) as u64);
+    if vertices > u64::from(u32::MAX) || indices > u64::from(u32::MAX) {
+        return Err(Error::MeshTooLarge { vertices, indices });
     }
     Ok((base.0 as u32, base.1 as u32))
 }

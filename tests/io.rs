@@ -1282,3 +1282,76 @@ fn cli_refuses_a_folder_without_surface_files() {
     );
     assert!(!out.exists());
 }
+
+/// Two inputs of one file name would map to one output: the run refuses before writing
+/// anything, naming both; several inputs with an output that names a file are refused too.
+#[test]
+fn cli_refuses_colliding_outputs_before_writing() {
+    let dir = scratch_dir("collide");
+    let other = dir.join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    std::fs::copy("data/teapot.bpt", other.join("teapot.bpt")).unwrap();
+    let out = dir.join("out");
+    let run = knotwork(&[
+        "tessellate",
+        "data/teapot.bpt",
+        other.join("teapot.bpt").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("data/teapot.bpt and ")
+            && stderr.contains("would both be written to")
+            && stderr.contains("teapot.obj"),
+        "{stderr}"
+    );
+    assert!(!out.exists(), "nothing written");
+    let run = knotwork(&[
+        "tessellate",
+        "data/teapot.bpt",
+        "data/forms.json",
+        "-o",
+        dir.join("multi.obj").to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("the output is a folder"), "{stderr}");
+    assert!(!dir.join("multi.obj").exists());
+}
+
+/// Two writes of one output in flight use two temporary files (the later rename wins; no
+/// writer truncates the other's bytes).
+#[test]
+fn temporary_files_are_unique_per_write() {
+    let dir = scratch_dir("temporaries");
+    let path = dir.join("mesh.obj");
+    let temporaries = || {
+        std::fs::read_dir(&dir)
+            .unwrap()
+            .filter(|e| {
+                e.as_ref()
+                    .unwrap()
+                    .file_name()
+                    .to_string_lossy()
+                    .ends_with(".tmp")
+            })
+            .count()
+    };
+    write_atomic(&path, |outer| {
+        outer.write_all(b"outer")?;
+        write_atomic(&path, |inner| {
+            assert_eq!(temporaries(), 2, "each write has its own temporary file");
+            inner.write_all(b"inner")
+        })
+        .map_err(std::io::Error::other)
+    })
+    .unwrap();
+    assert_eq!(std::fs::read(&path).unwrap(), b"outer");
+    assert_eq!(temporaries(), 0);
+}

@@ -371,24 +371,46 @@ fn tessellate(
         return Ok(true);
     }
     let files = expand_inputs(inputs)?;
+    if !output.is_dir()
+        && let Some(extension) = output.extension().map(|e| e.to_string_lossy())
+        && MeshFormat::from_extension(&extension).is_some()
+    {
+        return Err(knotwork::Error::OutputNotAFolder {
+            path: output.to_path_buf(),
+            extension: extension.into_owned(),
+        });
+    }
+    let extension = job.format.unwrap_or(MeshFormat::Obj).extension();
+    // Every input's output, checked for collisions before anything is written.
+    let mut targets: Vec<(PathBuf, PathBuf)> = Vec::with_capacity(files.len());
+    let mut taken: std::collections::HashMap<PathBuf, PathBuf> = Default::default();
+    for input in &files {
+        let name = input
+            .file_stem()
+            .map_or_else(|| "mesh".into(), |s| s.to_owned());
+        let target = output.join(name).with_extension(extension);
+        if let Some(first) = taken.insert(target.clone(), input.clone()) {
+            return Err(knotwork::Error::OutputCollision {
+                output: target,
+                first,
+                second: input.clone(),
+            });
+        }
+        targets.push((input.clone(), target));
+    }
     std::fs::create_dir_all(output).map_err(|source| knotwork::Error::Io {
         path: output.to_path_buf(),
         source,
     })?;
-    let extension = job.format.unwrap_or(MeshFormat::Obj).extension();
     let progress = if std::io::stderr().is_terminal() {
         indicatif::ProgressBar::new(files.len() as u64)
     } else {
         indicatif::ProgressBar::hidden()
     };
-    let results: Vec<(PathBuf, knotwork::Result<Tally>)> = files
+    let results: Vec<(PathBuf, knotwork::Result<Tally>)> = targets
         .par_iter()
-        .map(|input| {
-            let name = input
-                .file_stem()
-                .map_or_else(|| "mesh".into(), |s| s.to_owned());
-            let target = output.join(name).with_extension(extension);
-            let result = process(input, &target, tessellator.as_ref(), job);
+        .map(|(input, target)| {
+            let result = process(input, target, tessellator.as_ref(), job);
             progress.inc(1);
             (input.clone(), result)
         })

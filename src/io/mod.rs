@@ -214,9 +214,12 @@ pub fn write_atomic(
     let name = path
         .file_name()
         .ok_or_else(|| io_error(std::io::Error::other("the output path has no file name")))?;
+    // Unique per call, so writers of one process never share a temporary file.
+    static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let mut temporary_name = std::ffi::OsString::from(".");
     temporary_name.push(name);
-    temporary_name.push(format!(".{}.tmp", std::process::id()));
+    temporary_name.push(format!(".{}.{call}.tmp", std::process::id()));
     let temporary = path.with_file_name(temporary_name);
     let result = (|| {
         let file = std::fs::File::create(&temporary)?;

@@ -39,35 +39,35 @@ impl GridLayout {
                 found: options.len(),
             });
         }
+        // The whole job's counts first, so an error gives them exactly.
         let (mut vertices, mut indices) = (0u64, 0u64);
-        let mut parts = Vec::with_capacity(options.len());
-        for (item, o) in options.iter().enumerate() {
+        for o in options {
             let (nu, nv) = (o.grid_u, o.grid_v);
             if nu < 2 || nv < 2 {
                 return Err(Error::GridTooSmall { nu, nv });
             }
-            let (vertex_count, index_count) = (
-                u64::from(nu) * u64::from(nv),
-                6 * u64::from(nu - 1) * u64::from(nv - 1),
-            );
-            if vertices + vertex_count > u64::from(u32::MAX)
-                || indices + index_count > u64::from(u32::MAX)
-            {
-                return Err(Error::MeshTooLarge {
-                    vertices: vertices + vertex_count,
-                });
-            }
+            vertices += u64::from(nu) * u64::from(nv);
+            indices += 6 * u64::from(nu - 1) * u64::from(nv - 1);
+        }
+        if vertices > u64::from(u32::MAX) || indices > u64::from(u32::MAX) {
+            return Err(Error::MeshTooLarge { vertices, indices });
+        }
+        let (mut first_vertex, mut first_index) = (0u32, 0u32);
+        let mut parts = Vec::with_capacity(options.len());
+        for (item, o) in options.iter().enumerate() {
+            let (nu, nv) = (o.grid_u, o.grid_v);
+            let (vertex_count, index_count) = (nu * nv, 6 * (nu - 1) * (nv - 1));
             parts.push(MeshPart {
                 item: item as u32,
                 grid_u: nu,
                 grid_v: nv,
-                first_vertex: vertices as u32,
-                vertex_count: vertex_count as u32,
-                first_index: indices as u32,
-                index_count: index_count as u32,
+                first_vertex,
+                vertex_count,
+                first_index,
+                index_count,
             });
-            vertices += vertex_count;
-            indices += index_count;
+            first_vertex += vertex_count;
+            first_index += index_count;
         }
         Ok(GridLayout {
             parts,
@@ -254,11 +254,20 @@ mod tests {
             }
         );
         assert_eq!((layout.vertex_count, layout.index_count), (22, 60));
-        let huge = [TessOptions::DEFAULT.with_grid(65536, 65536)];
-        assert!(matches!(
-            GridLayout::new(1, &huge),
-            Err(Error::MeshTooLarge { vertices }) if vertices == 65536 * 65536
-        ));
+        // Eight 10000 x 10000 grids: their 8e8 vertices fit u32, their 4.8e9 indices do
+        // not; the error gives the whole job's exact counts.
+        let huge = [TessOptions::DEFAULT.with_grid(10000, 10000); 8];
+        let err = GridLayout::new(8, &huge).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                Error::MeshTooLarge {
+                    vertices: 800_000_000,
+                    indices: 4_799_040_048
+                }
+            ),
+            "{err}"
+        );
         assert!(matches!(
             GridLayout::new(3, &options),
             Err(Error::OptionsCount {
