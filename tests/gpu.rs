@@ -1046,3 +1046,23 @@ fn one_batch_serves_every_item_kind() {
         })
     ));
 }
+
+/// With XDG_RUNTIME_DIR unset (headless machines, CI), a GPU run prints no driver noise:
+/// stderr is empty on success.
+#[test]
+#[cfg(feature = "cli")]
+fn gpu_runs_are_quiet_without_a_runtime_dir() {
+    if gpu().is_none() {
+        return;
+    }
+    let out = std::env::temp_dir().join(format!("knotwork-quiet-{}.ply", std::process::id()));
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_knotwork"))
+        .args(["tessellate", "data/teapot.bpt", "--backend", "gpu", "-o"])
+        .arg(&out)
+        .env_remove("XDG_RUNTIME_DIR")
+        .output()
+        .unwrap();
+    assert!(run.status.success());
+    assert_eq!(String::from_utf8_lossy(&run.stderr), "");
+    std::fs::remove_file(&out).unwrap();
+}

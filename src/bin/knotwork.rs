@@ -170,7 +170,30 @@ fn render(
     Ok(())
 }
 
+/// Mesa's drivers print "error: XDG_RUNTIME_DIR is invalid or not set in the environment"
+/// when that variable is unset (headless machines, containers, CI), which reads as an error
+/// of knotwork's: give the process a private runtime folder (mode 0700, per user) instead.
+#[cfg(unix)]
+fn quiet_driver_runtime_dir() {
+    use std::os::unix::fs::{DirBuilderExt, MetadataExt};
+    if std::env::var_os("XDG_RUNTIME_DIR").is_some() {
+        return;
+    }
+    let Ok(me) = std::fs::metadata("/proc/self") else {
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("knotwork-runtime-{}", me.uid()));
+    // It may exist from an earlier run: use it only if it is a folder of this user's.
+    let _ = std::fs::DirBuilder::new().mode(0o700).create(&dir);
+    if std::fs::metadata(&dir).is_ok_and(|m| m.is_dir() && m.uid() == me.uid()) {
+        // SAFETY: called first thing in `main`, before any other thread exists.
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", &dir) };
+    }
+}
+
 fn main() -> ExitCode {
+    #[cfg(unix)]
+    quiet_driver_runtime_dir();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Tessellate {
