@@ -1355,3 +1355,41 @@ fn temporary_files_are_unique_per_write() {
     assert_eq!(std::fs::read(&path).unwrap(), b"outer");
     assert_eq!(temporaries(), 0);
 }
+
+/// Summaries count in English: "1 surface", "1 file", "N vertices"; bad .bpt numbers say
+/// what was expected.
+#[test]
+fn cli_summaries_and_messages_read_well() {
+    let dir = scratch_dir("grammar");
+    let run = knotwork(&[
+        "tessellate",
+        "data/peer_bicubic_32x32.obj",
+        "-o",
+        dir.join("peer.obj").to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        stdout.contains("1 surface, 0 curves, 1089 vertices, 2048 triangles"),
+        "{stdout}"
+    );
+    let single = dir.join("single");
+    std::fs::create_dir_all(&single).unwrap();
+    std::fs::copy("data/teapot.bpt", single.join("teapot.bpt")).unwrap();
+    let run = knotwork(&[
+        "tessellate",
+        single.to_str().unwrap(),
+        "-o",
+        dir.join("out").to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        stdout.contains("1 file (0 failed): 32 surfaces"),
+        "{stdout}"
+    );
+    let err = read_bpt("1\n3 3\n0 0 x").unwrap_err().to_string();
+    assert_eq!(err, "line 3: expected a coordinate of patch 1, found `x`");
+}

@@ -157,10 +157,10 @@ fn render(
     let image = knotwork::render::render(&context, &batch, &surfaces, options)?;
     knotwork::render::save_png(output, &image)?;
     println!(
-        "{}: {} surfaces, {} triangles rendered at {}x{} in {:.3} s ({}) -> {}",
+        "{}: {}, {} rendered at {}x{} in {:.3} s ({}) -> {}",
         input.display(),
-        surfaces.len(),
-        batch.mesh().index_count / 3,
+        count(surfaces.len(), "surface"),
+        count(batch.mesh().index_count as usize / 3, "triangle"),
         options.width,
         options.height,
         start.elapsed().as_secs_f64(),
@@ -284,7 +284,33 @@ struct Tally {
     curves: usize,
     vertices: usize,
     triangles: usize,
-    merged: usize,
+    /// Vertices merged by welding (`None` without `--weld`).
+    merged: Option<usize>,
+}
+
+impl Tally {
+    /// "N surfaces, N curves, N vertices, N triangles[, N vertices merged]".
+    fn summary(&self) -> String {
+        let merged = self.merged.map_or(String::new(), |m| {
+            format!(", {} merged", count(m, "vertex"))
+        });
+        format!(
+            "{}, {}, {}, {}{merged}",
+            count(self.surfaces, "surface"),
+            count(self.curves, "curve"),
+            count(self.vertices, "vertex"),
+            count(self.triangles, "triangle"),
+        )
+    }
+}
+
+/// "1 surface", "2 surfaces", "1 vertex", "3 vertices".
+fn count(n: usize, noun: &str) -> String {
+    match (n, noun) {
+        (1, _) => format!("1 {noun}"),
+        (_, "vertex") => format!("{n} vertices"),
+        _ => format!("{n} {noun}s"),
+    }
 }
 
 fn process(
@@ -306,12 +332,12 @@ fn process(
             .and_then(|e| MeshFormat::from_extension(&e.to_string_lossy()))
     });
     let groups = scene.groups();
-    let mut merged = 0;
+    let mut merged = None;
     let (vertices, triangles) = if matches!(format, Some(MeshFormat::Obj) | None) || job.weld {
         let mut mesh = tessellator.tessellate_scene(&scene, &defaults)?;
         if job.weld {
             let (welded, report) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
-            (mesh, merged) = (welded, report.merged_vertices);
+            (mesh, merged) = (welded, Some(report.merged_vertices));
         }
         knotwork::io::write_mesh_as(output, &mesh, &groups, job.format)?;
         (mesh.vertex_count(), mesh.triangle_count())
@@ -375,18 +401,10 @@ fn tessellate(
     let tessellator = tessellator(backend)?;
     if !batch {
         let tally = process(&inputs[0], output, tessellator.as_ref(), job)?;
-        let weld = if job.weld {
-            format!(", {} vertices merged", tally.merged)
-        } else {
-            String::new()
-        };
         println!(
-            "{}: {} surfaces, {} curves, {} vertices, {} triangles{weld} in {:.3} s ({}) -> {}",
+            "{}: {} in {:.3} s ({}) -> {}",
             inputs[0].display(),
-            tally.surfaces,
-            tally.curves,
-            tally.vertices,
-            tally.triangles,
+            tally.summary(),
             start.elapsed().as_secs_f64(),
             tessellator.name(),
             output.display()
@@ -448,7 +466,9 @@ fn tessellate(
                 total.curves += t.curves;
                 total.vertices += t.vertices;
                 total.triangles += t.triangles;
-                total.merged += t.merged;
+                if let Some(m) = t.merged {
+                    *total.merged.get_or_insert(0) += m;
+                }
             }
             Err(error) => {
                 failed += 1;
@@ -463,19 +483,10 @@ fn tessellate(
         }
     }
     let seconds = start.elapsed().as_secs_f64();
-    let weld = if job.weld {
-        format!(", {} vertices merged", total.merged)
-    } else {
-        String::new()
-    };
     println!(
-        "{} files ({} failed): {} surfaces, {} curves, {} vertices, {} triangles{weld} in {seconds:.3} s, {:.1} M vertices/s ({}) -> {}",
-        results.len(),
-        failed,
-        total.surfaces,
-        total.curves,
-        total.vertices,
-        total.triangles,
+        "{} ({failed} failed): {} in {seconds:.3} s, {:.1} M vertices/s ({}) -> {}",
+        count(results.len(), "file"),
+        total.summary(),
         total.vertices as f64 / seconds / 1e6,
         tessellator.name(),
         output.display()

@@ -71,6 +71,6 @@ impl<'a, I: Iterator<Item = (usize, &'a str)>> Tokens<I> {
         self.line = line;
         token
             .parse()
-            .map_err(|_| Error::syntax(format!("`{token}` is not a valid {what}")).at_line(line))
+            .map_err(|_| Error::syntax(format!("expected {what}, found `{token}`")).at_line(line))
     }
 }
