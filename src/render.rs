@@ -6,7 +6,7 @@
 use crate::error::{Error, Result};
 use crate::geom::BSplineSurface;
 use crate::gpu::context::scoped;
-use crate::gpu::{GpuBatch, GpuContext, GpuMesh, VERTEX_BYTES};
+use crate::gpu::{GpuBatch, GpuContext, GpuLines, GpuMesh, VERTEX_BYTES};
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 use wgpu::util::DeviceExt;
@@ -52,8 +52,8 @@ struct Frame {
     net_colour: [f32; 4],
 }
 
-/// Renders `batch` (already dispatched) and the control nets of `surfaces` into an RGBA image,
-/// once. To render many frames, build a [`Preview`] once and call [`Preview::render`].
+/// Renders every item of `batch` (already dispatched: surfaces and Coons patches shaded,
+/// curves as lines) and the control nets of `surfaces` into an RGBA image, once. To render many frames, build a [`Preview`] once and call [`Preview::render`].
 pub fn render(
     context: &GpuContext,
     batch: &GpuBatch,
@@ -63,9 +63,8 @@ pub fn render(
     Preview::new(context, options)?.render(context, batch, surfaces)
 }
 
-/// The camera and lights framing `surfaces` for an image of `width` × `height`.
-fn frame_for(surfaces: &[BSplineSurface], width: u32, height: u32) -> Frame {
-    let (lo, hi) = control_box(surfaces);
+/// The camera and lights framing the box (`lo`, `hi`) for an image of `width` × `height`.
+fn frame_for((lo, hi): (Vec3, Vec3), width: u32, height: u32) -> Frame {
     let centre = 0.5 * (lo + hi);
     let radius = (0.5 * (hi - lo).length()).max(1e-6);
     let aspect = width as f32 / height as f32;
@@ -117,16 +116,6 @@ fn perspective(fov_y: f32, aspect: f32, near: f32, far: f32) -> Mat4 {
     )
 }
 
-fn control_box(surfaces: &[BSplineSurface]) -> (Vec3, Vec3) {
-    let union = surfaces
-        .iter()
-        .map(BSplineSurface::control_box)
-        .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)));
-    union.map_or((Vec3::ZERO, Vec3::ONE), |(lo, hi)| {
-        (lo.as_vec3(), hi.as_vec3())
-    })
-}
-
 /// Line segments between neighbouring control points (along u and along v), as point pairs.
 fn control_net_lines(surfaces: &[BSplineSurface]) -> Vec<[f32; 3]> {
     let mut lines = Vec::new();
@@ -163,6 +152,8 @@ pub struct Preview {
     bind_group: wgpu::BindGroup,
     surfaces: wgpu::RenderPipeline,
     edges: wgpu::RenderPipeline,
+    /// Curves as line strips.
+    curves: wgpu::RenderPipeline,
     nets: wgpu::RenderPipeline,
     colour: wgpu::Texture,
     colour_view: wgpu::TextureView,
@@ -228,6 +219,11 @@ impl Preview {
             let line_attributes = wgpu::vertex_attr_array![0 => Float32x3];
             let mesh_line_layout = wgpu::VertexBufferLayout {
                 array_stride: VERTEX_BYTES,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &line_attributes,
+            };
+            let curve_layout = wgpu::VertexBufferLayout {
+                array_stride: GpuLines::vertex_buffer_layout().array_stride,
                 step_mode: wgpu::VertexStepMode::Vertex,
                 attributes: &line_attributes,
             };
@@ -297,6 +293,13 @@ impl Preview {
                 wgpu::PrimitiveTopology::LineList,
                 depth(false, wgpu::CompareFunction::LessEqual, Default::default()),
             );
+            let curves = pipeline(
+                "vs_line",
+                "fs_line",
+                curve_layout,
+                wgpu::PrimitiveTopology::LineStrip,
+                depth(true, wgpu::CompareFunction::LessEqual, Default::default()),
+            );
             let nets = pipeline(
                 "vs_line",
                 "fs_net",
@@ -343,6 +346,7 @@ impl Preview {
                 bind_group,
                 surfaces,
                 edges,
+                curves,
                 nets,
                 colour,
                 colour_view,
@@ -353,8 +357,8 @@ impl Preview {
         })
     }
 
-    /// Draws `batch` (already dispatched) with the control nets of `surfaces`, framed on
-    /// them, and reads the image back.
+    /// Draws every item of `batch` (already dispatched) with the control nets of `surfaces`,
+    /// framed on the batch's control box, and reads the image back.
     pub fn render(
         &self,
         context: &GpuContext,
@@ -363,6 +367,11 @@ impl Preview {
     ) -> Result<image::RgbaImage> {
         let (device, mesh) = (context.device(), batch.mesh());
         let (width, height) = (self.options.width, self.options.height);
+        let framed = batch
+            .control_box()
+            .map_or((Vec3::ZERO, Vec3::ONE), |(lo, hi)| {
+                (lo.as_vec3(), hi.as_vec3())
+            });
         // The wireframe needs each triangle's edges: read them back before the draw.
         let wire_indices = match self.options.wireframe {
             true => Some(wireframe_indices(&read_indices(context, mesh)?)),
@@ -372,7 +381,7 @@ impl Preview {
             context.queue().write_buffer(
                 &self.uniform,
                 0,
-                bytemuck::bytes_of(&frame_for(surfaces, width, height)),
+                bytemuck::bytes_of(&frame_for(framed, width, height)),
             );
             let wire = wire_indices.as_ref().map(|edges| {
                 device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -427,7 +436,23 @@ impl Preview {
                     wgpu::IndexFormat::Uint32,
                 );
                 pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+                for coons in batch.coons_meshes() {
+                    pass.set_vertex_buffer(0, coons.vertices.slice(coons.vertex_offset..));
+                    pass.set_index_buffer(
+                        coons.indices.slice(coons.index_offset..),
+                        wgpu::IndexFormat::Uint32,
+                    );
+                    pass.draw_indexed(0..coons.index_count, coons.base_vertex, 0..1);
+                }
+                pass.set_pipeline(&self.curves);
+                for lines in batch.curve_lines() {
+                    pass.set_vertex_buffer(0, lines.samples.slice(..));
+                    for &(first, count) in &lines.strips {
+                        pass.draw(first..first + count, 0..1);
+                    }
+                }
                 if let Some(wire) = &wire {
+                    pass.set_vertex_buffer(0, mesh.vertices.slice(mesh.vertex_offset..));
                     pass.set_pipeline(&self.edges);
                     pass.set_index_buffer(wire.slice(..), wgpu::IndexFormat::Uint32);
                     pass.draw_indexed(0..2 * mesh.index_count, 0, 0..1);

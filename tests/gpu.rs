@@ -1066,3 +1066,39 @@ fn gpu_runs_are_quiet_without_a_runtime_dir() {
     assert_eq!(String::from_utf8_lossy(&run.stderr), "");
     std::fs::remove_file(&out).unwrap();
 }
+
+/// `render` draws every item kind: a scene of only a directly evaluated Coons patch, or only
+/// curves, is not a blank picture (it was, with exit 0).
+#[test]
+#[cfg(feature = "render")]
+fn render_draws_coons_patches_and_curves() {
+    let Some(context) = gpu() else { return };
+    let forms = knotwork::io::read_scene(std::path::Path::new("data/forms.json")).unwrap();
+    let of = |wanted: fn(&knotwork::Geometry) -> bool| knotwork::Scene {
+        items: forms
+            .items
+            .iter()
+            .filter(|item| wanted(&item.geometry))
+            .cloned()
+            .collect(),
+    };
+    let options = knotwork::render::RenderOptions {
+        width: 160,
+        height: 120,
+        wireframe: false,
+        control_net: false,
+    };
+    for scene in [
+        of(|g| matches!(g, knotwork::Geometry::Coons(_))),
+        of(|g| matches!(g, knotwork::Geometry::Curve(_))),
+    ] {
+        assert!(!scene.items.is_empty());
+        let defaults = knotwork::SceneOptions::default();
+        let batch = GpuBatch::from_scene(context, &scene, &defaults).unwrap();
+        batch.dispatch().unwrap();
+        let image = knotwork::render::render(context, &batch, &[], &options).unwrap();
+        let corner = *image.get_pixel(0, 0);
+        let drawn = image.pixels().filter(|&&p| p != corner).count();
+        assert!(drawn > 100, "{drawn} pixels drawn");
+    }
+}

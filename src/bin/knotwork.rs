@@ -147,20 +147,27 @@ fn render(
     let start = Instant::now();
     let scene = knotwork::io::read_scene(input)?;
     let context = GpuContext::new()?;
-    let surfaces = scene.surface_list();
-    let grids = scene.surface_grids(TessOptions::DEFAULT.with_grid(grid.0, grid.1));
-    let batch = knotwork::GpuBatch::new(
-        &context,
-        &knotwork::BatchDescriptor::each(&surfaces, &grids),
-    )?;
+    let defaults = SceneOptions {
+        grid: TessOptions::DEFAULT.with_grid(grid.0, grid.1),
+        ..SceneOptions::default()
+    };
+    let batch = knotwork::GpuBatch::from_scene(&context, &scene, &defaults)?;
     batch.dispatch()?;
+    let surfaces = scene.surface_list();
     let image = knotwork::render::render(&context, &batch, &surfaces, options)?;
     knotwork::render::save_png(output, &image)?;
+    let triangles = batch.mesh().index_count as usize / 3
+        + batch
+            .coons_meshes()
+            .iter()
+            .map(|m| m.index_count as usize / 3)
+            .sum::<usize>();
     println!(
-        "{}: {}, {} rendered at {}x{} in {:.3} s ({}) -> {}",
+        "{}: {}, {}, {} rendered at {}x{} in {:.3} s ({}) -> {}",
         input.display(),
-        count(surfaces.len(), "surface"),
-        count(batch.mesh().index_count as usize / 3, "triangle"),
+        count(surfaces.len() + scene.coons_patches().count(), "surface"),
+        count(scene.curves().count(), "curve"),
+        count(triangles, "triangle"),
         options.width,
         options.height,
         start.elapsed().as_secs_f64(),

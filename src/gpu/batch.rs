@@ -484,6 +484,21 @@ impl GpuBatch {
         self.load_curves()
     }
 
+    /// The bounding box (min, max) of every item's control points (Coons patches: their
+    /// boundaries'), or `None` for an empty batch: what a renderer frames.
+    pub fn control_box(&self) -> Option<(glam::DVec3, glam::DVec3)> {
+        let surfaces = self.shapes.iter().map(BSplineSurface::control_box);
+        let coons = self.coons.iter().map(CoonsPatch::control_box);
+        let curves = self
+            .curves
+            .iter()
+            .map(|c| crate::geom::cartesian_box(c.homogeneous_points()));
+        surfaces
+            .chain(coons)
+            .chain(curves)
+            .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))
+    }
+
     /// The Coons patches' output buffers: one mesh per chunk (usually one), drawn with its
     /// `base_vertex`.
     pub fn coons_meshes(&self) -> &[GpuMesh] {
