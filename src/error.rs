@@ -148,6 +148,15 @@ pub enum Error {
         path.display()
     )]
     OutputNotAFolder { path: PathBuf, extension: String },
+    #[error(
+        "{}: the extension names {extension} but the format asked for is {format}; drop one or make them agree",
+        path.display()
+    )]
+    FormatConflict {
+        path: PathBuf,
+        extension: &'static str,
+        format: &'static str,
+    },
     #[error("{what}: {problem}")]
     OutputTarget { what: &'static str, problem: String },
     #[error("GPU error: {message}")]

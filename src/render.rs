@@ -541,8 +541,17 @@ fn map_read(context: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
-/// Writes `image` as a PNG, atomically.
+/// Writes `image` as a PNG, atomically; a path whose extension is not `.png` is refused.
 pub fn save_png(path: &std::path::Path, image: &image::RgbaImage) -> Result<()> {
+    let extension = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    if extension.as_deref() != Some("png") {
+        return Err(Error::UnknownFormat {
+            path: path.to_path_buf(),
+            expected: ".png",
+        });
+    }
     crate::io::write_atomic(path, |w| {
         image::codecs::png::PngEncoder::new(w)
             .write_image(

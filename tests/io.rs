@@ -1393,3 +1393,46 @@ fn cli_summaries_and_messages_read_well() {
     let err = read_bpt("1\n3 3\n0 0 x").unwrap_err().to_string();
     assert_eq!(err, "line 3: expected a coordinate of patch 1, found `x`");
 }
+
+/// The output format follows the extension: a conflicting `--format` is an error, a missing
+/// output folder is named as such, and render writes PNG files only; nothing is written.
+#[test]
+fn conflicting_formats_and_missing_folders_are_named() {
+    let dir = scratch_dir("conflicts");
+    let glb = dir.join("a.glb");
+    let run = knotwork(&[
+        "tessellate",
+        "data/teapot.bpt",
+        "-o",
+        glb.to_str().unwrap(),
+        "--format",
+        "obj",
+        "--backend",
+        "cpu",
+    ]);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("the extension names glb but the format asked for is obj"),
+        "{stderr}"
+    );
+    assert!(!glb.exists());
+    let nested = dir.join("no").join("such").join("a.obj");
+    let run = knotwork(&[
+        "tessellate",
+        "data/teapot.bpt",
+        "-o",
+        nested.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("no/such: the output folder does not exist"),
+        "{stderr}"
+    );
+    let jpg = dir.join("teapot.jpg");
+    let err = knotwork::render::save_png(&jpg, &image::RgbaImage::new(2, 2)).unwrap_err();
+    assert!(err.to_string().contains("expected one of .png"), "{err}");
+    assert!(!jpg.exists());
+}

@@ -163,12 +163,20 @@ pub fn write_mesh_as<'a>(
     format: Option<MeshFormat>,
 ) -> Result<()> {
     let mesh: AnyMesh = mesh.into();
-    let format = format
-        .or_else(|| MeshFormat::from_extension(&extension(path)))
-        .ok_or_else(|| Error::UnknownFormat {
+    let named = MeshFormat::from_extension(&extension(path));
+    if let (Some(asked), Some(named)) = (format, named)
+        && asked != named
+    {
+        return Err(Error::FormatConflict {
             path: path.to_path_buf(),
-            expected: OUTPUT_FORMATS,
-        })?;
+            extension: named.extension(),
+            format: asked.extension(),
+        });
+    }
+    let format = format.or(named).ok_or_else(|| Error::UnknownFormat {
+        path: path.to_path_buf(),
+        expected: OUTPUT_FORMATS,
+    })?;
     if !mesh.polylines().is_empty() && matches!(format, MeshFormat::Ply | MeshFormat::Stl) {
         return Err(Error::PolylinesUnsupported {
             format: if format == MeshFormat::Ply {
@@ -214,6 +222,17 @@ pub fn write_atomic(
     let name = path
         .file_name()
         .ok_or_else(|| io_error(std::io::Error::other("the output path has no file name")))?;
+    if let Some(folder) = path.parent().filter(|p| !p.as_os_str().is_empty())
+        && !folder.is_dir()
+    {
+        return Err(Error::Io {
+            path: folder.to_path_buf(),
+            source: std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                "the output folder does not exist",
+            ),
+        });
+    }
     // Unique per call, so writers of one process never share a temporary file.
     static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
