@@ -1436,3 +1436,27 @@ fn conflicting_formats_and_missing_folders_are_named() {
     assert!(err.to_string().contains("expected one of .png"), "{err}");
     assert!(!jpg.exists());
 }
+
+/// A batch over a folder says which files of other formats it left alone.
+#[test]
+fn batches_name_the_files_they_skip() {
+    let dir = scratch_dir("skipped");
+    let input = dir.join("in");
+    std::fs::create_dir_all(&input).unwrap();
+    std::fs::copy("data/teapot.bpt", input.join("teapot.bpt")).unwrap();
+    std::fs::write(input.join("part.step"), "ISO-10303-21;").unwrap();
+    let run = knotwork(&[
+        "tessellate",
+        input.to_str().unwrap(),
+        "-o",
+        dir.join("out").to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(run.status.success());
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        stdout.contains("skipped 1 file of other formats") && stdout.contains("part.step"),
+        "{stdout}"
+    );
+}

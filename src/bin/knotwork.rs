@@ -363,24 +363,23 @@ fn process(
 }
 
 /// Expands directories into the surface files they hold (sorted), keeps files as given.
-fn expand_inputs(inputs: &[PathBuf]) -> knotwork::Result<Vec<PathBuf>> {
-    let mut files = Vec::new();
+fn expand_inputs(inputs: &[PathBuf]) -> knotwork::Result<Inputs> {
+    let mut expanded = Inputs::default();
     for input in inputs {
         if input.is_dir() {
             let entries = std::fs::read_dir(input).map_err(|source| knotwork::Error::Io {
                 path: input.clone(),
                 source,
             })?;
-            let mut found: Vec<PathBuf> = entries
+            let (mut found, others): (Vec<PathBuf>, Vec<PathBuf>) = entries
                 .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| {
-                    p.is_file()
-                        && p.extension()
-                            .and_then(|e| e.to_str())
-                            .and_then(SceneFormat::from_extension)
-                            .is_some()
-                })
-                .collect();
+                .filter(|p| p.is_file())
+                .partition(|p| {
+                    p.extension()
+                        .and_then(|e| e.to_str())
+                        .and_then(SceneFormat::from_extension)
+                        .is_some()
+                });
             if found.is_empty() {
                 return Err(knotwork::Error::NoInputFiles {
                     path: input.clone(),
@@ -388,12 +387,21 @@ fn expand_inputs(inputs: &[PathBuf]) -> knotwork::Result<Vec<PathBuf>> {
                 });
             }
             found.sort();
-            files.extend(found);
+            expanded.files.extend(found);
+            expanded.skipped.extend(others);
         } else {
-            files.push(input.clone());
+            expanded.files.push(input.clone());
         }
     }
-    Ok(files)
+    expanded.skipped.sort();
+    Ok(expanded)
+}
+
+/// The files a batch reads, and the files of its folders it leaves alone (other formats).
+#[derive(Default)]
+struct Inputs {
+    files: Vec<PathBuf>,
+    skipped: Vec<PathBuf>,
 }
 
 /// Tessellates every input; returns whether all succeeded.
@@ -418,7 +426,7 @@ fn tessellate(
         );
         return Ok(true);
     }
-    let files = expand_inputs(inputs)?;
+    let Inputs { files, skipped } = expand_inputs(inputs)?;
     if !output.is_dir()
         && let Some(extension) = output.extension().map(|e| e.to_string_lossy())
         && MeshFormat::from_extension(&extension).is_some()
@@ -490,6 +498,14 @@ fn tessellate(
         }
     }
     let seconds = start.elapsed().as_secs_f64();
+    if let Some(first) = skipped.first() {
+        println!(
+            "skipped {} of other formats in the input folders (e.g. {}); knotwork reads {}",
+            count(skipped.len(), "file"),
+            first.display(),
+            knotwork::io::INPUT_FORMATS
+        );
+    }
     println!(
         "{} ({failed} failed): {} in {seconds:.3} s, {:.1} M vertices/s ({}) -> {}",
         count(results.len(), "file"),
