@@ -1133,10 +1133,10 @@ fn classic_form_errors_name_the_item() {
     );
     let typo =
         "{ \"surfaces\": [\n { \"kind\": \"sphere\", \"centre\": [0, 0, 0],\n \"raduis\": 1 } ] }";
-    let message = error(typo);
-    assert!(
-        message.starts_with("line 3:") && message.contains("raduis"),
-        "{message}"
+    // The item's line (where it starts), its index and kind, the field by name.
+    assert_eq!(
+        error(typo),
+        "line 2: surface 0 (sphere): unknown field `raduis`, expected `centre` or `radius`"
     );
     let blend = r#"{ "surfaces": [ { "kind": "coons", "blend": [1, -2],
         "v0": { "kind": "bezier", "points": [[0, 0, 0], [1, 0, 0]] },
@@ -1458,5 +1458,34 @@ fn batches_name_the_files_they_skip() {
     assert!(
         stdout.contains("skipped 1 file of other formats") && stdout.contains("part.step"),
         "{stdout}"
+    );
+}
+
+/// JSON errors point at the cause: the item (index, kind) and the line where it starts, the
+/// unknown field or kind by name, once; syntax errors give line and column once.
+#[test]
+fn json_errors_name_the_item_and_the_field() {
+    let error = |text: &str| knotwork::io::read_json_scene(text).unwrap_err().to_string();
+    let misspelt_field = "{\n \"surfaces\": [\n  { \"kind\": \"sphere\", \"centre\": [0, 0, 0], \"radius\": 1 },\n  {\n   \"kind\": \"bspline\", \"degree\": [1, 1],\n   \"knot_u\": [0, 0, 1, 1], \"knots_v\": [0, 0, 1, 1],\n   \"points\": [[0,0,0],[1,0,0],[0,1,0],[1,1,0]] } ] }";
+    let message = error(misspelt_field);
+    assert!(
+        message.starts_with("line 4: surface 1 (bspline): unknown field `knot_u`, expected one of"),
+        "{message}"
+    );
+    let misspelt_kind =
+        "{ \"curves\": [\n\n { \"kind\": \"bspine\", \"degree\": 2, \"points\": [[0,0,0]] } ] }";
+    let message = error(misspelt_kind);
+    assert!(
+        message.starts_with("line 3: curve 0 (bspine): unknown variant `bspine`"),
+        "{message}"
+    );
+    let syntax = "{ \"surfaces\": [\n { \"kind\": \"sphere\",, } ] }";
+    let message = error(syntax);
+    assert_eq!(message.matches("line").count(), 1, "{message}");
+    assert!(message.starts_with("line 2: column"), "{message}");
+    let top = error("{ \"surface\": [] }");
+    assert!(
+        top.contains("unknown field `surface` at the top level"),
+        "{top}"
     );
 }

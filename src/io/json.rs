@@ -31,42 +31,11 @@ use crate::scene::{Geometry, Item, Scene};
 use glam::DVec3;
 use serde::Deserialize;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SceneFile {
-    #[serde(default)]
-    curves: Vec<CurveEntry>,
-    #[serde(default)]
-    surfaces: Vec<Entry>,
-}
-
-#[derive(Deserialize)]
-struct Entry {
-    #[serde(flatten)]
-    shape: Shape,
-    #[serde(default)]
-    grid: Option<[u32; 2]>,
-    #[serde(default)]
-    name: Option<String>,
-}
-
-#[derive(Deserialize)]
-struct CurveEntry {
-    #[serde(flatten)]
-    curve: Curve,
-    #[serde(default)]
-    samples: Option<u32>,
-}
-
 /// What every control-net kind has: points (u fastest), optional weights and ranges.
-#[derive(Deserialize)]
 struct Net {
     points: Vec<[f64; 3]>,
-    #[serde(default)]
     weights: Option<Vec<f64>>,
-    #[serde(default)]
     range_u: Option<[f64; 2]>,
-    #[serde(default)]
     range_v: Option<[f64; 2]>,
 }
 
@@ -165,12 +134,18 @@ enum BlendSpec {
 #[derive(Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 enum Shape {
+    // The nets' fields are listed in each kind (not flattened), so unknown fields are named.
     Bspline {
         degree: [usize; 2],
         knots_u: Vec<f64>,
         knots_v: Vec<f64>,
-        #[serde(flatten)]
-        net: Net,
+        points: Vec<[f64; 3]>,
+        #[serde(default)]
+        weights: Option<Vec<f64>>,
+        #[serde(default)]
+        range_u: Option<[f64; 2]>,
+        #[serde(default)]
+        range_v: Option<[f64; 2]>,
     },
     Bezier {
         degree: [usize; 2],
@@ -178,8 +153,13 @@ enum Shape {
         breakpoints_u: Option<Vec<f64>>,
         #[serde(default)]
         breakpoints_v: Option<Vec<f64>>,
-        #[serde(flatten)]
-        net: Net,
+        points: Vec<[f64; 3]>,
+        #[serde(default)]
+        weights: Option<Vec<f64>>,
+        #[serde(default)]
+        range_u: Option<[f64; 2]>,
+        #[serde(default)]
+        range_v: Option<[f64; 2]>,
     },
     Bilinear {
         /// S(0,0), S(1,0), S(0,1), S(1,1).
@@ -486,8 +466,17 @@ impl Shape {
                 degree,
                 knots_u,
                 knots_v,
-                net,
-            } => one(net.build(
+                points,
+                weights,
+                range_u,
+                range_v,
+            } => one(Net {
+                points,
+                weights,
+                range_u,
+                range_v,
+            }
+            .build(
                 KnotVector::try_new(degree[0], knots_u)?,
                 KnotVector::try_new(degree[1], knots_v)?,
             )),
@@ -495,8 +484,17 @@ impl Shape {
                 degree,
                 breakpoints_u,
                 breakpoints_v,
-                net,
+                points,
+                weights,
+                range_u,
+                range_v,
             } => {
+                let net = Net {
+                    points,
+                    weights,
+                    range_u,
+                    range_v,
+                };
                 let unit = [0.0, 1.0];
                 let ku = KnotVector::from_breakpoints(
                     degree[0],
@@ -665,20 +663,51 @@ impl Shape {
     }
 }
 
-/// Parses a JSON scene. Syntax and schema errors carry the line ([`Error::AtLine`]); errors in
-/// a surface's geometry name the surface ([`Error::InSurface`]).
+/// Parses a JSON scene. Syntax errors carry their line ([`Error::AtLine`]); an item that
+/// does not fit its kind's schema is named with its index and kind at the line where it
+/// starts, and the field at fault is named (unknown, missing or of the wrong type); errors in
+/// an item's geometry name the item ([`Error::InSurface`], [`Error::InCurve`]).
 pub fn read_json_scene(text: &str) -> Result<Scene> {
-    let file: SceneFile =
-        serde_json::from_str(text).map_err(|e| Error::syntax(format!("{e}")).at_line(e.line()))?;
+    let file: serde_json::Value = serde_json::from_str(text).map_err(|e| {
+        // serde_json appends " at line L column C"; the line goes in front, once.
+        let message = e.to_string();
+        let message = message
+            .rsplit_once(" at line ")
+            .map_or(&*message, |(m, _)| m);
+        Error::syntax(format!("column {}: {message}", e.column())).at_line(e.line())
+    })?;
+    let serde_json::Value::Object(mut top) = file else {
+        return Err(
+            Error::syntax("a scene is an object with `surfaces` and `curves` arrays").at_line(1),
+        );
+    };
+    let (surface_lines, curve_lines) = item_lines(text);
+    let mut list = |key: &str| -> Result<Vec<serde_json::Value>> {
+        match top.remove(key) {
+            None => Ok(Vec::new()),
+            Some(serde_json::Value::Array(items)) => Ok(items),
+            Some(_) => Err(Error::syntax(format!("`{key}` must be an array of items"))),
+        }
+    };
+    let (surfaces, curves) = (list("surfaces")?, list("curves")?);
+    if let Some(key) = top.keys().next() {
+        return Err(Error::syntax(format!(
+            "unknown field `{key}` at the top level, expected `surfaces` or `curves`"
+        )));
+    }
     let mut scene = Scene::default();
     // Items in file order: the surfaces, then the curves.
-    for (index, entry) in file.surfaces.into_iter().enumerate() {
+    for (index, value) in surfaces.into_iter().enumerate() {
+        let line = surface_lines.get(index).copied().unwrap_or(1);
+        let mut item = ItemFields::take(value, "surface", index, line, &["grid", "name"])?;
+        let grid: Option<[u32; 2]> = item.field("grid")?;
+        let name: Option<String> = item.field("name")?;
+        let shape: Shape = item.geometry()?;
         let in_surface = |e: Error| Error::InSurface {
             index,
             source: Box::new(e),
         };
-        let grid = entry
-            .grid
+        let grid = grid
             .map(|[nu, nv]| {
                 if nu < 2 || nv < 2 {
                     Err(in_surface(Error::GridTooSmall { nu, nv }))
@@ -687,7 +716,7 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
                 }
             })
             .transpose()?;
-        let geometries = match entry.shape.build().map_err(in_surface)? {
+        let geometries = match shape.build().map_err(in_surface)? {
             Built::Surfaces(built) => built.into_iter().map(Geometry::Surface).collect(),
             Built::Coons(patch) => vec![Geometry::Coons(patch)],
         };
@@ -695,24 +724,153 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
             .items
             .extend(geometries.into_iter().map(|geometry| Item {
                 grid,
-                name: entry.name.clone(),
+                name: name.clone(),
                 ..Item::new(geometry)
             }));
     }
-    for (index, entry) in file.curves.into_iter().enumerate() {
+    for (index, value) in curves.into_iter().enumerate() {
+        let line = curve_lines.get(index).copied().unwrap_or(1);
+        let mut item = ItemFields::take(value, "curve", index, line, &["samples"])?;
+        let samples: Option<u32> = item.field("samples")?;
+        let curve: Curve = item.geometry()?;
         let in_curve = |e: Error| Error::InCurve {
             index,
             source: Box::new(e),
         };
-        if let Some(samples) = entry.samples
+        if let Some(samples) = samples
             && samples < 2
         {
             return Err(in_curve(Error::GridTooSmall { nu: samples, nv: 1 }));
         }
         scene.items.push(Item {
-            samples: entry.samples,
-            ..Item::new(Geometry::Curve(entry.curve.build().map_err(in_curve)?))
+            samples,
+            ..Item::new(Geometry::Curve(curve.build().map_err(in_curve)?))
         });
     }
     Ok(scene)
+}
+
+/// One item of a scene file, its item-level fields (`grid`, `name`, `samples`) taken apart
+/// from its geometry's, with what names it in errors.
+struct ItemFields {
+    what: &'static str,
+    index: usize,
+    kind: String,
+    line: usize,
+    own: serde_json::Map<String, serde_json::Value>,
+    geometry: serde_json::Value,
+}
+
+impl ItemFields {
+    fn take(
+        value: serde_json::Value,
+        what: &'static str,
+        index: usize,
+        line: usize,
+        own_fields: &[&str],
+    ) -> Result<Self> {
+        let serde_json::Value::Object(mut map) = value else {
+            return Err(Error::syntax(format!(
+                "{what} {index}: an item is an object with a `kind`"
+            ))
+            .at_line(line));
+        };
+        let kind = match map.get("kind") {
+            Some(serde_json::Value::String(kind)) => kind.clone(),
+            _ => "no kind".to_string(),
+        };
+        let own = own_fields
+            .iter()
+            .filter_map(|&f| map.remove(f).map(|v| (f.to_string(), v)))
+            .collect();
+        Ok(ItemFields {
+            what,
+            index,
+            kind,
+            line,
+            own,
+            geometry: serde_json::Value::Object(map),
+        })
+    }
+
+    /// The error for this item: "what index (kind): message", at the item's line.
+    fn error(&self, message: impl std::fmt::Display) -> Error {
+        Error::syntax(format!(
+            "{} {} ({}): {message}",
+            self.what, self.index, self.kind
+        ))
+        .at_line(self.line)
+    }
+
+    /// The item-level field `name`, if present.
+    fn field<T: serde::de::DeserializeOwned>(&mut self, name: &str) -> Result<Option<T>> {
+        self.own
+            .remove(name)
+            .map(|v| serde_json::from_value(v).map_err(|e| self.error(format!("`{name}`: {e}"))))
+            .transpose()
+    }
+
+    /// The geometry, by its kind's schema (unknown fields are errors naming them).
+    fn geometry<T: serde::de::DeserializeOwned>(&mut self) -> Result<T> {
+        serde_json::from_value(std::mem::take(&mut self.geometry)).map_err(|e| self.error(e))
+    }
+}
+
+/// The line on which each element of the top-level `surfaces` and `curves` arrays starts
+/// (a scan of the text that follows strings and nesting; for error messages only).
+fn item_lines(text: &str) -> (Vec<usize>, Vec<usize>) {
+    let (mut surfaces, mut curves) = (Vec::new(), Vec::new());
+    let (mut line, mut depth) = (1usize, 0usize);
+    let (mut in_string, mut escaped) = (false, false);
+    let (mut string, mut last_key) = (String::new(), String::new());
+    let mut array: Option<bool> = None;
+    for c in text.chars() {
+        if c == '\n' {
+            line += 1;
+        }
+        if in_string {
+            match (escaped, c) {
+                (true, _) => escaped = false,
+                (false, '\\') => escaped = true,
+                (false, '"') => {
+                    in_string = false;
+                    if depth == 1 {
+                        last_key = std::mem::take(&mut string);
+                    }
+                }
+                (false, c) => string.push(c),
+            }
+            continue;
+        }
+        match c {
+            '"' => {
+                in_string = true;
+                string.clear();
+            }
+            '{' | '[' => {
+                if depth == 1 && c == '[' {
+                    array = match last_key.as_str() {
+                        "surfaces" => Some(true),
+                        "curves" => Some(false),
+                        _ => None,
+                    };
+                } else if depth == 2 {
+                    match array {
+                        Some(true) => surfaces.push(line),
+                        Some(false) => curves.push(line),
+                        None => {}
+                    }
+                }
+                depth += 1;
+            }
+            '}' | ']' => {
+                depth = depth.saturating_sub(1);
+                if depth == 1 {
+                    array = None;
+                }
+            }
+            _ => {}
+        }
+    }
+    (surfaces, curves)
 }
