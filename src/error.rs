@@ -107,6 +107,10 @@ pub enum Error {
         "the mesh would have {vertices} vertices and {indices} triangle indices; u32 indices allow at most 4294967295 of each"
     )]
     MeshTooLarge { vertices: u64, indices: u64 },
+    #[error(
+        "the mesh would take {needed} bytes of memory, over the budget of {budget} (--max-memory): use a coarser grid or a larger budget"
+    )]
+    OverMemoryBudget { needed: u64, budget: u64 },
     #[error("{message}")]
     Syntax { message: String },
     #[error(

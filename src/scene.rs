@@ -64,6 +64,9 @@ pub struct SceneOptions {
     pub grid: TessOptions,
     /// Samples per curve (≥ 2).
     pub samples: u32,
+    /// Bytes the output mesh may take in memory; a scene needing more is refused before
+    /// anything is allocated for it ([`crate::Error::OverMemoryBudget`]). `None`: no limit.
+    pub memory_budget: Option<u64>,
 }
 
 impl Default for SceneOptions {
@@ -71,6 +74,7 @@ impl Default for SceneOptions {
         SceneOptions {
             grid: TessOptions::DEFAULT,
             samples: 65,
+            memory_budget: None,
         }
     }
 }
@@ -237,6 +241,7 @@ pub trait Tessellator {
     /// else on `defaults`. Parts and polylines come in item order and carry their item's
     /// index ([`crate::MeshPart::item`], [`Polyline::item`]).
     fn tessellate_scene(&self, scene: &Scene, defaults: &SceneOptions) -> Result<Mesh> {
+        check_memory(scene, defaults, F64_VERTEX_BYTES)?;
         let mut mesh = Mesh::default();
         self.tessellate_each_into(
             &scene.surface_list(),
@@ -253,6 +258,7 @@ pub trait Tessellator {
     /// As [`Tessellator::tessellate_scene`], into an f32 mesh (the GPU reads back without
     /// widening).
     fn tessellate_scene_f32(&self, scene: &Scene, defaults: &SceneOptions) -> Result<Mesh32> {
+        check_memory(scene, defaults, size_of::<crate::Vertex>() as u64)?;
         let mut mesh = Mesh32::default();
         self.tessellate_each_into_f32(
             &scene.surface_list(),
@@ -265,6 +271,34 @@ pub trait Tessellator {
         put_in_item_order(scene, &mut mesh);
         Ok(mesh)
     }
+}
+
+/// Bytes per vertex of an f64 [`Mesh`]: position, normal (3 × f64 each), uv (2 × f64).
+const F64_VERTEX_BYTES: u64 = 64;
+
+/// Bytes the mesh of `scene` takes at `vertex_bytes` per vertex (with its u32 indices and its
+/// f64 polylines), from the layout alone.
+pub fn scene_mesh_bytes(scene: &Scene, defaults: &SceneOptions, vertex_bytes: u64) -> Result<u64> {
+    let mut grids = scene.surface_grids(defaults.grid);
+    grids.extend(scene.coons_grids(defaults.grid));
+    let layout = crate::plan::GridLayout::new(grids.len(), &grids)?;
+    let samples: u64 = scene
+        .curve_samples(defaults.samples)
+        .iter()
+        .map(|&n| u64::from(n))
+        .sum();
+    Ok(layout.vertex_count * vertex_bytes + layout.index_count * 4 + samples * 48)
+}
+
+/// Refuses a scene whose mesh would take more than the budget of `defaults`.
+fn check_memory(scene: &Scene, defaults: &SceneOptions, vertex_bytes: u64) -> Result<()> {
+    if let Some(budget) = defaults.memory_budget {
+        let needed = scene_mesh_bytes(scene, defaults, vertex_bytes)?;
+        if needed > budget {
+            return Err(crate::Error::OverMemoryBudget { needed, budget });
+        }
+    }
+    Ok(())
 }
 
 /// The scene's Coons patches (one mesh) and curves (polylines), each kind in item order.

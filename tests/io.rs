@@ -1489,3 +1489,66 @@ fn json_errors_name_the_item_and_the_field() {
         "{top}"
     );
 }
+
+/// A memory budget before allocation: the teapot at 4000x4000 (5.1e8 vertices, 45 GB as
+/// f64) is refused at once with the figure under a 16 GiB budget (the default is half the
+/// machine's memory), as is a small job under a tiny --max-memory; nothing is written. The library
+/// refuses the same way through SceneOptions::memory_budget, from the layout alone.
+#[test]
+fn memory_budgets_refuse_before_allocating() {
+    let dir = scratch_dir("budget");
+    let out = dir.join("t.obj");
+    let started = std::time::Instant::now();
+    let run = knotwork(&[
+        "tessellate",
+        "data/teapot.bpt",
+        "--grid",
+        "4000x4000",
+        "--max-memory",
+        "16G",
+        "--backend",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("the mesh would take 45049856768 bytes of memory, over the budget"),
+        "{stderr}"
+    );
+    assert!(started.elapsed() < std::time::Duration::from_secs(30));
+    let run = knotwork(&[
+        "tessellate",
+        "data/teapot.bpt",
+        "--max-memory",
+        "1M",
+        "--backend",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!run.status.success());
+    assert!(String::from_utf8_lossy(&run.stderr).contains("over the budget of 1048576"));
+    assert!(!out.exists());
+    let scene = read_scene(Path::new("data/teapot.bpt")).unwrap();
+    let defaults = knotwork::SceneOptions {
+        memory_budget: Some(1 << 20),
+        ..knotwork::SceneOptions::default()
+    };
+    // 32 patches of 33x33 vertices (64 bytes each in f64) and 6144 indices each.
+    let needed = 32 * (33 * 33 * 64 + 6 * 32 * 32 * 4);
+    assert_eq!(
+        knotwork::scene::scene_mesh_bytes(&scene, &defaults, 64).unwrap(),
+        needed
+    );
+    assert!(matches!(
+        CpuTessellator.tessellate_scene(&scene, &defaults),
+        Err(Error::OverMemoryBudget { needed: n, budget: 1048576 }) if n == needed
+    ));
+    let roomy = knotwork::SceneOptions {
+        memory_budget: Some(needed),
+        ..defaults
+    };
+    assert!(CpuTessellator.tessellate_scene(&scene, &roomy).is_ok());
+}

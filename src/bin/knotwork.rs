@@ -56,6 +56,10 @@ enum Command {
         /// Points per curve polyline (OBJ `l`, glTF LINE_STRIP); a JSON curve's own `samples` wins.
         #[arg(long, default_value_t = 65, value_parser = clap::value_parser!(u32).range(2..))]
         samples: u32,
+        /// Memory one file's mesh may take, e.g. 512M or 4G (default: half the machine's
+        /// memory); a file that needs more is refused before anything is allocated.
+        #[arg(long, value_parser = parse_bytes)]
+        max_memory: Option<u64>,
     },
     /// Render the tessellated surfaces of INPUT to a PNG (headless, on the GPU adapter).
     Render {
@@ -212,6 +216,7 @@ fn main() -> ExitCode {
             input_format,
             weld,
             samples,
+            max_memory,
         } => {
             let job = Job {
                 options: TessOptions::DEFAULT.with_grid(grid.0, grid.1),
@@ -228,6 +233,7 @@ fn main() -> ExitCode {
                 }),
                 weld,
                 samples,
+                memory_budget: max_memory.unwrap_or_else(default_memory_budget),
             };
             tessellate(&inputs, &output, backend, &job)
         }
@@ -282,6 +288,43 @@ struct Job {
     input_format: Option<SceneFormat>,
     weld: bool,
     samples: u32,
+    /// Bytes one file's mesh may take (halved when welding, which copies it).
+    memory_budget: u64,
+}
+
+/// Parses a byte count: a number, optionally followed by K, M, G or T (powers of 1024).
+fn parse_bytes(text: &str) -> Result<u64, String> {
+    let text = text.trim();
+    let (digits, unit) = match text.char_indices().find(|(_, c)| !c.is_ascii_digit()) {
+        Some((at, _)) => text.split_at(at),
+        None => (text, ""),
+    };
+    let scale: u64 = match unit.to_ascii_uppercase().trim_end_matches(['B', 'I']) {
+        "" => 1,
+        "K" => 1 << 10,
+        "M" => 1 << 20,
+        "G" => 1 << 30,
+        "T" => 1 << 40,
+        _ => return Err(format!("`{text}`: expected bytes like 512M or 4G")),
+    };
+    let number: u64 = digits
+        .parse()
+        .map_err(|_| format!("`{text}`: expected bytes like 512M or 4G"))?;
+    number
+        .checked_mul(scale)
+        .ok_or_else(|| format!("`{text}` is more bytes than a u64 counts"))
+}
+
+/// Half the machine's memory (MemTotal of /proc/meminfo), or 8 GiB where that is unknown.
+fn default_memory_budget() -> u64 {
+    let total = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|info| {
+            let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
+            let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+            Some(kib * 1024)
+        });
+    total.map_or(8 << 30, |bytes| bytes / 2)
 }
 
 /// Counts for one file.
@@ -327,9 +370,15 @@ fn process(
     job: &Job,
 ) -> knotwork::Result<Tally> {
     let scene = knotwork::io::read_scene_as(input, job.input_format)?;
+    let budget = if job.weld {
+        job.memory_budget / 2
+    } else {
+        job.memory_budget
+    };
     let defaults = SceneOptions {
         grid: job.options,
         samples: job.samples,
+        memory_budget: Some(budget),
     };
     // Binary formats carry f32: an f32 mesh goes to them without widening and narrowing
     // (from the GPU, straight from its buffers); OBJ and welding take the f64 mesh.
