@@ -275,10 +275,81 @@ fn tessellator(backend: Backend) -> knotwork::Result<Box<dyn Tessellator + Sync>
         Backend::Cpu => Box::new(CpuTessellator),
         Backend::Gpu => Box::new(GpuTessellator::new()?),
         Backend::Auto => match GpuTessellator::new() {
-            Ok(gpu) => Box::new(gpu),
+            Ok(gpu) => Box::new(GpuOrCpu { gpu }),
             Err(_) => Box::new(CpuTessellator),
         },
     })
+}
+
+/// `--backend auto` with an adapter: the GPU, and the CPU for a job the GPU cannot hold
+/// (its buffers over the device's limits), with a note saying so.
+struct GpuOrCpu {
+    gpu: GpuTessellator,
+}
+
+impl GpuOrCpu {
+    /// `job` on the GPU, or on the CPU where the GPU refuses it as too large; `state` is what
+    /// the job fills.
+    fn either<S: ?Sized, T>(
+        &self,
+        state: &mut S,
+        job: impl Fn(&dyn Tessellator, &mut S) -> knotwork::Result<T>,
+    ) -> knotwork::Result<T> {
+        match job(&self.gpu, state) {
+            Err(e) if matches!(e.root(), knotwork::Error::GpuJobTooLarge { .. }) => {
+                eprintln!("note: the GPU cannot hold this job ({e}); the CPU tessellates it");
+                job(&CpuTessellator, state)
+            }
+            result => result,
+        }
+    }
+}
+
+impl Tessellator for GpuOrCpu {
+    fn tessellate_each_into(
+        &self,
+        surfaces: &[knotwork::BSplineSurface],
+        options: &[TessOptions],
+        mesh: &mut knotwork::Mesh,
+    ) -> knotwork::Result<()> {
+        self.either(mesh, |t, mesh| {
+            t.tessellate_each_into(surfaces, options, mesh)
+        })
+    }
+
+    fn tessellate_each_into_f32(
+        &self,
+        surfaces: &[knotwork::BSplineSurface],
+        options: &[TessOptions],
+        mesh: &mut knotwork::Mesh32,
+    ) -> knotwork::Result<()> {
+        self.either(mesh, |t, mesh| {
+            t.tessellate_each_into_f32(surfaces, options, mesh)
+        })
+    }
+
+    fn tessellate_coons_into(
+        &self,
+        patches: &[knotwork::geom::patches::CoonsPatch],
+        options: &[TessOptions],
+        mesh: &mut knotwork::Mesh,
+    ) -> knotwork::Result<()> {
+        self.either(mesh, |t, mesh| {
+            t.tessellate_coons_into(patches, options, mesh)
+        })
+    }
+
+    fn tessellate_curves(
+        &self,
+        curves: &[knotwork::BSplineCurve],
+        samples: &[u32],
+    ) -> knotwork::Result<Vec<knotwork::Polyline>> {
+        self.either(&mut (), |t, _| t.tessellate_curves(curves, samples))
+    }
+
+    fn name(&self) -> String {
+        format!("{}; the CPU for jobs it cannot hold", self.gpu.name())
+    }
 }
 
 /// What to do with every input.
