@@ -20,7 +20,7 @@ const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 pub const BACKGROUND: [f64; 3] = [0.9, 0.92, 0.95];
 
 /// What to draw, and how big.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RenderOptions {
     pub width: u32,
     pub height: u32,
@@ -28,16 +28,88 @@ pub struct RenderOptions {
     pub wireframe: bool,
     /// Draw the control nets (lines between neighbouring control points).
     pub control_net: bool,
+    /// Where the camera looks from.
+    pub view: View,
+    /// The model's up axis.
+    pub up: Axis,
 }
 
 impl RenderOptions {
-    /// 800 × 600, shaded only.
+    /// 800 × 600, shaded only, from the front-right and above ([`View::ISO`]), z up.
     pub const DEFAULT: RenderOptions = RenderOptions {
         width: 800,
         height: 600,
         wireframe: false,
         control_net: false,
+        view: View::ISO,
+        up: Axis::Z,
     };
+}
+
+/// A direction to look from, toward the model's centre: `azimuth` degrees about the up axis
+/// (0 from +x, −90 from the front, −y in a z-up model) and `elevation` degrees above the
+/// horizontal plane (90: from the top).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct View {
+    pub azimuth: f32,
+    pub elevation: f32,
+}
+
+impl View {
+    pub const FRONT: View = View {
+        azimuth: -90.0,
+        elevation: 0.0,
+    };
+    pub const BACK: View = View {
+        azimuth: 90.0,
+        elevation: 0.0,
+    };
+    pub const LEFT: View = View {
+        azimuth: 180.0,
+        elevation: 0.0,
+    };
+    pub const RIGHT: View = View {
+        azimuth: 0.0,
+        elevation: 0.0,
+    };
+    pub const TOP: View = View {
+        azimuth: -90.0,
+        elevation: 90.0,
+    };
+    pub const BOTTOM: View = View {
+        azimuth: -90.0,
+        elevation: -90.0,
+    };
+    /// From the front-right and above.
+    pub const ISO: View = View {
+        azimuth: -58.0,
+        elevation: 25.5,
+    };
+
+    /// The unit direction from the model's centre to the eye, in a z-up frame.
+    fn direction(self) -> Vec3 {
+        let (az, el) = (self.azimuth.to_radians(), self.elevation.to_radians());
+        Vec3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin())
+    }
+}
+
+/// A coordinate axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Axis {
+    X,
+    Y,
+    Z,
+}
+
+impl Axis {
+    /// `v` of a z-up frame in the right-handed frame whose up axis is this one.
+    fn rotate_z_up(self, v: Vec3) -> Vec3 {
+        match self {
+            Axis::Z => v,
+            Axis::Y => Vec3::new(v.x, v.z, -v.y),
+            Axis::X => Vec3::new(v.z, v.x, v.y),
+        }
+    }
 }
 
 /// Mirrors `Frame` in render.wgsl.
@@ -64,7 +136,8 @@ pub fn render(
 }
 
 /// The camera and lights framing the box (`lo`, `hi`) for an image of `width` × `height`.
-fn frame_for((lo, hi): (Vec3, Vec3), width: u32, height: u32) -> Frame {
+fn frame_for((lo, hi): (Vec3, Vec3), options: &RenderOptions) -> Frame {
+    let (width, height) = (options.width, options.height);
     let centre = 0.5 * (lo + hi);
     let radius = (0.5 * (hi - lo).length()).max(1e-6);
     let aspect = width as f32 / height as f32;
@@ -73,8 +146,15 @@ fn frame_for((lo, hi): (Vec3, Vec3), width: u32, height: u32) -> Frame {
     let half = ((0.5 * fov).tan() * aspect.min(1.0)).atan();
     // (The sphere around the control box is a generous bound: 0.85 of it still frames models.)
     let distance = radius / half.sin() * 0.85;
-    let eye = centre + Vec3::new(1.0, -1.6, 0.9).normalize() * distance;
-    let view = look_at(eye, centre, Vec3::Z);
+    let towards_eye = options.up.rotate_z_up(options.view.direction());
+    let eye = centre + towards_eye * distance;
+    // Looking straight down or up the up axis, the front direction serves as "up" instead.
+    let up = if options.view.elevation.abs() > 89.0 {
+        options.up.rotate_z_up(Vec3::Y)
+    } else {
+        options.up.rotate_z_up(Vec3::Z)
+    };
+    let view = look_at(eye, centre, up);
     let projection = perspective(
         fov,
         aspect,
@@ -381,7 +461,7 @@ impl Preview {
             context.queue().write_buffer(
                 &self.uniform,
                 0,
-                bytemuck::bytes_of(&frame_for(framed, width, height)),
+                bytemuck::bytes_of(&frame_for(framed, &self.options)),
             );
             let wire = wire_indices.as_ref().map(|edges| {
                 device.create_buffer_init(&wgpu::util::BufferInitDescriptor {

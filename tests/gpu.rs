@@ -632,6 +632,7 @@ fn teapot_render_is_not_blank() {
             height: 120,
             wireframe,
             control_net,
+            ..knotwork::render::RenderOptions::DEFAULT
         };
         let image = knotwork::render::render(context, &batch, &surfaces, &options).unwrap();
         assert_eq!(image.dimensions(), (160, 120));
@@ -1086,8 +1087,7 @@ fn render_draws_coons_patches_and_curves() {
     let options = knotwork::render::RenderOptions {
         width: 160,
         height: 120,
-        wireframe: false,
-        control_net: false,
+        ..knotwork::render::RenderOptions::DEFAULT
     };
     for scene in [
         of(|g| matches!(g, knotwork::Geometry::Coons(_))),
@@ -1102,4 +1102,41 @@ fn render_draws_coons_patches_and_curves() {
         let drawn = image.pixels().filter(|&&p| p != corner).count();
         assert!(drawn > 100, "{drawn} pixels drawn");
     }
+}
+
+/// The camera goes where `view` and `up` say: a flat square in the xy plane fills much of
+/// the picture from the top of a z-up frame and from the front of a y-up frame (both look
+/// down z), and almost nothing edge-on from the front of a z-up frame.
+#[test]
+#[cfg(feature = "render")]
+fn render_views_follow_view_and_up() {
+    use knotwork::render::{Axis, RenderOptions, View};
+    let Some(context) = gpu() else { return };
+    let corners: Vec<DVec3> = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+        .iter()
+        .map(|&(x, y)| DVec3::new(x, y, 0.0))
+        .collect();
+    let square = vec![knotwork::geom::bezier_surface(1, 1, &corners, None).unwrap()];
+    let grid = TessOptions::DEFAULT.with_grid(5, 5);
+    let batch = GpuBatch::new(context, &BatchDescriptor::new(&square, &grid)).unwrap();
+    batch.dispatch().unwrap();
+    let covered = |view: View, up: Axis| {
+        let options = RenderOptions {
+            width: 120,
+            height: 120,
+            view,
+            up,
+            ..RenderOptions::DEFAULT
+        };
+        let image = knotwork::render::render(context, &batch, &[], &options).unwrap();
+        let background = *image.get_pixel(0, 0);
+        image.pixels().filter(|&&p| p != background).count() as f64 / (120.0 * 120.0)
+    };
+    let (top, front, front_y_up) = (
+        covered(View::TOP, Axis::Z),
+        covered(View::FRONT, Axis::Z),
+        covered(View::FRONT, Axis::Y),
+    );
+    assert!(top > 0.2 && front_y_up > 0.2, "{top} {front_y_up}");
+    assert!(front < 0.02, "edge-on: {front}");
 }

@@ -79,6 +79,13 @@ enum Command {
         /// Draw the control nets.
         #[arg(long)]
         control_net: bool,
+        /// Where to look from: front, back, left, right, top, bottom, iso, or AZIMUTH,ELEVATION
+        /// in degrees (azimuth about the up axis, 0 from +x; elevation above the horizon).
+        #[arg(long, default_value = "iso", value_parser = parse_view)]
+        view: knotwork::render::View,
+        /// The model's up axis: x, y (the tea set's .bpt files) or z.
+        #[arg(long, value_enum, default_value_t = UpAxis::Z)]
+        up: UpAxis,
     },
     /// List the GPU adapters and the limits that matter to knotwork.
     Info,
@@ -125,6 +132,43 @@ fn parse_grid(text: &str) -> Result<(u32, u32), String> {
         return Err("each side of the grid needs at least 2 vertices".into());
     }
     Ok((u, v))
+}
+
+/// The `--up` values.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum UpAxis {
+    X,
+    Y,
+    Z,
+}
+
+/// Parses `--view`: a named view or "azimuth,elevation" in degrees.
+fn parse_view(text: &str) -> Result<knotwork::render::View, String> {
+    use knotwork::render::View;
+    Ok(match text {
+        "front" => View::FRONT,
+        "back" => View::BACK,
+        "left" => View::LEFT,
+        "right" => View::RIGHT,
+        "top" => View::TOP,
+        "bottom" => View::BOTTOM,
+        "iso" => View::ISO,
+        _ => {
+            let angles = text.split_once(',').and_then(|(a, e)| {
+                Some((a.trim().parse::<f32>().ok()?, e.trim().parse::<f32>().ok()?))
+            });
+            match angles {
+                Some((azimuth, elevation)) if (-90.0..=90.0).contains(&elevation) => {
+                    View { azimuth, elevation }
+                }
+                _ => {
+                    return Err(format!(
+                        "`{text}`: expected front, back, left, right, top, bottom, iso or AZIMUTH,ELEVATION (elevation in -90..=90)"
+                    ));
+                }
+            }
+        }
+    })
 }
 
 fn parse_size(text: &str) -> Result<(u32, u32), String> {
@@ -244,12 +288,20 @@ fn main() -> ExitCode {
             grid,
             wireframe,
             control_net,
+            view,
+            up,
         } => {
             let options = knotwork::render::RenderOptions {
                 width: size.0,
                 height: size.1,
                 wireframe,
                 control_net,
+                view,
+                up: match up {
+                    UpAxis::X => knotwork::render::Axis::X,
+                    UpAxis::Y => knotwork::render::Axis::Y,
+                    UpAxis::Z => knotwork::render::Axis::Z,
+                },
             };
             render(&input, &output, grid, &options).map(|()| true)
         }
