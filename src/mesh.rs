@@ -104,6 +104,13 @@ impl Mesh32 {
         self.indices.len() / 3
     }
 
+    /// Replaces the vertices, indices and parts with `other`'s, keeping this mesh's polylines
+    /// (what surface tessellation leaves alone).
+    pub fn replace_grids(&mut self, other: Mesh32) {
+        let polylines = std::mem::take(&mut self.polylines);
+        *self = Mesh32 { polylines, ..other };
+    }
+
     /// As [`Mesh::append`].
     pub fn append(&mut self, other: Mesh32) -> Result<()> {
         let (vertices, indices) = append_offsets(
@@ -362,6 +369,13 @@ impl Mesh {
     }
     pub fn triangle_count(&self) -> usize {
         self.indices.len() / 3
+    }
+
+    /// Replaces the vertices, indices and parts with `other`'s, keeping this mesh's polylines
+    /// (what surface tessellation leaves alone).
+    pub fn replace_grids(&mut self, other: Mesh) {
+        let polylines = std::mem::take(&mut self.polylines);
+        *self = Mesh { polylines, ..other };
     }
 
     /// Appends `other`'s surfaces (vertices, triangles, parts) and polylines after this

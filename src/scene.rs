@@ -80,15 +80,6 @@ impl Default for SceneOptions {
 }
 
 impl Scene {
-    /// A scene of `surfaces`, in order, asking for nothing.
-    pub fn of_surfaces(surfaces: impl IntoIterator<Item = BSplineSurface>) -> Self {
-        let items = surfaces
-            .into_iter()
-            .map(|s| Item::new(Geometry::Surface(s)))
-            .collect();
-        Scene { items }
-    }
-
     /// The surfaces, in item order.
     pub fn surfaces(&self) -> impl Iterator<Item = &BSplineSurface> {
         self.items.iter().filter_map(|item| match &item.geometry {
@@ -212,12 +203,9 @@ pub trait Tessellator {
         options: &[TessOptions],
         mesh: &mut Mesh32,
     ) -> Result<()> {
-        let mut wide = Mesh {
-            polylines: std::mem::take(&mut mesh.polylines),
-            ..Mesh::default()
-        };
+        let mut wide = Mesh::default();
         self.tessellate_each_into(surfaces, options, &mut wide)?;
-        *mesh = Mesh32::from(wide);
+        mesh.replace_grids(Mesh32::from(wide));
         Ok(())
     }
     /// Tessellates Coons patches evaluated directly (any blend, see [`CoonsPatch`]) into

@@ -759,3 +759,48 @@ fn f32_output_is_the_f64_mesh_rounded() {
         .unwrap();
     assert_eq!(narrow, knotwork::Mesh32::from(&wide));
 }
+
+/// The trait's default f32 call leaves the mesh as it was when the backend fails.
+#[test]
+fn default_f32_tessellation_keeps_the_mesh_on_error() {
+    struct Failing;
+    impl Tessellator for Failing {
+        fn tessellate_each_into(
+            &self,
+            _: &[BSplineSurface],
+            _: &[TessOptions],
+            _: &mut knotwork::Mesh,
+        ) -> Result<(), Error> {
+            Err(Error::GridTooSmall { nu: 1, nv: 1 })
+        }
+        fn tessellate_coons_into(
+            &self,
+            _: &[knotwork::geom::patches::CoonsPatch],
+            _: &[TessOptions],
+            _: &mut knotwork::Mesh,
+        ) -> Result<(), Error> {
+            unreachable!("not called")
+        }
+        fn tessellate_curves(
+            &self,
+            _: &[BSplineCurve],
+            _: &[u32],
+        ) -> Result<Vec<knotwork::Polyline>, Error> {
+            unreachable!("not called")
+        }
+        fn name(&self) -> String {
+            "failing".into()
+        }
+    }
+    let mut mesh = knotwork::Mesh32 {
+        polylines: vec![knotwork::Polyline::default()],
+        ..knotwork::Mesh32::default()
+    };
+    let before = mesh.clone();
+    assert!(
+        Failing
+            .tessellate_each_into_f32(&[], &[], &mut mesh)
+            .is_err()
+    );
+    assert_eq!(mesh, before);
+}

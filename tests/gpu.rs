@@ -1140,3 +1140,37 @@ fn render_views_follow_view_and_up() {
     assert!(top > 0.2 && front_y_up > 0.2, "{top} {front_y_up}");
     assert!(front < 0.02, "edge-on: {front}");
 }
+
+/// A failed call leaves the mesh as it was, polylines included (the GPU's Coons call took
+/// them out before it could fail).
+#[test]
+fn failed_gpu_calls_leave_the_mesh_unchanged() {
+    let Some(context) = gpu() else { return };
+    let tessellator = tessellator_on(context);
+    let mut mesh = tessellator
+        .tessellate(
+            &peer_and_teapot()[..2],
+            &TessOptions::DEFAULT.with_grid(4, 4),
+        )
+        .unwrap();
+    mesh.polylines.push(knotwork::Polyline {
+        item: 0,
+        positions: vec![DVec3::ZERO, DVec3::X],
+        tangents: vec![DVec3::X; 2],
+    });
+    let before = mesh.clone();
+    let patches = conformance::coons_suite().swap_remove(0).patches;
+    assert!(
+        tessellator
+            .tessellate_coons_into(&patches, &[], &mut mesh)
+            .is_err()
+    );
+    assert_eq!(mesh, before);
+    let too_small = vec![TessOptions::DEFAULT.with_grid(1, 4); 2];
+    assert!(
+        tessellator
+            .tessellate_each_into(&peer_and_teapot()[..2], &too_small, &mut mesh)
+            .is_err()
+    );
+    assert_eq!(mesh, before);
+}

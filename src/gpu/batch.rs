@@ -516,10 +516,7 @@ impl GpuBatch {
         match &self.coons_work {
             Some(work) => work.read_into(&self.coons_pool, &self.context, mesh),
             None => {
-                *mesh = Mesh32 {
-                    polylines: std::mem::take(&mut mesh.polylines),
-                    ..Mesh32::default()
-                };
+                mesh.replace_grids(Mesh32::default());
                 Ok(())
             }
         }

@@ -79,9 +79,7 @@ impl Tessellator for GpuTessellator {
     ) -> Result<()> {
         let mut mesh32 = Mesh32::default();
         self.tessellate_each_into_f32(surfaces, options, &mut mesh32)?;
-        let polylines = std::mem::take(&mut mesh.polylines);
-        *mesh = mesh32.to_f64();
-        mesh.polylines = polylines;
+        mesh.replace_grids(mesh32.to_f64());
         Ok(())
     }
 
@@ -113,16 +111,15 @@ impl Tessellator for GpuTessellator {
         options: &[TessOptions],
         mesh: &mut Mesh,
     ) -> Result<()> {
-        let polylines = std::mem::take(&mut mesh.polylines);
         let limits = self.context.limits();
-        *mesh = coons::tessellate_coons(
-            &mut lock(&self.coons),
+        let pool = &mut lock(&self.coons);
+        mesh.replace_grids(coons::tessellate_coons(
+            pool,
             &self.context,
             patches,
             options,
             limits,
-        )?;
-        mesh.polylines = polylines;
+        )?);
         Ok(())
     }
 
