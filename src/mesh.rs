@@ -251,24 +251,23 @@ fn reordered(
     (new_parts, new_indices, ranges)
 }
 
+/// The elements of `values` in `ranges`, one range after another.
+fn gather<T: Copy>(values: &[T], ranges: &[std::ops::Range<usize>]) -> Vec<T> {
+    ranges
+        .iter()
+        .flat_map(|r| values[r.clone()].iter().copied())
+        .collect()
+}
+
 impl GridMesh for Mesh {
     fn parts_and_polylines_mut(&mut self) -> (&mut [MeshPart], &mut [Polyline]) {
         (&mut self.parts, &mut self.polylines)
     }
     fn reorder_parts(&mut self, order: &[usize]) {
         let (parts, indices, ranges) = reordered(&self.parts, &self.indices, order);
-        let gather = |v: &[DVec3]| {
-            ranges
-                .iter()
-                .flat_map(|r| v[r.clone()].iter().copied())
-                .collect()
-        };
-        self.positions = gather(&self.positions);
-        self.normals = gather(&self.normals);
-        self.uvs = ranges
-            .iter()
-            .flat_map(|r| self.uvs[r.clone()].iter().copied())
-            .collect();
+        self.positions = gather(&self.positions, &ranges);
+        self.normals = gather(&self.normals, &ranges);
+        self.uvs = gather(&self.uvs, &ranges);
         (self.parts, self.indices) = (parts, indices);
     }
 }
@@ -279,10 +278,7 @@ impl GridMesh for Mesh32 {
     }
     fn reorder_parts(&mut self, order: &[usize]) {
         let (parts, indices, ranges) = reordered(&self.parts, &self.indices, order);
-        self.vertices = ranges
-            .iter()
-            .flat_map(|r| self.vertices[r.clone()].iter().copied())
-            .collect();
+        self.vertices = gather(&self.vertices, &ranges);
         (self.parts, self.indices) = (parts, indices);
     }
 }

@@ -804,3 +804,46 @@ fn default_f32_tessellation_keeps_the_mesh_on_error() {
     );
     assert_eq!(mesh, before);
 }
+
+/// A scene's mesh holds each item's own tessellation in its part, reordered into file order
+/// (the Coons patch of data/forms.json stands fifth, between surfaces): positions and
+/// triangles of every part equal those of the item tessellated alone.
+#[test]
+fn scene_parts_are_the_items_tessellated_alone() {
+    let scene = knotwork::io::read_scene(std::path::Path::new("data/forms.json")).unwrap();
+    let defaults = knotwork::SceneOptions::default();
+    let mesh = CpuTessellator.tessellate_scene(&scene, &defaults).unwrap();
+    assert!(matches!(
+        scene.items[4].geometry,
+        knotwork::Geometry::Coons(_)
+    ));
+    for part in &mesh.parts {
+        let item = &scene.items[part.item as usize];
+        let grid = [item.grid.unwrap_or(defaults.grid)];
+        let mut alone = knotwork::Mesh::default();
+        match &item.geometry {
+            knotwork::Geometry::Surface(s) => CpuTessellator
+                .tessellate_each_into(std::slice::from_ref(s), &grid, &mut alone)
+                .unwrap(),
+            knotwork::Geometry::Coons(p) => CpuTessellator
+                .tessellate_coons_into(std::slice::from_ref(&**p), &grid, &mut alone)
+                .unwrap(),
+            knotwork::Geometry::Curve(_) => unreachable!("curves have no part"),
+        }
+        let vertices = part.first_vertex as usize..(part.first_vertex + part.vertex_count) as usize;
+        assert_eq!(
+            mesh.positions[vertices.clone()],
+            alone.positions[..],
+            "item {}",
+            part.item
+        );
+        assert_eq!(mesh.normals[vertices.clone()], alone.normals[..]);
+        assert_eq!(mesh.uvs[vertices], alone.uvs[..]);
+        let indices = part.first_index as usize..(part.first_index + part.index_count) as usize;
+        let local: Vec<u32> = mesh.indices[indices]
+            .iter()
+            .map(|i| i - part.first_vertex)
+            .collect();
+        assert_eq!(local, alone.indices, "item {}", part.item);
+    }
+}
