@@ -60,15 +60,11 @@ pub fn execute_surfaces_f32(
         .resize(layout.vertex_count as usize, Vertex::default());
     mesh.indices.resize(layout.index_count as usize, 0);
     mesh.parts.clone_from(&layout.parts);
-    let mut jobs = Vec::with_capacity(surfaces.len());
-    let mut rest = &mut mesh.vertices[..];
-    for (surface, samples) in surfaces.iter().zip(&plan.items) {
-        let (part, tail) = rest.split_at_mut(samples.part.vertex_count as usize);
-        jobs.push((surface, samples, part));
-        rest = tail;
-    }
-    jobs.into_par_iter()
-        .for_each(|(surface, samples, vertices)| {
+    let parts = split_parts(&mut mesh.vertices, &layout.parts);
+    parts
+        .into_par_iter()
+        .zip(surfaces.par_iter().zip(&plan.items))
+        .for_each(|(vertices, (surface, samples))| {
             evaluate_tables_f32(surface, &samples.columns, &samples.rows, vertices);
         });
     fill_grid_indices(&layout.parts, &mut mesh.indices);
@@ -91,24 +87,27 @@ pub(crate) fn fill_grids<T: Sync>(
     mesh.uvs.resize(total_vertices, DVec2::ZERO);
     mesh.indices.resize(layout.index_count as usize, 0);
     mesh.parts.clone_from(&layout.parts);
-    // Split the outputs into one (positions, normals, uvs) slice triple per item.
-    let mut jobs = Vec::with_capacity(items.len());
-    let (mut pos, mut nrm, mut uv) = (
-        &mut mesh.positions[..],
-        &mut mesh.normals[..],
-        &mut mesh.uvs[..],
-    );
-    for (item, part) in items.iter().zip(&layout.parts) {
-        let n = part.vertex_count as usize;
-        let (p0, p1) = pos.split_at_mut(n);
-        let (n0, n1) = nrm.split_at_mut(n);
-        let (u0, u1) = uv.split_at_mut(n);
-        jobs.push((item, p0, n0, u0));
-        (pos, nrm, uv) = (p1, n1, u1);
-    }
-    jobs.into_par_iter()
-        .for_each(|(item, positions, normals, uvs)| fill(item, positions, normals, uvs));
+    let positions = split_parts(&mut mesh.positions, &layout.parts);
+    let normals = split_parts(&mut mesh.normals, &layout.parts);
+    let uvs = split_parts(&mut mesh.uvs, &layout.parts);
+    positions
+        .into_par_iter()
+        .zip(normals)
+        .zip(uvs)
+        .zip(items)
+        .for_each(|(((positions, normals), uvs), item)| fill(item, positions, normals, uvs));
     fill_grid_indices(&layout.parts, &mut mesh.indices);
+}
+
+/// `values` cut into one slice per part (its vertex range), in order.
+fn split_parts<'a, T>(mut values: &'a mut [T], parts: &[MeshPart]) -> Vec<&'a mut [T]> {
+    let mut slices = Vec::with_capacity(parts.len());
+    for part in parts {
+        let (slice, rest) = values.split_at_mut(part.vertex_count as usize);
+        slices.push(slice);
+        values = rest;
+    }
+    slices
 }
 
 /// Writes the triangles of every part into `indices` (sized for all parts), in parallel, by
