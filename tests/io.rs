@@ -1210,8 +1210,15 @@ fn f32_meshes_write_as_their_f64_sources() {
     assert_eq!(a.vertices, b.vertices);
     for (fa, fb) in a.faces.iter().zip(&b.faces) {
         assert_eq!(fa.vertices, fb.vertices);
+        // Normals of triangles whose corners moved by f32 rounding (measured <= 5.5e-6).
+        const NORMAL_BAR: f32 = 5e-5;
         let difference: f32 = (0..3).map(|c| (fa.normal[c] - fb.normal[c]).abs()).sum();
-        assert!(difference < 1e-3, "{:?} vs {:?}", fa.normal, fb.normal);
+        assert!(
+            difference < NORMAL_BAR,
+            "{:?} vs {:?}",
+            fa.normal,
+            fb.normal
+        );
     }
 }
 

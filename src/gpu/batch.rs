@@ -459,8 +459,9 @@ impl GpuBatch {
         Ok(())
     }
 
-    /// Replaces Coons patch `index` (any patch; the grid stays); its chunk's buffers are
-    /// rewritten in place where they fit. Takes effect at the next dispatch.
+    /// Replaces Coons patch `index` (any patch; the grid stays): the patches are planned and
+    /// uploaded again, into the same buffers where they fit. Takes effect at the next
+    /// dispatch.
     pub fn update_coons_patch(&mut self, index: usize, patch: &CoonsPatch) -> Result<()> {
         let count = self.coons.len();
         let slot = self.coons.get_mut(index).ok_or(Error::IndexOutOfRange {
