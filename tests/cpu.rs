@@ -809,6 +809,7 @@ fn default_f32_tessellation_keeps_the_mesh_on_error() {
 /// (the Coons patch of data/forms.json stands fifth, between surfaces): positions and
 /// triangles of every part equal those of the item tessellated alone.
 #[test]
+#[cfg(feature = "json")]
 fn scene_parts_are_the_items_tessellated_alone() {
     let scene = knotwork::io::read_scene(std::path::Path::new("data/forms.json")).unwrap();
     let defaults = knotwork::SceneOptions::default();
