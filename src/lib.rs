@@ -5,7 +5,7 @@
 //! # Architecture
 //! ```text
 //!   geom ──► plan ──► cpu  ─┐
-//!                  └► gpu  ─┴► mesh ──► io ──► cli (src/bin)
+//!                  └► gpu  ─┴► mesh ──► io ──► cli (arguments in src/cli.rs, running them in src/bin)
 //! ```
 //! Arrows point one way: each module uses only those to its left.
 //! - [`geom`] — the mathematics, free of any executor: knot vectors, basis functions, every
@@ -46,6 +46,8 @@
 //!   origin and of the result); normals within 1e-4 rad at regular points and 1e-2 rad near
 //!   degenerate points.
 
+#[cfg(feature = "cli")]
+pub mod cli;
 pub mod conformance;
 pub mod cpu;
 pub mod error;

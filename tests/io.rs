@@ -1559,3 +1559,42 @@ fn memory_budgets_refuse_before_allocating() {
     };
     assert!(CpuTessellator.tessellate_scene(&scene, &roomy).is_ok());
 }
+
+// ---------------------------------------------------------------- fuzzing regressions
+
+#[path = "../fuzz/targets.rs"]
+mod fuzz_targets;
+
+/// Every input the fuzzing campaign kept (fuzz/corpus/TARGET, the minimised corpus of
+/// tools/fuzz.sh) and every crash it found (fuzz/regressions/TARGET) runs through its target
+/// again: a panic fails this test, naming the file.
+#[test]
+fn fuzz_corpus_replays() {
+    type Target = fn(&[u8]);
+    let targets: [(&str, Target); 5] = [
+        ("obj", fuzz_targets::obj),
+        ("bpt", fuzz_targets::bpt),
+        ("json", fuzz_targets::json),
+        ("scene", fuzz_targets::scene),
+        ("cli_args", fuzz_targets::cli_args),
+    ];
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz");
+    let mut replayed = 0;
+    for (name, target) in targets {
+        for kept in ["corpus", "regressions"] {
+            let Ok(entries) = std::fs::read_dir(root.join(kept).join(name)) else {
+                continue;
+            };
+            for entry in entries {
+                let path = entry.unwrap().path();
+                let data = std::fs::read(&path).unwrap();
+                if std::panic::catch_unwind(|| target(&data)).is_err() {
+                    panic!("fuzz target {name} panics on {}", path.display());
+                }
+                replayed += 1;
+            }
+        }
+    }
+    // The corpus is committed: an empty replay means it went missing.
+    assert!(replayed >= 100, "only {replayed} fuzz inputs replayed");
+}

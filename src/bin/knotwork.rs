@@ -1,6 +1,7 @@
 //! The knotwork command line: parse arguments into a command, then run it.
 
-use clap::{Parser, Subcommand, ValueEnum};
+use clap::Parser;
+use knotwork::cli::{Backend, Cli, Command, Job};
 use knotwork::io::{MeshFormat, SceneFormat};
 use knotwork::mesh::WELD_REL_TOLERANCE;
 use knotwork::{
@@ -11,179 +12,6 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
-
-#[derive(Parser)]
-#[command(
-    name = "knotwork",
-    version,
-    about = "Tessellates Bezier, B-spline and NURBS surfaces into triangle meshes"
-)]
-struct Cli {
-    #[command(subcommand)]
-    command: Command,
-}
-
-#[derive(Subcommand)]
-enum Command {
-    /// Tessellate surface files (.obj free-form, .bpt, .json) into mesh files (.obj, .ply, .stl, .glb).
-    ///
-    /// One input and an output file name: writes that file. Several inputs, a directory of
-    /// inputs, or an output that is a directory: writes OUTPUT/<input name>.<format> for each,
-    /// files in parallel. The GPU computes in f32 (positions within 1e-5 of each surface's
-    /// size); `--backend cpu` gives the f64 reference.
-    Tessellate {
-        /// Input files or directories (their .obj, .bpt and .json files).
-        #[arg(required = true)]
-        inputs: Vec<PathBuf>,
-        /// Output file, or directory for several inputs.
-        #[arg(short, long)]
-        output: PathBuf,
-        /// Vertices per surface, NUxNV (u along the first number); a JSON surface's own `grid` wins.
-        #[arg(long, default_value = "33x33", value_parser = parse_grid)]
-        grid: (u32, u32),
-        /// Which tessellator runs.
-        #[arg(long, value_enum, default_value_t = Backend::Auto)]
-        backend: Backend,
-        /// Output format (default: the output's extension; obj in a directory).
-        #[arg(long, value_enum)]
-        format: Option<OutputFormat>,
-        /// Input format (default: each input's extension).
-        #[arg(long, value_enum)]
-        input_format: Option<InputFormat>,
-        /// Merge vertices that coincide across patch edges and drop collapsed triangles.
-        #[arg(long)]
-        weld: bool,
-        /// Points per curve polyline (OBJ `l`, glTF LINE_STRIP); a JSON curve's own `samples` wins.
-        #[arg(long, default_value_t = 65, value_parser = clap::value_parser!(u32).range(2..))]
-        samples: u32,
-        /// Memory one file's mesh may take, e.g. 512M or 4G (default: half the machine's
-        /// memory); a file that needs more is refused before anything is allocated.
-        #[arg(long, value_parser = parse_bytes)]
-        max_memory: Option<u64>,
-    },
-    /// Render the tessellated surfaces of INPUT to a PNG (headless, on the GPU adapter).
-    Render {
-        input: PathBuf,
-        /// Output image (.png).
-        #[arg(short, long)]
-        output: PathBuf,
-        /// Image size, WxH.
-        #[arg(long, default_value = "800x600", value_parser = parse_size)]
-        size: (u32, u32),
-        /// Vertices per surface, NUxNV; a JSON surface's own `grid` wins.
-        #[arg(long, default_value = "33x33", value_parser = parse_grid)]
-        grid: (u32, u32),
-        /// Draw the triangle edges.
-        #[arg(long)]
-        wireframe: bool,
-        /// Draw the control nets.
-        #[arg(long)]
-        control_net: bool,
-        /// Where to look from: front, back, left, right, top, bottom, iso, or AZIMUTH,ELEVATION
-        /// in degrees (azimuth about the up axis, 0 from +x; elevation above the horizon).
-        #[arg(long, default_value = "iso", value_parser = parse_view)]
-        view: knotwork::render::View,
-        /// The model's up axis: x, y (the tea set's .bpt files) or z.
-        #[arg(long, value_enum, default_value_t = UpAxis::Z)]
-        up: UpAxis,
-    },
-    /// List the GPU adapters and the limits that matter to knotwork.
-    Info,
-    /// Run the GPU-vs-CPU conformance suite on this machine's adapter.
-    Conformance,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum Backend {
-    /// The GPU when an adapter exists, else the CPU.
-    Auto,
-    /// wgpu compute shaders, f32.
-    Gpu,
-    /// The f64 reference path, on all cores.
-    Cpu,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum OutputFormat {
-    Obj,
-    Ply,
-    Stl,
-    Glb,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum InputFormat {
-    Obj,
-    Bpt,
-    Json,
-}
-
-fn parse_grid(text: &str) -> Result<(u32, u32), String> {
-    let (u, v) = text
-        .split_once(['x', 'X'])
-        .ok_or("expected NUxNV, e.g. 33x33")?;
-    let parse = |s: &str| {
-        s.trim()
-            .parse::<u32>()
-            .map_err(|_| format!("`{s}` is not a vertex count"))
-    };
-    let (u, v) = (parse(u)?, parse(v)?);
-    if u < 2 || v < 2 {
-        return Err("each side of the grid needs at least 2 vertices".into());
-    }
-    Ok((u, v))
-}
-
-/// The `--up` values.
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum UpAxis {
-    X,
-    Y,
-    Z,
-}
-
-/// Parses `--view`: a named view or "azimuth,elevation" in degrees.
-fn parse_view(text: &str) -> Result<knotwork::render::View, String> {
-    use knotwork::render::View;
-    Ok(match text {
-        "front" => View::FRONT,
-        "back" => View::BACK,
-        "left" => View::LEFT,
-        "right" => View::RIGHT,
-        "top" => View::TOP,
-        "bottom" => View::BOTTOM,
-        "iso" => View::ISO,
-        _ => {
-            let angles = text.split_once(',').and_then(|(a, e)| {
-                Some((a.trim().parse::<f32>().ok()?, e.trim().parse::<f32>().ok()?))
-            });
-            match angles {
-                Some((azimuth, elevation)) if (-90.0..=90.0).contains(&elevation) => {
-                    View { azimuth, elevation }
-                }
-                _ => {
-                    return Err(format!(
-                        "`{text}`: expected front, back, left, right, top, bottom, iso or AZIMUTH,ELEVATION (elevation in -90..=90)"
-                    ));
-                }
-            }
-        }
-    })
-}
-
-fn parse_size(text: &str) -> Result<(u32, u32), String> {
-    let (w, h) = text
-        .split_once(['x', 'X'])
-        .ok_or("expected WxH, e.g. 800x600")?;
-    let parse = |s: &str| {
-        s.trim()
-            .parse::<u32>()
-            .ok()
-            .filter(|n| (1..=8192).contains(n))
-            .ok_or(format!("`{s}` is not a size in 1..=8192"))
-    };
-    Ok((parse(w)?, parse(h)?))
-}
 
 /// Tessellates on the GPU and renders the batch's own buffers to a PNG.
 fn render(
@@ -262,23 +90,14 @@ fn main() -> ExitCode {
             samples,
             max_memory,
         } => {
-            let job = Job {
-                options: TessOptions::DEFAULT.with_grid(grid.0, grid.1),
-                format: format.map(|f| match f {
-                    OutputFormat::Obj => MeshFormat::Obj,
-                    OutputFormat::Ply => MeshFormat::Ply,
-                    OutputFormat::Stl => MeshFormat::Stl,
-                    OutputFormat::Glb => MeshFormat::Glb,
-                }),
-                input_format: input_format.map(|f| match f {
-                    InputFormat::Obj => SceneFormat::Obj,
-                    InputFormat::Bpt => SceneFormat::Bpt,
-                    InputFormat::Json => SceneFormat::Json,
-                }),
+            let job = Job::new(
+                grid,
+                format,
+                input_format,
                 weld,
                 samples,
-                memory_budget: max_memory.unwrap_or_else(default_memory_budget),
-            };
+                max_memory.unwrap_or_else(default_memory_budget),
+            );
             tessellate(&inputs, &output, backend, &job)
         }
         Command::Render {
@@ -297,11 +116,7 @@ fn main() -> ExitCode {
                 wireframe,
                 control_net,
                 view,
-                up: match up {
-                    UpAxis::X => knotwork::render::Axis::X,
-                    UpAxis::Y => knotwork::render::Axis::Y,
-                    UpAxis::Z => knotwork::render::Axis::Z,
-                },
+                up: up.axis(),
             };
             render(&input, &output, grid, &options).map(|()| true)
         }
@@ -402,40 +217,6 @@ impl Tessellator for GpuOrCpu {
     fn name(&self) -> String {
         format!("{}; the CPU for jobs it cannot hold", self.gpu.name())
     }
-}
-
-/// What to do with every input.
-struct Job {
-    options: TessOptions,
-    format: Option<MeshFormat>,
-    input_format: Option<SceneFormat>,
-    weld: bool,
-    samples: u32,
-    /// Bytes one file's mesh may take (halved when welding, which copies it).
-    memory_budget: u64,
-}
-
-/// Parses a byte count: a number, optionally followed by K, M, G or T (powers of 1024).
-fn parse_bytes(text: &str) -> Result<u64, String> {
-    let text = text.trim();
-    let (digits, unit) = match text.char_indices().find(|(_, c)| !c.is_ascii_digit()) {
-        Some((at, _)) => text.split_at(at),
-        None => (text, ""),
-    };
-    let scale: u64 = match unit.to_ascii_uppercase().trim_end_matches(['B', 'I']) {
-        "" => 1,
-        "K" => 1 << 10,
-        "M" => 1 << 20,
-        "G" => 1 << 30,
-        "T" => 1 << 40,
-        _ => return Err(format!("`{text}`: expected bytes like 512M or 4G")),
-    };
-    let number: u64 = digits
-        .parse()
-        .map_err(|_| format!("`{text}`: expected bytes like 512M or 4G"))?;
-    number
-        .checked_mul(scale)
-        .ok_or_else(|| format!("`{text}` is more bytes than a u64 counts"))
 }
 
 /// Half the machine's memory (MemTotal of /proc/meminfo), or 8 GiB where that is unknown.
@@ -599,33 +380,8 @@ fn tessellate(
         return Ok(true);
     }
     let Inputs { files, skipped } = expand_inputs(inputs)?;
-    if !output.is_dir()
-        && let Some(extension) = output.extension().map(|e| e.to_string_lossy())
-        && MeshFormat::from_extension(&extension).is_some()
-    {
-        return Err(knotwork::Error::OutputNotAFolder {
-            path: output.to_path_buf(),
-            extension: extension.into_owned(),
-        });
-    }
-    let extension = job.format.unwrap_or(MeshFormat::Obj).extension();
     // Every input's output, checked for collisions before anything is written.
-    let mut targets: Vec<(PathBuf, PathBuf)> = Vec::with_capacity(files.len());
-    let mut taken: std::collections::HashMap<PathBuf, PathBuf> = Default::default();
-    for input in &files {
-        let name = input
-            .file_stem()
-            .map_or_else(|| "mesh".into(), |s| s.to_owned());
-        let target = output.join(name).with_extension(extension);
-        if let Some(first) = taken.insert(target.clone(), input.clone()) {
-            return Err(knotwork::Error::OutputCollision {
-                output: target,
-                first,
-                second: input.clone(),
-            });
-        }
-        targets.push((input.clone(), target));
-    }
+    let targets = knotwork::cli::output_targets(&files, output, job.format)?;
     std::fs::create_dir_all(output).map_err(|source| knotwork::Error::Io {
         path: output.to_path_buf(),
         source,

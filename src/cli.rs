@@ -1,0 +1,330 @@
+//! The command line's arguments, parsed and checked before anything runs: what `knotwork`
+//! accepts, and the job and output files a `tessellate` command turns into. Running the
+//! commands is the binary's (src/bin/knotwork.rs); this part is pure, so the argument fuzz
+//! target and the tests reach all of it.
+
+use crate::io::{MeshFormat, SceneFormat};
+use crate::{Error, TessOptions};
+use clap::{Parser, Subcommand, ValueEnum};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// `knotwork`'s arguments.
+#[derive(Parser)]
+#[command(
+    name = "knotwork",
+    version,
+    about = "Tessellates Bezier, B-spline and NURBS surfaces into triangle meshes"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+impl Cli {
+    /// Parses `args` (the program name first) as the binary does, without exiting: the
+    /// error carries the message `knotwork` would print.
+    pub fn try_parse_args<I, T>(args: I) -> Result<Cli, clap::Error>
+    where
+        I: IntoIterator<Item = T>,
+        T: Into<std::ffi::OsString> + Clone,
+    {
+        Cli::try_parse_from(args)
+    }
+}
+
+/// The subcommands.
+#[derive(Subcommand)]
+pub enum Command {
+    /// Tessellate surface files (.obj free-form, .bpt, .json) into mesh files (.obj, .ply, .stl, .glb).
+    ///
+    /// One input and an output file name: writes that file. Several inputs, a directory of
+    /// inputs, or an output that is a directory: writes OUTPUT/<input name>.<format> for each,
+    /// files in parallel. The GPU computes in f32 (positions within 1e-5 of each surface's
+    /// size); `--backend cpu` gives the f64 reference.
+    Tessellate {
+        /// Input files or directories (their .obj, .bpt and .json files).
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        /// Output file, or directory for several inputs.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Vertices per surface, NUxNV (u along the first number); a JSON surface's own `grid` wins.
+        #[arg(long, default_value = "33x33", value_parser = parse_grid)]
+        grid: (u32, u32),
+        /// Which tessellator runs.
+        #[arg(long, value_enum, default_value_t = Backend::Auto)]
+        backend: Backend,
+        /// Output format (default: the output's extension; obj in a directory).
+        #[arg(long, value_enum)]
+        format: Option<OutputFormat>,
+        /// Input format (default: each input's extension).
+        #[arg(long, value_enum)]
+        input_format: Option<InputFormat>,
+        /// Merge vertices that coincide across patch edges and drop collapsed triangles.
+        #[arg(long)]
+        weld: bool,
+        /// Points per curve polyline (OBJ `l`, glTF LINE_STRIP); a JSON curve's own `samples` wins.
+        #[arg(long, default_value_t = 65, value_parser = clap::value_parser!(u32).range(2..))]
+        samples: u32,
+        /// Memory one file's mesh may take, e.g. 512M or 4G (default: half the machine's
+        /// memory); a file that needs more is refused before anything is allocated.
+        #[arg(long, value_parser = parse_bytes)]
+        max_memory: Option<u64>,
+    },
+    /// Render the tessellated surfaces of INPUT to a PNG (headless, on the GPU adapter).
+    Render {
+        input: PathBuf,
+        /// Output image (.png).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Image size, WxH.
+        #[arg(long, default_value = "800x600", value_parser = parse_size)]
+        size: (u32, u32),
+        /// Vertices per surface, NUxNV; a JSON surface's own `grid` wins.
+        #[arg(long, default_value = "33x33", value_parser = parse_grid)]
+        grid: (u32, u32),
+        /// Draw the triangle edges.
+        #[arg(long)]
+        wireframe: bool,
+        /// Draw the control nets.
+        #[arg(long)]
+        control_net: bool,
+        /// Where to look from: front, back, left, right, top, bottom, iso, or AZIMUTH,ELEVATION
+        /// in degrees (azimuth about the up axis, 0 from +x; elevation above the horizon).
+        #[arg(long, default_value = "iso", value_parser = parse_view)]
+        view: crate::render::View,
+        /// The model's up axis: x, y (the tea set's .bpt files) or z.
+        #[arg(long, value_enum, default_value_t = UpAxis::Z)]
+        up: UpAxis,
+    },
+    /// List the GPU adapters and the limits that matter to knotwork.
+    Info,
+    /// Run the GPU-vs-CPU conformance suite on this machine's adapter.
+    Conformance,
+}
+
+/// The `--backend` values.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum Backend {
+    /// The GPU when an adapter exists, else the CPU.
+    Auto,
+    /// wgpu compute shaders, f32.
+    Gpu,
+    /// The f64 reference path, on all cores.
+    Cpu,
+}
+
+/// The `--format` values.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum OutputFormat {
+    Obj,
+    Ply,
+    Stl,
+    Glb,
+}
+
+/// The `--input-format` values.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum InputFormat {
+    Obj,
+    Bpt,
+    Json,
+}
+
+/// Parses `--grid`: NUxNV, each side at least 2 vertices.
+pub fn parse_grid(text: &str) -> Result<(u32, u32), String> {
+    let (u, v) = text
+        .split_once(['x', 'X'])
+        .ok_or("expected NUxNV, e.g. 33x33")?;
+    let parse = |s: &str| {
+        s.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("`{s}` is not a vertex count"))
+    };
+    let (u, v) = (parse(u)?, parse(v)?);
+    if u < 2 || v < 2 {
+        return Err("each side of the grid needs at least 2 vertices".into());
+    }
+    Ok((u, v))
+}
+
+/// The `--up` values.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum UpAxis {
+    X,
+    Y,
+    Z,
+}
+
+/// Parses `--view`: a named view or "azimuth,elevation" in degrees.
+pub fn parse_view(text: &str) -> Result<crate::render::View, String> {
+    use crate::render::View;
+    Ok(match text {
+        "front" => View::FRONT,
+        "back" => View::BACK,
+        "left" => View::LEFT,
+        "right" => View::RIGHT,
+        "top" => View::TOP,
+        "bottom" => View::BOTTOM,
+        "iso" => View::ISO,
+        _ => {
+            let angles = text.split_once(',').and_then(|(a, e)| {
+                Some((a.trim().parse::<f32>().ok()?, e.trim().parse::<f32>().ok()?))
+            });
+            match angles {
+                Some((azimuth, elevation)) if (-90.0..=90.0).contains(&elevation) => {
+                    View { azimuth, elevation }
+                }
+                _ => {
+                    return Err(format!(
+                        "`{text}`: expected front, back, left, right, top, bottom, iso or AZIMUTH,ELEVATION (elevation in -90..=90)"
+                    ));
+                }
+            }
+        }
+    })
+}
+
+/// Parses `--size`: WxH pixels, each in 1..=8192.
+pub fn parse_size(text: &str) -> Result<(u32, u32), String> {
+    let (w, h) = text
+        .split_once(['x', 'X'])
+        .ok_or("expected WxH, e.g. 800x600")?;
+    let parse = |s: &str| {
+        s.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|n| (1..=8192).contains(n))
+            .ok_or(format!("`{s}` is not a size in 1..=8192"))
+    };
+    Ok((parse(w)?, parse(h)?))
+}
+
+/// What to do with every input.
+pub struct Job {
+    pub options: TessOptions,
+    pub format: Option<MeshFormat>,
+    pub input_format: Option<SceneFormat>,
+    pub weld: bool,
+    pub samples: u32,
+    /// Bytes one file's mesh may take (halved when welding, which copies it).
+    pub memory_budget: u64,
+}
+
+impl Job {
+    /// The job a `tessellate` command's options describe; `memory_budget` is `--max-memory`
+    /// or the caller's default.
+    pub fn new(
+        grid: (u32, u32),
+        format: Option<OutputFormat>,
+        input_format: Option<InputFormat>,
+        weld: bool,
+        samples: u32,
+        memory_budget: u64,
+    ) -> Self {
+        Job {
+            options: TessOptions::DEFAULT.with_grid(grid.0, grid.1),
+            format: format.map(OutputFormat::mesh_format),
+            input_format: input_format.map(InputFormat::scene_format),
+            weld,
+            samples,
+            memory_budget,
+        }
+    }
+}
+
+/// Parses a byte count: a number, optionally followed by K, M, G or T (powers of 1024).
+pub fn parse_bytes(text: &str) -> Result<u64, String> {
+    let text = text.trim();
+    let (digits, unit) = match text.char_indices().find(|(_, c)| !c.is_ascii_digit()) {
+        Some((at, _)) => text.split_at(at),
+        None => (text, ""),
+    };
+    let scale: u64 = match unit.to_ascii_uppercase().trim_end_matches(['B', 'I']) {
+        "" => 1,
+        "K" => 1 << 10,
+        "M" => 1 << 20,
+        "G" => 1 << 30,
+        "T" => 1 << 40,
+        _ => return Err(format!("`{text}`: expected bytes like 512M or 4G")),
+    };
+    let number: u64 = digits
+        .parse()
+        .map_err(|_| format!("`{text}`: expected bytes like 512M or 4G"))?;
+    number
+        .checked_mul(scale)
+        .ok_or_else(|| format!("`{text}` is more bytes than a u64 counts"))
+}
+
+impl OutputFormat {
+    /// The mesh format this names.
+    pub fn mesh_format(self) -> MeshFormat {
+        match self {
+            OutputFormat::Obj => MeshFormat::Obj,
+            OutputFormat::Ply => MeshFormat::Ply,
+            OutputFormat::Stl => MeshFormat::Stl,
+            OutputFormat::Glb => MeshFormat::Glb,
+        }
+    }
+}
+
+impl InputFormat {
+    /// The scene format this names.
+    pub fn scene_format(self) -> SceneFormat {
+        match self {
+            InputFormat::Obj => SceneFormat::Obj,
+            InputFormat::Bpt => SceneFormat::Bpt,
+            InputFormat::Json => SceneFormat::Json,
+        }
+    }
+}
+
+impl UpAxis {
+    /// The render axis this names.
+    #[cfg(feature = "render")]
+    pub fn axis(self) -> crate::render::Axis {
+        match self {
+            UpAxis::X => crate::render::Axis::X,
+            UpAxis::Y => crate::render::Axis::Y,
+            UpAxis::Z => crate::render::Axis::Z,
+        }
+    }
+}
+
+/// Where each input of a batch writes: `output/<input stem>.<extension>`, in input order.
+/// Refuses, before anything is written, an output that names a mesh file (a batch needs a
+/// folder) and two inputs that would write one file.
+pub fn output_targets(
+    files: &[PathBuf],
+    output: &Path,
+    format: Option<MeshFormat>,
+) -> crate::Result<Vec<(PathBuf, PathBuf)>> {
+    if !output.is_dir()
+        && let Some(extension) = output.extension().map(|e| e.to_string_lossy())
+        && MeshFormat::from_extension(&extension).is_some()
+    {
+        return Err(Error::OutputNotAFolder {
+            path: output.to_path_buf(),
+            extension: extension.into_owned(),
+        });
+    }
+    let extension = format.unwrap_or(MeshFormat::Obj).extension();
+    let mut targets = Vec::with_capacity(files.len());
+    let mut taken: HashMap<PathBuf, &PathBuf> = HashMap::new();
+    for input in files {
+        let name = input
+            .file_stem()
+            .map_or_else(|| "mesh".into(), |s| s.to_owned());
+        let target = output.join(name).with_extension(extension);
+        if let Some(first) = taken.insert(target.clone(), input) {
+            return Err(Error::OutputCollision {
+                output: target,
+                first: first.clone(),
+                second: input.clone(),
+            });
+        }
+        targets.push((input.clone(), target));
+    }
+    Ok(targets)
+}

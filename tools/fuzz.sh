@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# The fuzzing campaign: every target of fuzz/ for RUNS executions (default 10 million) under
+# libFuzzer, seeded with the shipped files (data/, fuzz/seeds/), with a 1 s timeout and a
+# 2 GiB memory limit; then the corpus is minimised into fuzz/corpus/TARGET, which the stable
+# test `fuzz_corpus_replays` (tests/io.rs) replays on every test run.
+# Needs the nightly toolchain and cargo-fuzz (`cargo install cargo-fuzz`).
+# Usage: tools/fuzz.sh [RUNS] [TARGET...]     e.g. tools/fuzz.sh 100000 json
+# A crash stops the run; its input is in fuzz/artifacts/TARGET/: copy it into
+# fuzz/regressions/TARGET/ with the fix, so the replay test keeps it fixed.
+set -euo pipefail
+cd "$(dirname "$0")/../fuzz"
+runs=${1:-10000000}
+shift || true
+targets=("$@")
+[ ${#targets[@]} -gt 0 ] || targets=(obj bpt json scene cli_args)
+# Release speed with debug assertions and overflow checks on, as the tests build.
+build=(-O -a)
+for target in "${targets[@]}"; do
+  seeds=../data
+  [ "$target" = cli_args ] && seeds=seeds/cli_args
+  mkdir -p "corpus/$target"
+  start=$(date +%s)
+  cargo +nightly fuzz run "${build[@]}" "$target" "corpus/$target" "$seeds" -- \
+    -runs="$runs" -timeout=1 -rss_limit_mb=2048 -max_len=8192 -print_final_stats=1 \
+    2> "fuzz-$target.log"
+  seconds=$(( $(date +%s) - start ))
+  { grep -E "DONE" "fuzz-$target.log" || true; } | tail -1 | sed "s/^/$target: /"
+  grep -E "stat::(number_of_executed_units|peak_rss_mb)" "fuzz-$target.log" | sed "s/^/$target: /"
+  echo "$target: $seconds s"
+  # Keep the smallest corpus with the same coverage.
+  cargo +nightly fuzz cmin "${build[@]}" "$target" "corpus/$target" >/dev/null 2>&1
+  echo "$target: corpus $(ls "corpus/$target" | wc -l) inputs, $(du -sh "corpus/$target" | cut -f1)"
+done
