@@ -222,10 +222,8 @@ fn curve_operations_preserve_the_curve() {
     let (abc, bcd) = ((ab + bc) / 2.0, (bc + cd) / 2.0);
     let abcd = (abc + bcd) / 2.0;
     let cartesian = |curve: &BSplineCurve| -> Vec<DVec3> {
-        curve
-            .homogeneous_points()
-            .iter()
-            .map(|h| h.truncate() / h.w)
+        (0..curve.homogeneous_points().len())
+            .map(|i| curve.control_point(i))
             .collect()
     };
     assert_eq!(cartesian(&left), vec![a, ab, abc, abcd]);

@@ -344,6 +344,9 @@ impl Row<'_> {
     #[inline(always)]
     fn evaluate<V: F64x4>(&self, positions: &mut [DVec3], normals: &mut [DVec3]) {
         let threshold = degenerate_cross_sq(self.surface.cross_scale(), f64::EPSILON);
+        // The control points are relative to it: the quotient rule cancels on the model's
+        // size, and the origin is added last.
+        let origin = self.surface.origin();
         let p = self.surface.degree_u();
         let stride = self.columns.stride();
         let (values, derivatives) = (self.columns.table(0), self.columns.table(1));
@@ -396,7 +399,7 @@ impl Row<'_> {
                 let len_sq = len_sq.to_array();
                 for l in 0..LANES.min(end - i0) {
                     let i = i0 + l;
-                    positions[i] = DVec3::new(x[l], y[l], z[l]);
+                    positions[i] = origin + DVec3::new(x[l], y[l], z[l]);
                     normals[i] = if len_sq[l] > limit[l] {
                         DVec3::new(nx[l], ny[l], nz[l])
                     } else {

@@ -1,16 +1,18 @@
 //! The B-spline curve: a validated knot vector and homogeneous control points over an
 //! evaluation range (its evaluation is in `eval.rs`).
 
-use super::{Interval, KnotVector, homogeneous};
+use super::{Interval, KnotVector, LocalPoints, weighted};
 use crate::error::{Error, Result};
 use glam::{DVec3, DVec4};
 
 /// A B-spline curve, rational or not, of degree 1..=20, with homogeneous control points
-/// (x·w, y·w, z·w, w), evaluated over `range` (the whole knot domain by default).
+/// relative to its [`origin`](Self::origin), ((P − origin)·w, w), evaluated over `range` (the
+/// whole knot domain by default).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BSplineCurve {
     knots: KnotVector,
     points: Vec<DVec4>,
+    origin: DVec3,
     rational: bool,
     range: Interval,
 }
@@ -25,23 +27,57 @@ impl BSplineCurve {
                 what: "knots − degree − 1",
             });
         }
-        let points_h = homogeneous(points, weights)?;
-        let (start, end) = knots.domain();
-        Ok(Self {
+        let points = weighted(points, weights)?;
+        Ok(Self::from_local(
             knots,
-            points: points_h,
-            rational: weights.is_some(),
-            range: Interval::new(start, end),
-        })
+            LocalPoints::from_weighted(points.into_iter()),
+            weights.is_some(),
+        ))
     }
 
-    /// Builds from homogeneous points (x·w, y·w, z·w, w) as they are (no round trip through
-    /// Cartesian), checking count, finiteness and weights; the range is the whole domain.
+    fn from_local(knots: KnotVector, local: LocalPoints, rational: bool) -> Self {
+        let (start, end) = knots.domain();
+        Self {
+            knots,
+            points: local.points,
+            origin: local.origin,
+            rational,
+            range: Interval::new(start, end),
+        }
+    }
+
+    /// Builds from absolute homogeneous points (x·w, y·w, z·w, w), as conversions produce
+    /// them, checking count, finiteness and weights; the range is the whole domain.
     pub(crate) fn from_homogeneous(
         knots: KnotVector,
         points: Vec<DVec4>,
         rational: bool,
     ) -> Result<Self> {
+        Self::check_homogeneous(&knots, &points)?;
+        Ok(Self::from_local(
+            knots,
+            LocalPoints::from_homogeneous(&points),
+            rational,
+        ))
+    }
+
+    /// As [`BSplineCurve::from_homogeneous`] for points relative to `origin` (the results of
+    /// linear operations on this curve's own points).
+    pub(crate) fn from_relative(
+        knots: KnotVector,
+        origin: DVec3,
+        points: Vec<DVec4>,
+        rational: bool,
+    ) -> Result<Self> {
+        Self::check_homogeneous(&knots, &points)?;
+        Ok(Self::from_local(
+            knots,
+            LocalPoints::relative_to(origin, points),
+            rational,
+        ))
+    }
+
+    fn check_homogeneous(knots: &KnotVector, points: &[DVec4]) -> Result<()> {
         if points.len() != knots.control_count() {
             return Err(Error::ControlPointCount {
                 expected: knots.control_count(),
@@ -57,13 +93,7 @@ impl BSplineCurve {
                 return Err(Error::ControlPointNotFinite { index });
             }
         }
-        let (start, end) = knots.domain();
-        Ok(Self {
-            knots,
-            points,
-            rational,
-            range: Interval::new(start, end),
-        })
+        Ok(())
     }
 
     /// Restricts evaluation to `range`, which must lie inside the knot domain.
@@ -79,9 +109,28 @@ impl BSplineCurve {
     pub fn degree(&self) -> usize {
         self.knots.degree()
     }
-    /// Homogeneous control points (x·w, y·w, z·w, w).
+    /// Homogeneous control points relative to [`origin`](Self::origin), ((P − origin)·w, w).
     pub fn homogeneous_points(&self) -> &[DVec4] {
         &self.points
+    }
+    /// The local origin evaluation is relative to: the centre of the control points'
+    /// bounding box (model units).
+    pub fn origin(&self) -> DVec3 {
+        self.origin
+    }
+    /// Cartesian control point `i`.
+    pub fn control_point(&self, i: usize) -> DVec3 {
+        let h = self.points[i];
+        self.origin + h.truncate() / h.w
+    }
+    /// Weight of control point `i`.
+    pub fn weight(&self, i: usize) -> f64 {
+        self.points[i].w
+    }
+    /// Bounding box (min, max) of the Cartesian control points.
+    pub fn control_box(&self) -> (DVec3, DVec3) {
+        let (lo, hi) = super::cartesian_box(&self.points);
+        (self.origin + lo, self.origin + hi)
     }
     pub fn is_rational(&self) -> bool {
         self.rational

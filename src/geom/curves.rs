@@ -4,8 +4,7 @@
 //! segment k runs over [k, k + 1].
 
 use super::piecewise::{Piecewise, split_polygon};
-use super::surface::cartesian_box;
-use super::{BSplineCurve, Interval, KnotVector, homogeneous};
+use super::{BSplineCurve, Interval, KnotVector, weighted};
 use crate::error::{Error, Result};
 use glam::{DVec3, DVec4};
 
@@ -17,7 +16,7 @@ fn at_least(points: &[DVec3], min: usize, form: &'static str) -> Result<()> {
             form,
         });
     }
-    homogeneous(points, None).map(drop)
+    weighted(points, None).map(drop)
 }
 
 fn same_count(expected: usize, found: usize, what: &'static str) -> Result<()> {
@@ -50,7 +49,7 @@ fn unit_piecewise(degree: usize, polygon: Vec<DVec3>) -> Result<BSplineCurve> {
 pub fn hermite(points: &[DVec3], tangents: &[DVec3]) -> Result<BSplineCurve> {
     at_least(points, 2, "a Hermite curve")?;
     same_count(points.len(), tangents.len(), "one tangent per point")?;
-    homogeneous(tangents, None)?;
+    weighted(tangents, None)?;
     let mut polygon = vec![points[0]];
     for k in 0..points.len() - 1 {
         polygon.push(points[k] + tangents[k] / 3.0);
@@ -268,13 +267,16 @@ pub fn continuity(a: &BSplineCurve, b: &BSplineCurve, relative: f64) -> Continui
 }
 
 impl BSplineCurve {
-    /// The curve over its evaluation range as Bezier pieces (homogeneous).
+    /// The curve over its evaluation range as Bezier pieces (absolute homogeneous points,
+    /// (x·w, y·w, z·w, w)).
     pub(crate) fn bezier_form(&self) -> Piecewise<DVec4> {
-        let whole = Piecewise::from_bspline(
-            self.degree(),
-            self.knots().knots(),
-            self.homogeneous_points(),
-        );
+        let origin = self.origin();
+        let absolute: Vec<DVec4> = self
+            .homogeneous_points()
+            .iter()
+            .map(|h| h + (origin * h.w).extend(0.0))
+            .collect();
+        let whole = Piecewise::from_bspline(self.degree(), self.knots().knots(), &absolute);
         let range = self.range();
         let (a, b) = (whole.breaks[0], *whole.breaks.last().expect("breakpoints"));
         if range.start == a && range.end == b {
@@ -316,8 +318,9 @@ impl BSplineCurve {
         let knots = KnotVector::try_new(self.degree(), knots.collect())?;
         let start = knots.domain().0.max(0.0);
         let end = knots.domain().1.min(1.0);
-        Self::from_homogeneous(
+        Self::from_relative(
             knots,
+            self.origin(),
             self.homogeneous_points().to_vec(),
             self.is_rational(),
         )?
@@ -326,7 +329,7 @@ impl BSplineCurve {
 
     /// Largest extent (bounding-box diagonal) of the Cartesian control points.
     pub fn control_extent(&self) -> f64 {
-        let (lo, hi) = cartesian_box(self.homogeneous_points());
+        let (lo, hi) = self.control_box();
         (hi - lo).length()
     }
 
@@ -362,8 +365,9 @@ impl BSplineCurve {
         for _ in 0..times {
             super::piecewise::insert_knot(self.degree(), &mut knots, &mut points, t);
         }
-        Self::from_homogeneous(
+        Self::from_relative(
             KnotVector::try_new(self.degree(), knots)?,
+            self.origin(),
             points,
             self.is_rational(),
         )?
@@ -386,10 +390,19 @@ impl BSplineCurve {
         let ((left_knots, left_points), (right_knots, right_points)) =
             split_polygon(p, self.knots().knots(), self.homogeneous_points(), t);
         let rational = self.is_rational();
-        let left =
-            Self::from_homogeneous(KnotVector::try_new(p, left_knots)?, left_points, rational)?;
-        let right =
-            Self::from_homogeneous(KnotVector::try_new(p, right_knots)?, right_points, rational)?;
+        let origin = self.origin();
+        let left = Self::from_relative(
+            KnotVector::try_new(p, left_knots)?,
+            origin,
+            left_points,
+            rational,
+        )?;
+        let right = Self::from_relative(
+            KnotVector::try_new(p, right_knots)?,
+            origin,
+            right_points,
+            rational,
+        )?;
         let left_range = super::Interval::new(range.start, t);
         let right_range = super::Interval::new(t, range.end);
         Ok((left.with_range(left_range)?, right.with_range(right_range)?))

@@ -97,6 +97,8 @@ impl BSplineSurface {
     /// diagonal; a surface with no tangent plane anywhere near (collapsed to a point or a line)
     /// gets +Z.
     pub fn evaluate(&self, u: f64, v: f64) -> SurfaceSample {
+        // In the local frame (see [`BSplineSurface::origin`]): the quotient rule's
+        // cancellation h_u − w_u·S then works on the model's size, not on its offset.
         let (h, [hu, hv, huu, huv, hvv]) = self.homogeneous_derivatives(u, v);
         let w = h.w;
         let position = h.truncate() / w;
@@ -106,7 +108,7 @@ impl BSplineSurface {
         let duv = (huv.truncate() - hu.w * dv - hv.w * du - huv.w * position) / w;
         let dvv = (hvv.truncate() - 2.0 * hv.w * dv - hvv.w * position) / w;
         let mut sample = SurfaceSample {
-            position,
+            position: self.origin() + position,
             du,
             dv,
             duu,
@@ -136,24 +138,21 @@ impl BSplineSurface {
             (u, v),
             (self.range_u(), self.range_v()),
             degenerate_cross_sq(self.cross_scale(), f64::EPSILON),
-            |u, v| self.rational_first_derivatives(u, v).1,
+            |u, v| self.rational_first_derivatives(u, v),
         )
     }
 
-    /// Position and first derivatives [S_u, S_v] at (u, v).
-    fn rational_first_derivatives(&self, u: f64, v: f64) -> (DVec3, [DVec3; 2]) {
+    /// First derivatives [S_u, S_v] at (u, v).
+    fn rational_first_derivatives(&self, u: f64, v: f64) -> [DVec3; 2] {
         let (h, [hu, hv, ..]) = self.homogeneous_derivatives(u, v);
         let position = h.truncate() / h.w;
-        (
-            position,
-            [
-                (hu.truncate() - hu.w * position) / h.w,
-                (hv.truncate() - hv.w * position) / h.w,
-            ],
-        )
+        [
+            (hu.truncate() - hu.w * position) / h.w,
+            (hv.truncate() - hv.w * position) / h.w,
+        ]
     }
 
-    /// Homogeneous point and its derivatives [∂u, ∂v, ∂uu, ∂uv, ∂vv] at (u, v).
+    /// Homogeneous point, relative to the origin, and its derivatives [∂u, ∂v, ∂uu, ∂uv, ∂vv] at (u, v).
     fn homogeneous_derivatives(&self, u: f64, v: f64) -> (DVec4, [DVec4; 5]) {
         let (ku, kv) = (self.knots_u(), self.knots_v());
         let (p, q) = (ku.degree(), kv.degree());
@@ -200,6 +199,13 @@ impl BSplineCurve {
 
     /// Position, first and second derivative at `u` (clamped to the knot domain).
     pub fn derivatives(&self, u: f64) -> [DVec3; 3] {
+        let [local, first, second] = self.local_derivatives(u);
+        [self.origin() + local, first, second]
+    }
+
+    /// As [`BSplineCurve::derivatives`] with the position relative to
+    /// [`origin`](Self::origin), evaluated in that frame.
+    pub(crate) fn local_derivatives(&self, u: f64) -> [DVec3; 3] {
         let knots = self.knots();
         let p = knots.degree();
         let span = knots.find_span(u);
@@ -223,8 +229,9 @@ impl BSplineCurve {
     }
 }
 
-/// What one parameter value contributes: the two opposite boundaries there with their first
-/// and second derivatives, and [α, α′, α″] of the blend. A grid column (u) holds S(u,0) and
+/// What one parameter value contributes: the two opposite boundaries there (positions
+/// relative to the patch's origin) with their first and second derivatives, and [α, α′, α″]
+/// of the blend. A grid column (u) holds S(u,0) and
 /// S(u,1); a grid row (v) holds S(0,v) and S(1,v).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Rail {
@@ -252,9 +259,13 @@ impl CoonsPatch {
     pub(crate) fn rail_with_blend(&self, t: f64, across: bool, blend: [f64; 3]) -> Rail {
         let [v0, v1, u0, u1] = self.boundaries();
         let (near, far) = if across { (u0, u1) } else { (v0, v1) };
+        let local = |curve: &BSplineCurve| {
+            let [position, first, second] = curve.local_derivatives(t);
+            [position + (curve.origin() - self.origin()), first, second]
+        };
         Rail {
-            near: near.derivatives(t),
-            far: far.derivatives(t),
+            near: local(near),
+            far: local(far),
             blend,
         }
     }
@@ -262,7 +273,7 @@ impl CoonsPatch {
     /// ∂ᵢᵤ∂ⱼᵥ S from the rails at u and v: every term of the Coons formula is a product of a
     /// function of u and one of v, so each order differentiates its own factors.
     fn derivative(&self, column: &Rail, row: &Rail, i: usize, j: usize) -> DVec3 {
-        let [c00, c10, c01, c11] = self.corners();
+        let [c00, c10, c01, c11] = self.local_corners();
         let (fu, gu) = blend_pair(&column.blend, i);
         let (fv, gv) = blend_pair(&row.blend, j);
         fv * column.near[i] + gv * column.far[i] + fu * row.near[j] + gu * row.far[j]
@@ -274,7 +285,7 @@ impl CoonsPatch {
     pub(crate) fn sample_from(&self, column: &Rail, row: &Rail, u: f64, v: f64) -> SurfaceSample {
         let d = |i, j| self.derivative(column, row, i, j);
         let mut sample = SurfaceSample {
-            position: d(0, 0),
+            position: self.origin() + d(0, 0),
             du: d(1, 0),
             dv: d(0, 1),
             duu: d(2, 0),

@@ -31,9 +31,9 @@ pub use surface::{BSplineSurface, Interval};
 use crate::error::{Error, Result};
 use glam::{DVec3, DVec4};
 
-/// Turns Cartesian points and optional weights into validated homogeneous points.
-/// `None` weights mean a non-rational (all weights 1) control net.
-pub(crate) fn homogeneous(points: &[DVec3], weights: Option<&[f64]>) -> Result<Vec<DVec4>> {
+/// Pairs Cartesian points with their weights, validated, as (x, y, z, w) — Cartesian, not
+/// multiplied by w. `None` weights mean a non-rational (all weights 1) control net.
+pub(crate) fn weighted(points: &[DVec3], weights: Option<&[f64]>) -> Result<Vec<DVec4>> {
     if let Some(w) = weights
         && w.len() != points.len()
     {
@@ -54,7 +54,55 @@ pub(crate) fn homogeneous(points: &[DVec3], weights: Option<&[f64]>) -> Result<V
             if !(w.is_finite() && w > 0.0) {
                 return Err(Error::InvalidWeight { index, value: w });
             }
-            Ok((*p * w).extend(w))
+            Ok(p.extend(w))
         })
         .collect()
+}
+
+/// Control points held for evaluation: homogeneous and relative to a local origin, the
+/// centre of their bounding box, so that evaluation far from the world origin loses nothing
+/// to the offset (see [`BSplineSurface::origin`]).
+pub(crate) struct LocalPoints {
+    /// The centre of `bounds`, model units.
+    pub origin: DVec3,
+    /// ((P − origin)·w, w) per point, in the input order.
+    pub points: Vec<DVec4>,
+    /// (min, max) of the Cartesian points.
+    pub bounds: (DVec3, DVec3),
+}
+
+impl LocalPoints {
+    /// From Cartesian points with weights, (x, y, z, w): P − origin is formed before the
+    /// weight multiplies it, so points that coincide stay coincident whatever their weights.
+    pub fn from_weighted(weighted: impl Iterator<Item = DVec4> + Clone) -> Self {
+        let bounds = weighted.clone().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(p.truncate()), hi.max(p.truncate())),
+        );
+        let origin = 0.5 * (bounds.0 + bounds.1);
+        let points = weighted
+            .map(|p| ((p.truncate() - origin) * p.w).extend(p.w))
+            .collect();
+        Self {
+            origin,
+            points,
+            bounds,
+        }
+    }
+
+    /// From absolute homogeneous points (x·w, y·w, z·w, w), as conversions produce them.
+    pub fn from_homogeneous(points: &[DVec4]) -> Self {
+        Self::from_weighted(points.iter().map(|h| (h.truncate() / h.w).extend(h.w)))
+    }
+
+    /// From points already relative to `origin` (the results of linear operations — knot
+    /// insertion, subdivision, reordering — on another set relative to it).
+    pub fn relative_to(origin: DVec3, points: Vec<DVec4>) -> Self {
+        let (lo, hi) = cartesian_box(&points);
+        Self {
+            origin,
+            points,
+            bounds: (origin + lo, origin + hi),
+        }
+    }
 }

@@ -68,7 +68,7 @@ fn surface(
     Ok(BSplineSurface::from_homogeneous(
         form_u.knots()?,
         form_v.knots()?,
-        points,
+        &points,
         rational,
     ))
 }
@@ -253,6 +253,11 @@ pub struct CoonsPatch {
     boundaries: [BSplineCurve; 4],
     corners: [DVec3; 4],
     blend: Blend,
+    /// The centre of the control box: evaluation is relative to it.
+    origin: DVec3,
+    /// The corners relative to `origin`, from the v-boundaries evaluated in their own frames
+    /// (consistent with the rails to rounding of the model's size, not of its offset).
+    local_corners: [DVec3; 4],
 }
 
 /// The directly evaluated Coons patch of `curves` (corners within `tolerance`, model units)
@@ -265,15 +270,29 @@ pub fn coons_patch(
     blend.check()?;
     let corners = check_corners(&curves, tolerance)?;
     let unit = |c: &BSplineCurve| c.unit_parametrized();
+    let boundaries = [
+        unit(curves.v0)?,
+        unit(curves.v1)?,
+        unit(curves.u0)?,
+        unit(curves.u1)?,
+    ];
+    let (lo, hi) = boxes_union(boundaries.iter().map(BSplineCurve::control_box));
+    let origin = 0.5 * (lo + hi);
+    let local_end =
+        |curve: &BSplineCurve, t: f64| curve.local_derivatives(t)[0] + (curve.origin() - origin);
+    let [v0, v1, ..] = &boundaries;
+    let local_corners = [
+        local_end(v0, 0.0),
+        local_end(v0, 1.0),
+        local_end(v1, 0.0),
+        local_end(v1, 1.0),
+    ];
     Ok(CoonsPatch {
-        boundaries: [
-            unit(curves.v0)?,
-            unit(curves.v1)?,
-            unit(curves.u0)?,
-            unit(curves.u1)?,
-        ],
+        boundaries,
         corners,
         blend,
+        origin,
+        local_corners,
     })
 }
 
@@ -291,19 +310,29 @@ impl CoonsPatch {
     }
     /// Bounding box (min, max) of the boundaries' control points.
     pub fn control_box(&self) -> (DVec3, DVec3) {
-        self.boundaries
-            .iter()
-            .map(|c| super::cartesian_box(c.homogeneous_points()))
-            .fold(
-                (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-                |(lo, hi), (a, b)| (lo.min(a), hi.max(b)),
-            )
+        boxes_union(self.boundaries.iter().map(BSplineCurve::control_box))
+    }
+    /// The local origin evaluation is relative to: the centre of the control box.
+    pub fn origin(&self) -> DVec3 {
+        self.origin
+    }
+    /// [`CoonsPatch::corners`] relative to [`CoonsPatch::origin`].
+    pub(crate) fn local_corners(&self) -> [DVec3; 4] {
+        self.local_corners
     }
     /// Diagonal of [`CoonsPatch::control_box`]: the size relative tolerances refer to.
     pub fn size(&self) -> f64 {
         let (lo, hi) = self.control_box();
         (hi - lo).length()
     }
+}
+
+/// The smallest box (min, max) holding every box of `boxes`.
+fn boxes_union(boxes: impl Iterator<Item = (DVec3, DVec3)>) -> (DVec3, DVec3) {
+    boxes.fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(lo, hi), (a, b)| (lo.min(a), hi.max(b)),
+    )
 }
 
 /// The corners S(0,0), S(1,0), S(0,1), S(1,1) from the v-boundaries, checked against the

@@ -4,9 +4,9 @@
 //! direction), v along the profile, and normals S_u × S_v point away from the axis where the
 //! profile rises.
 
-use super::{BSplineCurve, BSplineSurface, Interval, KnotVector, patches};
+use super::{BSplineCurve, BSplineSurface, Interval, KnotVector, LocalPoints, patches};
 use crate::error::{Error, Result};
-use glam::DVec3;
+use glam::{DVec3, DVec4};
 use std::f64::consts::{FRAC_PI_2, TAU};
 
 /// cos and sin with the rounding noise of multiples of π/2 removed, so quarter points of
@@ -81,33 +81,43 @@ pub fn revolve(
     let (arc_knots, arc) = unit_arc(angles)?;
     let (start, end) = profile.knots().domain();
     let whole = profile.range() == Interval::new(start, end);
-    let (profile_knots, profile_points) = if whole {
+    // The profile's Cartesian points with their weights.
+    let (profile_knots, profile_points): (KnotVector, Vec<DVec4>) = if whole {
+        let origin = profile.origin();
+        let points = profile.homogeneous_points().iter();
         (
             profile.knots().clone(),
-            profile.homogeneous_points().to_vec(),
+            points
+                .map(|h| (origin + h.truncate() / h.w).extend(h.w))
+                .collect(),
         )
     } else {
         let pieces = profile.bezier_form();
         (
             KnotVector::from_breakpoints(pieces.degree, &pieces.breaks)?,
-            pieces.coeffs,
+            pieces
+                .coeffs
+                .iter()
+                .map(|h| (h.truncate() / h.w).extend(h.w))
+                .collect(),
         )
     };
+    // A profile point on the axis gives `centre` exactly at every angle: the pole stays
+    // collapsed.
     let mut points = Vec::with_capacity(profile_points.len() * arc.len());
     for h in &profile_points {
-        let p = h.truncate() / h.w;
+        let p = h.truncate();
         let centre = axis_point + (p - axis_point).dot(d) * d;
         let x = p - centre;
         let y = d.cross(x);
         for &(cx, cy, wa) in &arc {
-            let w = h.w * wa;
-            points.push(((centre + cx * x + cy * y) * w).extend(w));
+            points.push((centre + cx * x + cy * y).extend(h.w * wa));
         }
     }
-    Ok(BSplineSurface::from_homogeneous(
+    Ok(BSplineSurface::from_local(
         arc_knots,
         profile_knots,
-        points,
+        LocalPoints::from_weighted(points.into_iter()),
         true,
     ))
 }

@@ -2,7 +2,7 @@
 //! an evaluation range, its control box and reparametrisations (evaluation is in `eval.rs`).
 
 use super::piecewise::{Polygon, split_polygon};
-use super::{KnotVector, homogeneous};
+use super::{KnotVector, LocalPoints, weighted};
 use crate::error::{Error, Result};
 use glam::{DVec3, DVec4};
 
@@ -54,13 +54,17 @@ impl Interval {
 /// A tensor-product B-spline surface, rational or not, of degree 1..=20 in u and v.
 ///
 /// Control points are stored u-fastest: point (i, j) — i along u, j along v — is at index
-/// j·count_u + i, in homogeneous form (x·w, y·w, z·w, w). The surface is evaluated over
-/// `range_u × range_v`, a sub-rectangle of the knot domain (the whole domain by default).
+/// j·count_u + i, in homogeneous form relative to the surface's [`origin`](Self::origin):
+/// ((P − origin)·w, w). Evaluation happens in that local frame and adds the origin last, so
+/// a model far from the world origin is evaluated as precisely as the same model at it. The
+/// surface is evaluated over `range_u × range_v`, a sub-rectangle of the knot domain (the
+/// whole domain by default).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BSplineSurface {
     knots_u: KnotVector,
     knots_v: KnotVector,
     points: Vec<DVec4>,
+    origin: DVec3,
     rational: bool,
     range_u: Interval,
     range_v: Interval,
@@ -86,34 +90,50 @@ impl BSplineSurface {
                 what: "count_u × count_v from the knot vectors",
             });
         }
-        let points_h = homogeneous(points, weights)?;
-        Ok(Self::from_homogeneous(
+        let points = weighted(points, weights)?;
+        Ok(Self::from_local(
             knots_u,
             knots_v,
-            points_h,
+            LocalPoints::from_weighted(points.into_iter()),
             weights.is_some(),
         ))
     }
 
-    /// Builds from already validated homogeneous points; the range is the whole domain.
-    pub(crate) fn from_homogeneous(
+    /// Builds from already validated control points; the range is the whole domain.
+    pub(crate) fn from_local(
         knots_u: KnotVector,
         knots_v: KnotVector,
-        points: Vec<DVec4>,
+        local: LocalPoints,
         rational: bool,
     ) -> Self {
         let (u0, u1) = knots_u.domain();
         let (v0, v1) = knots_v.domain();
-        let control_box = cartesian_box(&points);
         Self {
             knots_u,
             knots_v,
-            points,
+            points: local.points,
+            origin: local.origin,
             rational,
             range_u: Interval::new(u0, u1),
             range_v: Interval::new(v0, v1),
-            control_box,
+            control_box: local.bounds,
         }
+    }
+
+    /// Builds from validated absolute homogeneous points (x·w, y·w, z·w, w), as conversions
+    /// produce them; the range is the whole domain.
+    pub(crate) fn from_homogeneous(
+        knots_u: KnotVector,
+        knots_v: KnotVector,
+        points: &[DVec4],
+        rational: bool,
+    ) -> Self {
+        Self::from_local(
+            knots_u,
+            knots_v,
+            LocalPoints::from_homogeneous(points),
+            rational,
+        )
     }
 
     /// Restricts evaluation to `range_u × range_v`, which must lie inside the knot domain.
@@ -145,9 +165,15 @@ impl BSplineSurface {
     pub fn count_v(&self) -> usize {
         self.knots_v.control_count()
     }
-    /// Homogeneous control points (x·w, y·w, z·w, w), u fastest.
+    /// Homogeneous control points relative to [`origin`](Self::origin), ((P − origin)·w, w),
+    /// u fastest.
     pub fn homogeneous_points(&self) -> &[DVec4] {
         &self.points
+    }
+    /// The local origin evaluation is relative to: the centre of the control box (model
+    /// units).
+    pub fn origin(&self) -> DVec3 {
+        self.origin
     }
     /// True when the surface was given weights (even if all of them are 1).
     pub fn is_rational(&self) -> bool {
@@ -163,7 +189,7 @@ impl BSplineSurface {
     /// Cartesian control point (i, j).
     pub fn control_point(&self, i: usize, j: usize) -> DVec3 {
         let p = self.points[j * self.count_u() + i];
-        p.truncate() / p.w
+        self.origin + p.truncate() / p.w
     }
 
     /// Weight of control point (i, j).
@@ -223,7 +249,8 @@ impl BSplineSurface {
             for j in 0..count_v {
                 points.extend(columns.iter().map(|c| pick(c, after).1[j]));
             }
-            Self::from_homogeneous(self.knots_u.clone(), knots_v, points, self.rational)
+            let local = LocalPoints::relative_to(self.origin, points);
+            Self::from_local(self.knots_u.clone(), knots_v, local, self.rational)
                 .with_range(self.range_u, range_v)
         };
         Ok((
@@ -235,15 +262,14 @@ impl BSplineSurface {
     /// The surface with every Cartesian control point moved by the affine map `f` (weights
     /// kept): exact, since rational B-splines are affinely invariant.
     pub fn mapped(&self, f: impl Fn(DVec3) -> DVec3) -> Self {
-        let points = self
+        let moved = self
             .points
             .iter()
-            .map(|h| (f(h.truncate() / h.w) * h.w).extend(h.w))
-            .collect();
-        let mut surface = Self::from_homogeneous(
+            .map(|h| f(self.origin + h.truncate() / h.w).extend(h.w));
+        let mut surface = Self::from_local(
             self.knots_u.clone(),
             self.knots_v.clone(),
-            points,
+            LocalPoints::from_weighted(moved),
             self.rational,
         );
         surface.range_u = self.range_u;
@@ -258,10 +284,10 @@ impl BSplineSurface {
             .flat_map(|i| (0..nv).map(move |j| (i, j)))
             .map(|(i, j)| self.points[j * nu + i])
             .collect();
-        let mut surface = Self::from_homogeneous(
+        let mut surface = Self::from_local(
             self.knots_v.clone(),
             self.knots_u.clone(),
-            points,
+            LocalPoints::relative_to(self.origin, points),
             self.rational,
         );
         surface.range_u = self.range_v;

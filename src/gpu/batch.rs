@@ -490,10 +490,7 @@ impl GpuBatch {
     pub fn control_box(&self) -> Option<(glam::DVec3, glam::DVec3)> {
         let surfaces = self.shapes.iter().map(BSplineSurface::control_box);
         let coons = self.coons.iter().map(CoonsPatch::control_box);
-        let curves = self
-            .curves
-            .iter()
-            .map(|c| crate::geom::cartesian_box(c.homogeneous_points()));
+        let curves = self.curves.iter().map(BSplineCurve::control_box);
         surfaces
             .chain(coons)
             .chain(curves)
@@ -779,7 +776,8 @@ impl GpuBatch {
         let slot = self.packed.surfaces[index];
         let points = &mut self.packed.points[slot.first_point..slot.first_point + slot.point_count];
         let mut local = Vec::with_capacity(slot.point_count);
-        surfaces::local_points(surface.homogeneous_points(), slot.origin, &mut local);
+        let shift = surface.origin() - slot.origin;
+        surfaces::local_points(surface.homogeneous_points(), shift, &mut local);
         points.copy_from_slice(&local);
         self.context.queue.write_buffer(
             &self.inputs.points,

@@ -118,8 +118,7 @@ fn pack_coons(
 fn push_patch(chunk: &mut CoonsChunk, patch: &CoonsPatch, item: &CoonsSamples) {
     let part = &item.part;
     let (nu, nv) = (part.grid_u, part.grid_v);
-    let (lo, hi) = patch.control_box();
-    let origin = 0.5 * (lo + hi);
+    let origin = patch.origin();
     let degenerate_sq = degenerate_cross_sq(patch.cross_scale(), f64::from(f32::EPSILON));
     let first_sample = chunk.curves.sample_count as u32;
     for (curve, samples) in patch.boundaries().iter().zip(&item.boundaries) {
@@ -132,7 +131,7 @@ fn push_patch(chunk: &mut CoonsChunk, patch: &CoonsPatch, item: &CoonsSamples) {
     chunk.jobs.push(CoonsJob {
         origin: origin.as_vec3().to_array(),
         degenerate_sq: degenerate_sq as f32,
-        corners: patch.corners().map(|c| (c - origin).as_vec3().to_array()),
+        corners: patch.local_corners().map(|c| c.as_vec3().to_array()),
         grid_u: nu,
         grid_v: nv,
         first_vertex: chunk.vertex_count as u32,

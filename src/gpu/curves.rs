@@ -8,7 +8,7 @@ use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped};
 use super::readback::{BufferPool, mapped};
 use super::surfaces::{Limits, local_points, push_table, too_large};
 use crate::error::{Error, Result};
-use crate::geom::{BSplineCurve, cartesian_box};
+use crate::geom::BSplineCurve;
 use crate::mesh::Polyline;
 use crate::plan::{AxisSamples, CurvePlan, check_item_count};
 use bytemuck::{Pod, Zeroable};
@@ -77,7 +77,11 @@ impl CurveChunk {
             points: self.points.len() as u32,
             table: self.tables.len() as u32,
         });
-        local_points(curve.homogeneous_points(), origin, &mut self.points);
+        local_points(
+            curve.homogeneous_points(),
+            curve.origin() - origin,
+            &mut self.points,
+        );
         push_table(samples, &mut self.tables);
         self.sample_count += samples.len() as u64;
     }
@@ -162,8 +166,7 @@ fn pack_curves(
         .map(|range| {
             let mut chunk = CurveChunk::default();
             for (curve, item) in curves[range.clone()].iter().zip(&plan.items[range]) {
-                let (lo, hi) = cartesian_box(curve.homogeneous_points());
-                let origin = 0.5 * (lo + hi);
+                let origin = curve.origin();
                 chunk.push(curve, &item.samples, origin, origin);
             }
             chunk

@@ -150,12 +150,13 @@ pub(crate) struct SurfaceSlot {
     pub tables: (usize, usize),
 }
 
-/// Homogeneous control points relative to `origin`, weights scaled so the largest is 1 (the
-/// curve or surface does not change), rounded to f32.
-pub(crate) fn local_points(points: &[DVec4], origin: DVec3, out: &mut Vec<[f32; 4]>) {
+/// Local homogeneous control points (relative to their item's origin) moved by `shift` (the
+/// item's origin minus the kernel's), weights scaled so the largest is 1 (the curve or
+/// surface does not change), rounded to f32.
+pub(crate) fn local_points(points: &[DVec4], shift: DVec3, out: &mut Vec<[f32; 4]>) {
     let scale = 1.0 / points.iter().fold(0.0f64, |m, p| m.max(p.w));
     out.extend(points.iter().map(|h| {
-        let local = (h.truncate() / h.w - origin) * (h.w * scale);
+        let local = (h.truncate() / h.w + shift) * (h.w * scale);
         [
             local.x as f32,
             local.y as f32,
@@ -281,12 +282,13 @@ pub(crate) fn pack(
             return Err(too_large("one grid row", widest, budget));
         }
         let rows_per_piece = (budget / widest).min(u64::from(nv)) as u32;
-        let origin = {
-            let (lo, hi) = surface.control_box();
-            0.5 * (lo + hi)
-        };
+        let origin = surface.origin();
         let first_point = packed.points.len();
-        local_points(surface.homogeneous_points(), origin, &mut packed.points);
+        local_points(
+            surface.homogeneous_points(),
+            DVec3::ZERO,
+            &mut packed.points,
+        );
         let point_bytes = (packed.points.len() - first_point) as u64 * 16;
         if point_bytes > budget {
             return Err(too_large(

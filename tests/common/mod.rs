@@ -72,7 +72,8 @@ pub fn naive_point(s: &BSplineSurface, u: f64, v: f64) -> DVec3 {
         }
         for i in 0..s.count_u() {
             let nu = naive_basis(ku.knots(), i, ku.degree(), u, end_u);
-            sum += nu * nv * s.homogeneous_points()[j * s.count_u() + i];
+            let w = s.weight(i, j);
+            sum += nu * nv * (s.control_point(i, j) * w).extend(w);
         }
     }
     sum.truncate() / sum.w
