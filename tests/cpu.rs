@@ -8,7 +8,7 @@ use common::*;
 use glam::{DMat3, DVec3};
 use knotwork::geom::{bezier_curve, bezier_surface, piecewise_bezier_surface};
 use knotwork::{
-    BSplineCurve, BSplineSurface, CpuTessellator, Error, Interval, KnotVector, TessOptions,
+    BSplineCurve, BSplineSurface, CpuTessellator, Error, Interval, KnotVector, Mesh, TessOptions,
     Tessellator,
 };
 use proptest::prelude::*;
@@ -846,5 +846,339 @@ fn scene_parts_are_the_items_tessellated_alone() {
             .map(|i| i - part.first_vertex)
             .collect();
         assert_eq!(local, alone.indices, "item {}", part.item);
+    }
+}
+
+// ---------------------------------------------------------------- precision far from the origin
+
+/// Offsets of the moved copies: the world origin, the 1e5, and 1e7 — integers, so a
+/// control point with six fractional bits moves exactly.
+const OFFSETS: [f64; 3] = [0.0, 1e5, 1e7];
+
+/// Normal agreement between a surface and its dyadically moved copy: at regular points, and
+/// where |S_u × S_v| vanishes (the limit normal).
+const MOVED_NORMAL_BAR: f64 = 1e-12;
+const MOVED_LIMIT_NORMAL_BAR: f64 = 1e-9;
+
+/// A surface of dyadic control points (multiples of 1/64 in [-1, 1]) and power-of-two
+/// weights in [2⁻¹⁰, 2¹⁰] (about 1e-3..1e3), with optionally collapsed first row, last row
+/// and first column (poles, collapsed edges, and corners where they meet the creases that
+/// `knots_strategy`'s repeated knots make).
+fn dyadic_surface_strategy() -> impl Strategy<Value = BSplineSurface> {
+    (1usize..=5, 1usize..=5, 0usize..4, 0usize..4, any::<bool>())
+        .prop_flat_map(|(p, q, extra_u, extra_v, rational)| {
+            let (nu, nv) = (p + 1 + extra_u, q + 1 + extra_v);
+            (
+                knots_strategy(p, nu),
+                knots_strategy(q, nv),
+                prop::collection::vec(prop::array::uniform3(-64i32..=64), nu * nv),
+                prop::collection::vec(-10i32..=10, nu * nv),
+                Just(rational),
+                prop::array::uniform3(any::<bool>()),
+            )
+        })
+        .prop_map(|(ku, kv, points, exponents, rational, collapse)| {
+            let (nu, nv) = (ku.control_count(), kv.control_count());
+            let mut points: Vec<DVec3> = points
+                .into_iter()
+                .map(|[x, y, z]| DVec3::new(x.into(), y.into(), z.into()) / 64.0)
+                .collect();
+            for j in 0..nv {
+                for i in 0..nu {
+                    let at = j * nu + i;
+                    if collapse[0] && j == 0 {
+                        points[at] = points[0];
+                    } else if collapse[1] && j == nv - 1 && nv > 1 {
+                        points[at] = points[(nv - 1) * nu];
+                    } else if collapse[2] && i == 0 {
+                        points[at] = points[0];
+                    }
+                }
+            }
+            let weights: Vec<f64> = exponents.iter().map(|&e| 2f64.powi(e)).collect();
+            BSplineSurface::try_new(ku, kv, &points, rational.then_some(&weights[..])).unwrap()
+        })
+}
+
+/// `surface` with every control point mapped by p ↦ scale·p + offset, weights kept.
+fn moved(surface: &BSplineSurface, scale: f64, offset: DVec3) -> BSplineSurface {
+    surface.mapped(|p| scale * p + offset)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(96))]
+
+    /// Evaluation is invariant under translation by up to 1e7 and power-of-two scales from
+    /// 2⁻¹³ (1.2e-4) to 2²⁰ (1e6): the moved control points are exact, so normals agree to
+    /// 1e-12 rad (1e-9 rad at degenerate points) and positions to a few ulps of the offset.
+    #[test]
+    fn evaluation_is_invariant_under_dyadic_moves(
+        surface in dyadic_surface_strategy(),
+        offset_choice in prop::array::uniform3(0usize..3),
+        scale_exponent in -13i32..=20,
+        params in prop::collection::vec((0.0f64..=1.0, 0.0f64..=1.0), 6),
+    ) {
+        let offset = DVec3::from_array(offset_choice.map(|k| OFFSETS[k]));
+        let scale = 2f64.powi(scale_exponent);
+        let copy = moved(&surface, scale, offset);
+        let scale_sq = surface.cross_scale();
+        // Range corners and edges (where rows and columns collapse) and interior points.
+        let fractions = [(0.0, 0.0), (1.0, 1.0), (0.0, 1.0), (1.0, 0.0), (0.5, 0.0), (0.0, 0.5)];
+        for (a, b) in fractions.into_iter().chain(params) {
+            let (u, v) = params_at(&surface, a, b);
+            let (s, t) = (surface.evaluate(u, v), copy.evaluate(u, v));
+            let degenerate = s.du.cross(s.dv).length() <= 1e-6 * scale_sq;
+            let bar = if degenerate { MOVED_LIMIT_NORMAL_BAR } else { MOVED_NORMAL_BAR };
+            let turned = angle(s.normal, t.normal);
+            prop_assert!(turned <= bar, "normal turned {turned:e} rad at ({u}, {v}), degenerate {degenerate}, offset {offset}, scale {scale}");
+            let expected = scale * s.position + offset;
+            let ulps = 4.0 * f64::EPSILON * (offset.abs().max_element() + scale * s.position.abs().max_element() + scale * surface.control_box_diagonal());
+            let moved_by = (t.position - expected).abs().max_element();
+            prop_assert!(moved_by <= ulps, "position off by {moved_by:e} (bar {ulps:e}) at ({u}, {v})");
+        }
+    }
+}
+
+fn params_at(surface: &BSplineSurface, a: f64, b: f64) -> (f64, f64) {
+    (surface.range_u().lerp(a), surface.range_v().lerp(b))
+}
+
+/// The case: an exact rational sphere of radius 0.25 about a centre 1e5 from the
+/// origin, read as an OBJ `surf` would give it (Cartesian points and weights, two collapsed
+/// pole rows). Every normal, the poles' included, is the outward radius to 1e-9 rad, from
+/// point evaluation and from the grid executor; the positions lie on the sphere to 1e-12 of
+/// its size plus the rounding of the offset.
+#[test]
+fn a_sphere_far_from_the_origin_keeps_outward_normals_at_its_poles() {
+    let (centre, radius) = (DVec3::new(1.0e5 + 0.3, -7.0e4, 3.0e4 + 0.125), 0.25);
+    let at_origin = sphere(radius);
+    let (nu, nv) = (at_origin.count_u(), at_origin.count_v());
+    let points: Vec<DVec3> = (0..nv)
+        .flat_map(|j| (0..nu).map(move |i| (i, j)))
+        .map(|(i, j)| at_origin.control_point(i, j) + centre)
+        .collect();
+    let weights: Vec<f64> = (0..nv)
+        .flat_map(|j| (0..nu).map(move |i| (i, j)))
+        .map(|(i, j)| at_origin.weight(i, j))
+        .collect();
+    let far = BSplineSurface::try_new(
+        at_origin.knots_u().clone(),
+        at_origin.knots_v().clone(),
+        &points,
+        Some(&weights),
+    )
+    .unwrap();
+    let size = 4.0 * radius;
+    let on_sphere = EXACT_REL * size + 4.0 * f64::EPSILON * centre.length();
+    let check = |position: DVec3, normal: DVec3, what: &str| {
+        let outward = (position - centre).normalize();
+        let off = ((position - centre).length() - radius).abs();
+        assert!(off <= on_sphere, "{what}: {off:e} off the sphere");
+        let turned = angle(normal, outward);
+        assert!(
+            turned <= 1e-9,
+            "{what}: normal {normal} is {turned:e} rad from outward {outward}"
+        );
+    };
+    for k in 0..=16 {
+        let u = k as f64 / 16.0;
+        let south = far.evaluate(u, 0.0);
+        check(south.position, south.normal, "south pole");
+        assert!(angle(south.normal, -DVec3::Z) <= 1e-9);
+        let north = far.evaluate(u, 1.0);
+        check(north.position, north.normal, "north pole");
+        assert!(angle(north.normal, DVec3::Z) <= 1e-9);
+    }
+    let mut mesh = Mesh::default();
+    CpuTessellator
+        .tessellate_each_into(
+            std::slice::from_ref(&far),
+            &[TessOptions::DEFAULT.with_grid(33, 33)],
+            &mut mesh,
+        )
+        .unwrap();
+    for (position, normal) in mesh.positions.iter().zip(&mesh.normals) {
+        check(*position, *normal, "grid vertex");
+    }
+}
+
+/// Degenerate points of the classic forms — sphere poles, a cone's apex, a planar patch with
+/// an edge 1e-9 of its size — near the origin, 1e5 and 1e7 from it, at scales 1e-3, 1 and
+/// 1e4: every normal agrees with the analytic one to 1e-9 rad plus what placing the form's
+/// control points at the offset rounds.
+#[test]
+fn degenerate_points_keep_analytic_normals_at_every_placement() {
+    use knotwork::geom::shapes::{elliptic_cone, sphere as sphere_at};
+    for offset in OFFSETS {
+        for scale in [1e-3, 1.0, 1e4] {
+            let centre = DVec3::new(offset, -0.5 * offset, 0.25 * offset);
+            let place = format!("offset {offset}, scale {scale}");
+            // Placing a form's non-dyadic control points (cos, sin, weights) at the offset
+            // rounds them by ulps of the offset: that much of the model's size the input
+            // itself moves, and its normals with it.
+            let bar = 1e-9 + 4.0 * f64::EPSILON * offset / scale;
+            // Sphere: outward radius everywhere, poles included.
+            let ball = sphere_at(centre, 0.5 * scale);
+            for (a, b) in [(0.3, 0.0), (0.7, 1.0), (0.0, 0.0), (0.5, 0.5), (0.2, 0.01)] {
+                let (u, v) = params_at(&ball, a, b);
+                let s = ball.evaluate(u, v);
+                let outward = if b == 0.0 {
+                    -DVec3::Z
+                } else if b == 1.0 {
+                    DVec3::Z
+                } else {
+                    // Radial, from the same sphere about the world origin: the offset's rounding
+                    // of this position would turn a radius of a 1e-3 sphere by ~1e-8 rad.
+                    sphere_at(DVec3::ZERO, 0.5 * scale).point(u, v).normalize()
+                };
+                let turned = angle(s.normal, outward);
+                assert!(
+                    turned <= bar,
+                    "sphere at ({a}, {b}), {place}: {turned:e} rad"
+                );
+            }
+            // Cone x² + y² = z² through its apex (v = 1/2): evaluated from the centre of the
+            // range, the apex takes the limit along the diagonal (+u, +v), the upper nappe's
+            // normal at that angle, which is 90° from the lower nappe's.
+            let cone = elliptic_cone(
+                centre,
+                1.0,
+                1.0,
+                Interval::new(0.0, std::f64::consts::TAU),
+                Interval::new(-scale, scale),
+            )
+            .unwrap();
+            let (u, v_apex) = params_at(&cone, 0.3, 0.5);
+            let apex = cone.evaluate(u, v_apex).normal;
+            let width = cone.range_v().width();
+            let upper = cone.evaluate(u, v_apex + 1e-3 * width).normal;
+            let lower = cone.evaluate(u, v_apex - 1e-3 * width).normal;
+            let turned = angle(apex, upper);
+            assert!(
+                turned <= bar,
+                "cone apex, {place}: {turned:e} rad from the upper nappe"
+            );
+            let across = (angle(apex, lower) - std::f64::consts::FRAC_PI_2).abs();
+            assert!(
+                across <= bar,
+                "cone apex, {place}: {across:e} rad from 90° to the lower nappe"
+            );
+            // A planar bilinear patch in z = offset whose v = 0 edge is 1e-9 of its size:
+            // every normal is +z.
+            let eps = 1e-9 * scale;
+            let corners = [
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(eps, 0.0, 0.0),
+                DVec3::new(-scale, scale, 0.0),
+                DVec3::new(scale, scale, 0.0),
+            ]
+            .map(|p| p + centre);
+            let linear = KnotVector::try_new(1, vec![0.0, 0.0, 1.0, 1.0]).unwrap();
+            let sliver = BSplineSurface::try_new(linear.clone(), linear, &corners, None).unwrap();
+            for (a, b) in [(0.0, 0.0), (0.5, 0.0), (1.0, 0.0), (0.5, 0.5), (0.0, 1.0)] {
+                let s = sliver.evaluate(a, b);
+                let turned = angle(s.normal, DVec3::Z);
+                assert!(
+                    turned <= bar,
+                    "sliver at ({a}, {b}), {place}: {turned:e} rad"
+                );
+            }
+        }
+    }
+}
+
+/// Curves and directly evaluated Coons patches are invariant under dyadic moves too: the
+/// same position (to ulps of the offset), derivatives and normals.
+#[test]
+fn curves_and_coons_patches_are_invariant_under_dyadic_moves() {
+    use knotwork::geom::patches::{Blend, CoonsBoundaries, coons_patch};
+    let cubic = |points: [[f64; 3]; 4], weights: [f64; 4]| {
+        let points = points.map(|p| DVec3::from_array(p) / 64.0);
+        bezier_curve(3, &points, Some(&weights)).unwrap()
+    };
+    let boundaries = [
+        cubic(
+            [[0., 0., 0.], [20., -8., 4.], [44., 6., -2.], [64., 0., 0.]],
+            [1., 0.25, 4., 1.],
+        ),
+        cubic(
+            [
+                [0., 64., 0.],
+                [22., 70., 8.],
+                [40., 60., 2.],
+                [64., 64., 0.],
+            ],
+            [1., 2., 1., 1.],
+        ),
+        cubic(
+            [[0., 0., 0.], [-6., 20., 4.], [4., 44., -4.], [0., 64., 0.]],
+            [1., 1., 0.5, 1.],
+        ),
+        cubic(
+            [
+                [64., 0., 0.],
+                [70., 24., 2.],
+                [60., 40., 6.],
+                [64., 64., 0.],
+            ],
+            [1., 8., 1., 1.],
+        ),
+    ];
+    for offset in OFFSETS {
+        for scale in [2f64.powi(-10), 1.0, 2f64.powi(13)] {
+            let shift = DVec3::new(offset, offset, -offset);
+            let moved_curves: Vec<BSplineCurve> = boundaries
+                .iter()
+                .map(|c| {
+                    let n = c.homogeneous_points().len();
+                    let points: Vec<DVec3> =
+                        (0..n).map(|i| scale * c.control_point(i) + shift).collect();
+                    let weights: Vec<f64> = (0..n).map(|i| c.weight(i)).collect();
+                    BSplineCurve::try_new(c.knots().clone(), &points, Some(&weights)).unwrap()
+                })
+                .collect();
+            let ulps =
+                |p: DVec3| 4.0 * f64::EPSILON * (offset + scale * p.abs().max_element() + scale);
+            for (curve, copy) in boundaries.iter().zip(&moved_curves) {
+                for k in 0..=8 {
+                    let t = k as f64 / 8.0;
+                    let [p, d1, d2] = curve.derivatives(t);
+                    let [q, e1, e2] = copy.derivatives(t);
+                    assert!((q - (scale * p + shift)).abs().max_element() <= ulps(p));
+                    assert_eq!(e1, scale * d1, "curve C′ at {t}");
+                    assert_eq!(e2, scale * d2, "curve C″ at {t}");
+                }
+            }
+            let patch = |c: &[BSplineCurve]| {
+                let curves = CoonsBoundaries {
+                    v0: &c[0],
+                    v1: &c[1],
+                    u0: &c[2],
+                    u1: &c[3],
+                };
+                // The corners meet to the rounding of the offset.
+                coons_patch(
+                    curves,
+                    Blend::Cubic,
+                    1e-9 * scale + 8.0 * f64::EPSILON * offset,
+                )
+                .unwrap()
+            };
+            let (here, there) = (patch(&boundaries), patch(&moved_curves));
+            for (u, v) in [(0.0, 0.0), (0.3, 0.7), (1.0, 0.5), (0.5, 1.0), (0.9, 0.1)] {
+                let (s, t) = (here.evaluate(u, v), there.evaluate(u, v));
+                assert!(
+                    (t.position - (scale * s.position + shift))
+                        .abs()
+                        .max_element()
+                        <= ulps(s.position)
+                );
+                let turned = angle(s.normal, t.normal);
+                assert!(
+                    turned <= MOVED_NORMAL_BAR,
+                    "Coons normal at ({u}, {v}), offset {offset}, scale {scale}: {turned:e} rad"
+                );
+            }
+        }
     }
 }
