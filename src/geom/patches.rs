@@ -368,7 +368,14 @@ fn check_corners(curves: &CoonsBoundaries<'_>, tolerance: f64) -> Result<[DVec3;
 /// a_ij (rows: powers of u; every row the same length), converted to Bernstein form — e.g.
 /// the bicubic patch [1 u u² u³]·A·[1 v v² v³]ᵀ.
 pub fn algebraic(coefficients: &[Vec<DVec3>]) -> Result<BSplineSurface> {
-    let degree_u = coefficients.len().saturating_sub(1);
+    if coefficients.is_empty() {
+        return Err(Error::ControlPointCount {
+            expected: 1,
+            found: 0,
+            what: "at least one row of coefficients",
+        });
+    }
+    let degree_u = coefficients.len() - 1;
     let degree_v = coefficients
         .first()
         .map_or(0, |row| row.len().saturating_sub(1));

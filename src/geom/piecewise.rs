@@ -44,7 +44,8 @@ impl<T: Value> Piecewise<T> {
     }
 
     /// The polynomial Σ power[i]·t^i on [0, 1], in Bernstein form:
-    /// t^i = Σ_{k ≥ i} C(k, i)/C(n, i) · B_{k,n}(t).
+    /// t^i = Σ_{k ≥ i} C(k, i)/C(n, i) · B_{k,n}(t). `power` holds at least one coefficient
+    /// (callers check what they were given).
     pub fn from_power(power: &[T]) -> Self {
         let n = power.len().saturating_sub(1);
         let coeffs = (0..=n)
