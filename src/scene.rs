@@ -19,6 +19,17 @@ pub enum Geometry {
     Curve(BSplineCurve),
 }
 
+impl Geometry {
+    /// Bounding box (min, max) of the control points (a Coons patch: its boundaries').
+    pub fn control_box(&self) -> (glam::DVec3, glam::DVec3) {
+        match self {
+            Geometry::Surface(s) => s.control_box(),
+            Geometry::Coons(p) => p.control_box(),
+            Geometry::Curve(c) => c.control_box(),
+        }
+    }
+}
+
 /// One item of a scene: its geometry, what it asks for itself, and its name.
 #[derive(Debug, Clone)]
 pub struct Item {

@@ -9,8 +9,8 @@ use glam::DVec3;
 use knotwork::conformance::{self, NORMAL_BAR, POSITION_REL_BAR};
 use knotwork::gpu::Limits;
 use knotwork::{
-    BSplineCurve, BSplineSurface, BatchDescriptor, Error, GpuBatch, GpuContext, GpuTessellator,
-    KnotVector, TessOptions, Tessellator,
+    BSplineCurve, BSplineSurface, BatchDescriptor, CpuTessellator, Error, GpuBatch, GpuContext,
+    GpuTessellator, KnotVector, TessOptions, Tessellator,
 };
 use std::sync::OnceLock;
 
@@ -979,6 +979,25 @@ fn batches_fill_caller_buffers_at_offsets() {
     assert!(err.to_string().contains("alignment"), "{err}");
 }
 
+/// How far a world position rounded to f32 may be from the exact one, relative to the larger
+/// of its coordinates and the model's size (which bounds the item's origin): the kernel's f32
+/// origin plus its f32 sum, half an ulp each, with room.
+const WORLD_ROUNDING: f64 = 2.0 * f32::EPSILON as f64;
+
+/// `a` is `b` with positions rounded to f32 world coordinates: everything else identical.
+fn assert_same_to_world_rounding(a: &knotwork::Mesh, b: &knotwork::Mesh) {
+    assert_eq!(a.parts, b.parts);
+    assert_eq!(a.indices, b.indices);
+    assert_eq!(a.normals, b.normals);
+    assert_eq!(a.uvs, b.uvs);
+    assert_eq!(a.positions.len(), b.positions.len());
+    let size = b.bounding_box_diagonal();
+    for (p, q) in a.positions.iter().zip(&b.positions) {
+        let bar = WORLD_ROUNDING * (q.abs().max_element() + size);
+        assert!((*p - *q).abs().max_element() <= bar, "{p} vs {q}");
+    }
+}
+
 /// One batch holds a scene of every kind: the surfaces, the Coons patches (triangles a
 /// renderer can draw) and the curves (line-strip vertex buffers), dispatched together; each
 /// kind reads back what the tessellator gives; updating a patch or a curve changes only its
@@ -1001,7 +1020,9 @@ fn one_batch_serves_every_item_kind() {
             &mut expected,
         )
         .unwrap();
-    assert_eq!(batch.read_mesh().unwrap(), expected);
+    // A drawing batch leaves world positions in f32; the headless tessellator adds each
+    // item's origin in f64: the same values to the f32 rounding of the world position.
+    assert_same_to_world_rounding(&batch.read_mesh().unwrap(), &expected);
     let (patches, grids) = (scene.coons_patch_list(), scene.coons_grids(defaults.grid));
     let mut expected = knotwork::Mesh::default();
     tessellator
@@ -1009,12 +1030,20 @@ fn one_batch_serves_every_item_kind() {
         .unwrap();
     let mut coons = knotwork::Mesh32::default();
     batch.read_coons_into(&mut coons).unwrap();
-    assert_eq!(coons.to_f64(), expected);
+    assert_same_to_world_rounding(&coons.to_f64(), &expected);
     let (curves, samples) = (scene.curve_list(), scene.curve_samples(defaults.samples));
-    assert_eq!(
-        batch.read_curves().unwrap(),
-        tessellator.tessellate_curves(&curves, &samples).unwrap()
-    );
+    let expected_lines = tessellator.tessellate_curves(&curves, &samples).unwrap();
+    for (line, expected) in batch.read_curves().unwrap().iter().zip(&expected_lines) {
+        assert_eq!(line.tangents, expected.tangents);
+        let size = expected
+            .positions
+            .iter()
+            .fold(0.0f64, |m, q| m.max(q.length()));
+        for (p, q) in line.positions.iter().zip(&expected.positions) {
+            let bar = WORLD_ROUNDING * (q.abs().max_element() + size);
+            assert!((*p - *q).abs().max_element() <= bar, "{p} vs {q}");
+        }
+    }
     // Drawable: vertex and index usages, one line strip per curve.
     use knotwork::wgpu::BufferUsages;
     let mesh = &batch.coons_meshes()[0];
@@ -1024,6 +1053,7 @@ fn one_batch_serves_every_item_kind() {
     assert!(lines[0].samples.usage().contains(BufferUsages::VERTEX));
     assert_eq!(lines.iter().map(|l| l.strips.len()).sum::<usize>(), 9);
     // Updates: a lifted curve moves, in place.
+    let batch_lines_before_update = batch.read_curves().unwrap();
     let allocated = batch.buffer_allocations();
     let lifted = knotwork::geom::bezier_curve(
         1,
@@ -1035,10 +1065,7 @@ fn one_batch_serves_every_item_kind() {
     batch.dispatch().unwrap();
     let polylines = batch.read_curves().unwrap();
     assert!(polylines[2].positions.iter().all(|p| p.z == 5.0));
-    assert_eq!(
-        polylines[3],
-        tessellator.tessellate_curves(&curves, &samples).unwrap()[3]
-    );
+    assert_eq!(polylines[3], batch_lines_before_update[3]);
     assert_eq!(batch.buffer_allocations(), allocated);
     assert!(matches!(
         batch.update_curve(9, &lifted),
@@ -1182,4 +1209,87 @@ fn failed_gpu_calls_leave_the_mesh_unchanged() {
             .is_err()
     );
     assert_eq!(mesh, before);
+}
+
+/// Headless GPU output far from the origin keeps the kernels' precision: a 0.5-unit sphere,
+/// a Coons patch and a curve about 1e5 from the origin, tessellated on the GPU and read back
+/// in f64, lie within 1e-6 of their size of the CPU's (an f32 world coordinate there is only
+/// good to 8e-3, 1.6 % of the size); read back in f32 they are the f64 result rounded once.
+#[test]
+fn headless_gpu_output_far_from_the_origin_keeps_the_kernels_precision() {
+    use knotwork::geom::patches::{Blend, CoonsBoundaries, coons_patch};
+    let Some(context) = gpu() else { return };
+    let tessellator = tessellator_on(context);
+    let centre = DVec3::new(1.0e5 + 0.3, -7.0e4, 3.0e4 + 0.125);
+    let size = 0.5;
+    let bar = 1e-6 * size;
+    let worst = |a: &[DVec3], b: &[DVec3]| {
+        assert_eq!(a.len(), b.len());
+        a.iter()
+            .zip(b)
+            .map(|(p, q)| (*p - *q).length())
+            .fold(0.0f64, f64::max)
+    };
+    let sphere = [knotwork::geom::shapes::sphere(centre, 0.25)];
+    let grid = [TessOptions::DEFAULT.with_grid(33, 33)];
+    let (mut gpu, mut cpu) = (knotwork::Mesh::default(), knotwork::Mesh::default());
+    tessellator
+        .tessellate_each_into(&sphere, &grid, &mut gpu)
+        .unwrap();
+    CpuTessellator
+        .tessellate_each_into(&sphere, &grid, &mut cpu)
+        .unwrap();
+    let off = worst(&gpu.positions, &cpu.positions);
+    assert!(off <= bar, "sphere: GPU {off:e} from the CPU (bar {bar:e})");
+    // f32 readback: the f64 result rounded once (half an ulp of f32 at 1e5 is 3.9e-3).
+    let mut gpu32 = knotwork::Mesh32::default();
+    tessellator
+        .tessellate_each_into_f32(&sphere, &grid, &mut gpu32)
+        .unwrap();
+    for (v, p) in gpu32.vertices.iter().zip(&gpu.positions) {
+        assert_eq!(v.position, p.as_vec3().to_array());
+    }
+    // A Coons patch of four quarter circles' chords, and one of its boundaries as a curve.
+    let line = |a: DVec3, b: DVec3, lift: f64| {
+        let middle = 0.5 * (a + b) + DVec3::new(0.0, 0.0, lift);
+        knotwork::geom::bezier_curve(2, &[centre + a, centre + middle, centre + b], None).unwrap()
+    };
+    let h = 0.25;
+    let (c00, c10, c01, c11) = (
+        DVec3::new(-h, -h, 0.0),
+        DVec3::new(h, -h, 0.0),
+        DVec3::new(-h, h, 0.0),
+        DVec3::new(h, h, 0.0),
+    );
+    let curves = [
+        line(c00, c10, 0.1),
+        line(c01, c11, -0.1),
+        line(c00, c01, 0.05),
+        line(c10, c11, 0.0),
+    ];
+    let boundaries = CoonsBoundaries {
+        v0: &curves[0],
+        v1: &curves[1],
+        u0: &curves[2],
+        u1: &curves[3],
+    };
+    let patch = [coons_patch(boundaries, Blend::Cubic, 1e-9).unwrap()];
+    let (mut gpu, mut cpu) = (knotwork::Mesh::default(), knotwork::Mesh::default());
+    tessellator
+        .tessellate_coons_into(&patch, &grid, &mut gpu)
+        .unwrap();
+    CpuTessellator
+        .tessellate_coons_into(&patch, &grid, &mut cpu)
+        .unwrap();
+    let off = worst(&gpu.positions, &cpu.positions);
+    assert!(
+        off <= bar,
+        "Coons patch: GPU {off:e} from the CPU (bar {bar:e})"
+    );
+    let gpu = tessellator.tessellate_curves(&curves, &[65; 4]).unwrap();
+    let cpu = CpuTessellator.tessellate_curves(&curves, &[65; 4]).unwrap();
+    for (g, c) in gpu.iter().zip(&cpu) {
+        let off = worst(&g.positions, &c.positions);
+        assert!(off <= bar, "curve: GPU {off:e} from the CPU (bar {bar:e})");
+    }
 }

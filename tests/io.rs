@@ -1598,3 +1598,115 @@ fn fuzz_corpus_replays() {
     // The corpus is committed: an empty replay means it went missing.
     assert!(replayed >= 100, "only {replayed} fuzz inputs replayed");
 }
+
+// ---------------------------------------------------------------- far from the origin
+
+/// A 0.5-unit sphere about 1e5 from the origin, tessellated by the CLI to OBJ and glb on the
+/// CPU and (where an adapter exists) the GPU: OBJ positions within 1e-6 of the size of the
+/// f64 reference; the glb's node carries the sphere's centre and its vertices, relative to
+/// it, reproduce the reference to 1e-6 of the size (f32 world coordinates there are only
+/// good to 8e-3); the glb validates.
+#[test]
+fn far_models_keep_their_precision_in_obj_and_glb() {
+    let dir = scratch_dir("far");
+    let centre = DVec3::new(1.0e5 + 0.3, -7.0e4, 3.0e4 + 0.125);
+    let scene = dir.join("far.json");
+    std::fs::write(
+        &scene,
+        format!(
+            r#"{{ "surfaces": [ {{ "kind": "sphere", "centre": [{}, {}, {}], "radius": 0.25 }} ] }}"#,
+            centre.x, centre.y, centre.z
+        ),
+    )
+    .unwrap();
+    let reference = CpuTessellator
+        .tessellate(
+            &read_scene(&scene).unwrap().surface_list(),
+            &TessOptions::DEFAULT.with_grid(17, 17),
+        )
+        .unwrap();
+    let bar = 1e-6 * 0.5;
+    let backends: &[&str] = if std::env::var("KNOTWORK_REQUIRE_GPU").is_ok() {
+        &["cpu", "gpu"]
+    } else {
+        &["cpu", "auto"]
+    };
+    for backend in backends {
+        for extension in ["obj", "glb"] {
+            let out = dir.join(format!("far-{backend}.{extension}"));
+            let run = Command::new(env!("CARGO_BIN_EXE_knotwork"))
+                .args(["tessellate", "--grid", "17x17", "--backend", backend, "-o"])
+                .arg(&out)
+                .arg(&scene)
+                .output()
+                .unwrap();
+            assert!(
+                run.status.success(),
+                "{}",
+                String::from_utf8_lossy(&run.stderr)
+            );
+            let positions: Vec<DVec3> = if extension == "obj" {
+                // The `v` lines, in vertex order.
+                std::fs::read_to_string(&out)
+                    .unwrap()
+                    .lines()
+                    .filter_map(|line| line.strip_prefix("v "))
+                    .map(|xyz| {
+                        let c: Vec<f64> = xyz.split(' ').map(|x| x.parse().unwrap()).collect();
+                        DVec3::new(c[0], c[1], c[2])
+                    })
+                    .collect()
+            } else {
+                validate_with_khronos(&out);
+                let bytes = std::fs::read(&out).unwrap();
+                let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
+                let blob = gltf.blob.as_deref().unwrap();
+                let node = gltf.nodes().next().unwrap();
+                let t = DVec3::from_array(node.transform().decomposed().0.map(f64::from));
+                assert!((t - centre).length() < 0.01, "node translation {t}");
+                let primitive = node.mesh().unwrap().primitives().next().unwrap();
+                let reader = primitive.reader(|_| Some(blob));
+                reader
+                    .read_positions()
+                    .unwrap()
+                    .map(|p| t + DVec3::from_array(p.map(f64::from)))
+                    .collect()
+            };
+            assert_eq!(positions.len(), reference.positions.len());
+            let worst = positions
+                .iter()
+                .zip(&reference.positions)
+                .map(|(p, q)| (*p - *q).length())
+                .fold(0.0f64, f64::max);
+            assert!(
+                worst <= bar,
+                "{backend} {extension}: {worst:e} from the reference (bar {bar:e})"
+            );
+        }
+    }
+    // Welded (parts share vertices): one translation, every vertex on the sphere.
+    let out = dir.join("far-welded.glb");
+    let run = Command::new(env!("CARGO_BIN_EXE_knotwork"))
+        .args(["tessellate", "--weld", "--backend", "cpu", "-o"])
+        .arg(&out)
+        .arg(&scene)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    validate_with_khronos(&out);
+    let bytes = std::fs::read(&out).unwrap();
+    let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
+    let node = gltf.nodes().next().unwrap();
+    let t = DVec3::from_array(node.transform().decomposed().0.map(f64::from));
+    assert!((t - centre).length() < 0.01, "node translation {t}");
+    let primitive = node.mesh().unwrap().primitives().next().unwrap();
+    let blob = gltf.blob.as_deref().unwrap();
+    for p in primitive.reader(|_| Some(blob)).read_positions().unwrap() {
+        let off = ((t + DVec3::from_array(p.map(f64::from)) - centre).length() - 0.25).abs();
+        assert!(off <= bar, "welded vertex {off:e} off the sphere");
+    }
+}

@@ -285,15 +285,23 @@ fn process(
         memory_budget: Some(budget),
     };
     // Binary formats carry f32: an f32 mesh goes to them without widening and narrowing
-    // (from the GPU, straight from its buffers); OBJ and welding take the f64 mesh.
+    // (from the GPU, straight from its buffers); OBJ and welding take the f64 mesh, and so
+    // does glb for a model far from the origin, whose groups it stores relative to a node
+    // translation (f32 world coordinates would lose what the mesh has).
     let format = job.format.or_else(|| {
         output
             .extension()
             .and_then(|e| MeshFormat::from_extension(&e.to_string_lossy()))
     });
+    let far_glb = format == Some(MeshFormat::Glb)
+        && scene.items.iter().any(|item| {
+            let (lo, hi) = item.geometry.control_box();
+            (0.5 * (lo + hi)).length() > knotwork::io::FAR_IN_SIZES * (hi - lo).length()
+        });
     let groups = scene.groups();
     let mut merged = None;
-    let (vertices, triangles) = if matches!(format, Some(MeshFormat::Obj) | None) || job.weld {
+    let f64_mesh = matches!(format, Some(MeshFormat::Obj) | None) || job.weld || far_glb;
+    let (vertices, triangles) = if f64_mesh {
         let mut mesh = tessellator.tessellate_scene(&scene, &defaults)?;
         if job.weld {
             let (welded, report) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());

@@ -5,7 +5,9 @@
 use super::context::{CONNECT_PASS, GpuContext, MAX_GROUPS_PER_DIMENSION, UNIFORM_STRIDE, scoped};
 use super::coons::CoonsWork;
 use super::curves::{CurveWork, GpuLines};
-use super::readback::{BufferPool, copy_out, map_for_reading, mapped};
+use super::readback::{
+    BufferPool, Placement, copy_out, map_for_reading, mapped, place_f32, place_f64,
+};
 use super::surfaces::{
     self, ChunkParams, Limits, PASSES, Packed, Piece, Range, Tile, VERTEX_BYTES,
 };
@@ -65,8 +67,10 @@ pub struct BatchDescriptor<'a> {
     /// Buffer limits to plan within; `None`: the device's ([`GpuContext::limits`]).
     pub limits: Option<Limits>,
     /// Outputs read back rather than drawn: where the device has `MAPPABLE_PRIMARY_BUFFERS`
-    /// (unified memory) they are mapped directly, without a staging copy. (Not for drawing:
-    /// on discrete GPUs mappable buffers live in slower memory.)
+    /// (unified memory) they are mapped directly, without a staging copy; and positions leave
+    /// the kernels relative to each item's origin, which readback adds in f64 (the device
+    /// buffers then hold those local positions). Not for drawing: on discrete GPUs mappable
+    /// buffers live in slower memory.
     pub readback: bool,
     /// The caller's own buffers to fill with the surfaces, instead of buffers knotwork
     /// allocates.
@@ -184,6 +188,8 @@ pub struct GpuBatch {
     limits: Limits,
     /// The output buffers can be mapped directly (see [`BatchDescriptor::readback`]).
     mappable: bool,
+    /// World positions for drawing; local ones, placed by readback, for a readback batch.
+    placement: Placement,
     /// The output buffers are the batch's own (else the caller's: never reallocated).
     owns_outputs: bool,
     packed: Packed,
@@ -340,7 +346,14 @@ impl GpuBatch {
             && device
                 .features()
                 .contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS);
-        let packed = surfaces::pack(plan, descriptor.surfaces, &limits)?;
+        // A readback batch's positions leave the kernels relative to each item's origin,
+        // which readback adds in f64.
+        let placement = if descriptor.readback && descriptor.targets.is_none() {
+            Placement::Local
+        } else {
+            Placement::World
+        };
+        let packed = surfaces::pack(plan, descriptor.surfaces, &limits, placement)?;
         let input = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         let output = output_usage(mappable);
         let mut allocations = INPUT_BUFFERS;
@@ -371,6 +384,7 @@ impl GpuBatch {
                 context: context.clone(),
                 limits,
                 mappable,
+                placement,
                 owns_outputs: descriptor.targets.is_none(),
                 packed: Packed::default(),
                 shapes: Vec::new(),
@@ -440,7 +454,14 @@ impl GpuBatch {
         if !self.coons.is_empty() {
             let pool = &mut self.coons_pool;
             let (context, limits) = (&self.context, self.limits);
-            let work = CoonsWork::prepare(pool, context, &self.coons, &self.coons_options, limits)?;
+            let work = CoonsWork::prepare(
+                pool,
+                context,
+                &self.coons,
+                &self.coons_options,
+                limits,
+                self.placement,
+            )?;
             self.coons_work = Some(work);
         }
         Ok(())
@@ -452,8 +473,14 @@ impl GpuBatch {
         if !self.curves.is_empty() {
             let pool = &mut self.curve_pool;
             let (context, limits) = (&self.context, self.limits);
-            let work =
-                CurveWork::prepare(pool, context, &self.curves, &self.curve_samples, limits)?;
+            let work = CurveWork::prepare(
+                pool,
+                context,
+                &self.curves,
+                &self.curve_samples,
+                limits,
+                self.placement,
+            )?;
             self.curve_work = Some(work);
         }
         Ok(())
@@ -536,6 +563,7 @@ impl GpuBatch {
             &SurfacePlan::new(surfaces, options)?,
             surfaces,
             &self.limits,
+            self.placement,
         )?;
         self.load(packed, surfaces)
     }
@@ -789,9 +817,38 @@ impl GpuBatch {
     }
 
     /// Reads the outputs back into `mesh` (replacing its vertices, indices and parts, keeping
-    /// its polylines and its allocations): mapped directly for a readback batch on a
-    /// unified-memory adapter, else through staging buffers the batch keeps for next time.
+    /// its polylines and its allocations), in world coordinates rounded to f32 (for a readback
+    /// batch: each surface's origin added in f64, then rounded once): mapped directly for a
+    /// readback batch on a unified-memory adapter, else through staging buffers the batch
+    /// keeps for next time.
     pub fn read_into(&self, mesh: &mut Mesh32) -> Result<()> {
+        self.read_local_into(mesh)?;
+        place_f32(mesh, &self.host_origins());
+        Ok(())
+    }
+
+    /// Reads the outputs back into a new f64 [`Mesh`]: every f32 value exactly, and for a
+    /// readback batch each surface's origin added in f64 — the kernels' precision relative to
+    /// the surface's size, wherever it is.
+    pub fn read_mesh(&self) -> Result<Mesh> {
+        let mut local = Mesh32::default();
+        self.read_local_into(&mut local)?;
+        let mut mesh = local.to_f64();
+        place_f64(&mut mesh, &self.host_origins());
+        Ok(mesh)
+    }
+
+    /// What readback adds to each surface's positions (see [`Placement`]).
+    fn host_origins(&self) -> Vec<glam::DVec3> {
+        self.packed
+            .surfaces
+            .iter()
+            .map(|slot| self.placement.host_origin(slot.origin))
+            .collect()
+    }
+
+    /// The outputs as the kernels left them.
+    fn read_local_into(&self, mesh: &mut Mesh32) -> Result<()> {
         let vertex_bytes = u64::from(self.mesh.vertex_count) * VERTEX_BYTES;
         let index_bytes = u64::from(self.mesh.index_count) * 4;
         mesh.parts.clone_from(&self.mesh.parts);
@@ -821,13 +878,6 @@ impl GpuBatch {
                 copy(&staged[0], &staged[1])
             })
         }
-    }
-
-    /// Reads the outputs back into a new f64 [`Mesh`] (every f32 value exactly).
-    pub fn read_mesh(&self) -> Result<Mesh> {
-        let mut mesh = Mesh32::default();
-        self.read_into(&mut mesh)?;
-        Ok(mesh.to_f64())
     }
 }
 

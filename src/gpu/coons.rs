@@ -8,7 +8,7 @@ use super::batch::GpuMesh;
 use super::chunks::{additive_chunk_ranges, over_budget};
 use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped};
 use super::curves::{CurveChunk, SAMPLE_BYTES};
-use super::readback::{BufferPool, copy_out, mapped};
+use super::readback::{BufferPool, Placement, copy_out, mapped, place_f32, place_f64};
 use super::surfaces::{Limits, VERTEX_BYTES, too_large};
 use crate::error::{Error, Result};
 use crate::geom::degenerate_cross_sq;
@@ -89,6 +89,7 @@ fn pack_coons(
     plan: &CoonsPlan,
     patches: &[CoonsPatch],
     limits: &Limits,
+    placement: Placement,
 ) -> Result<Vec<CoonsChunk>> {
     check_item_count(plan.items.len(), patches.len())?;
     let budget = limits.binding_bytes.min(limits.buffer_bytes);
@@ -108,14 +109,19 @@ fn pack_coons(
         chunks.push(CoonsChunk::default());
         let chunk = chunks.last_mut().expect("pushed above");
         for (patch, item) in patches[range.clone()].iter().zip(&plan.items[range]) {
-            push_patch(chunk, patch, item);
+            push_patch(chunk, patch, item, placement);
         }
     }
     Ok(chunks)
 }
 
 /// Adds `patch`, planned as `item`, to `chunk`: its boundary curves, blend table and record.
-fn push_patch(chunk: &mut CoonsChunk, patch: &CoonsPatch, item: &CoonsSamples) {
+fn push_patch(
+    chunk: &mut CoonsChunk,
+    patch: &CoonsPatch,
+    item: &CoonsSamples,
+    placement: Placement,
+) {
     let part = &item.part;
     let (nu, nv) = (part.grid_u, part.grid_v);
     let origin = patch.origin();
@@ -129,7 +135,7 @@ fn push_patch(chunk: &mut CoonsChunk, patch: &CoonsPatch, item: &CoonsSamples) {
         chunk.blends.extend(blend.map(|x| x as f32));
     }
     chunk.jobs.push(CoonsJob {
-        origin: origin.as_vec3().to_array(),
+        origin: placement.kernel_origin(origin).as_vec3().to_array(),
         degenerate_sq: degenerate_sq as f32,
         corners: patch.local_corners().map(|c| c.as_vec3().to_array()),
         grid_u: nu,
@@ -163,11 +169,13 @@ pub(crate) fn tessellate_coons(
     options: &[TessOptions],
     limits: Limits,
 ) -> Result<Mesh> {
-    let work = CoonsWork::prepare(pool, context, patches, options, limits)?;
+    let work = CoonsWork::prepare(pool, context, patches, options, limits, Placement::Local)?;
     work.run(context)?;
-    let mut mesh = Mesh32::default();
-    work.read_into(pool, context, &mut mesh)?;
-    Ok(mesh.to_f64())
+    let mut local = Mesh32::default();
+    work.read_local_into(pool, context, &mut local)?;
+    let mut mesh = local.to_f64();
+    place_f64(&mut mesh, &work.host_origins);
+    Ok(mesh)
 }
 
 /// Coons patches packed, uploaded and bound on the device, chunk by chunk: dispatch any
@@ -181,20 +189,23 @@ pub(super) struct CoonsWork {
     bind_groups: Vec<(wgpu::BindGroup, wgpu::BindGroup)>,
     meshes: Vec<GpuMesh>,
     parts: Vec<MeshPart>,
+    /// Per patch, what readback adds to its positions (see [`Placement`]).
+    host_origins: Vec<DVec3>,
 }
 
 impl CoonsWork {
     /// Plans patch k on the grid of `options[k]`, packs the patches within `limits` and
-    /// uploads them into `pool`'s buffers.
+    /// uploads them into `pool`'s buffers; positions are left as `placement` says.
     pub fn prepare(
         pool: &mut BufferPool,
         context: &GpuContext,
         patches: &[CoonsPatch],
         options: &[TessOptions],
         limits: Limits,
+        placement: Placement,
     ) -> Result<Self> {
         let plan = CoonsPlan::new(patches, options)?;
-        let chunks = pack_coons(&plan, patches, &limits)?;
+        let chunks = pack_coons(&plan, patches, &limits, placement)?;
         let device = &context.device;
         let (bind_groups, meshes) = scoped(device, || {
             let storage = wgpu::BufferUsages::STORAGE;
@@ -251,6 +262,10 @@ impl CoonsWork {
             bind_groups,
             meshes,
             parts: plan.layout.parts,
+            host_origins: patches
+                .iter()
+                .map(|p| placement.host_origin(p.origin()))
+                .collect(),
         })
     }
 
@@ -286,8 +301,20 @@ impl CoonsWork {
     }
 
     /// Reads every chunk back into `mesh` (vertices, indices and parts replaced; its
-    /// polylines kept), in the layout of the plan.
+    /// polylines kept), in the layout of the plan, in world coordinates rounded to f32.
     pub fn read_into(
+        &self,
+        pool: &BufferPool,
+        context: &GpuContext,
+        mesh: &mut Mesh32,
+    ) -> Result<()> {
+        self.read_local_into(pool, context, mesh)?;
+        place_f32(mesh, &self.host_origins);
+        Ok(())
+    }
+
+    /// [`CoonsWork::read_into`] with positions as the kernels left them (see [`Placement`]).
+    fn read_local_into(
         &self,
         pool: &BufferPool,
         context: &GpuContext,

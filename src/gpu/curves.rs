@@ -5,7 +5,7 @@
 
 use super::chunks::{additive_chunk_ranges, over_budget};
 use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped};
-use super::readback::{BufferPool, mapped};
+use super::readback::{BufferPool, Placement, mapped};
 use super::surfaces::{Limits, local_points, push_table, too_large};
 use crate::error::{Error, Result};
 use crate::geom::BSplineCurve;
@@ -147,6 +147,7 @@ fn pack_curves(
     plan: &CurvePlan,
     curves: &[BSplineCurve],
     limits: &Limits,
+    placement: Placement,
 ) -> Result<Vec<CurveChunk>> {
     check_item_count(plan.items.len(), curves.len())?;
     let budget = limits.binding_bytes.min(limits.buffer_bytes);
@@ -167,7 +168,12 @@ fn pack_curves(
             let mut chunk = CurveChunk::default();
             for (curve, item) in curves[range.clone()].iter().zip(&plan.items[range]) {
                 let origin = curve.origin();
-                chunk.push(curve, &item.samples, origin, origin);
+                chunk.push(
+                    curve,
+                    &item.samples,
+                    origin,
+                    placement.kernel_origin(origin),
+                );
             }
             chunk
         })
@@ -186,7 +192,14 @@ pub fn sample_curves(
     limits: Limits,
 ) -> Result<Vec<Polyline>> {
     let mut pool = BufferPool::default();
-    let work = CurveWork::prepare(&mut pool, context, curves, samples, limits)?;
+    let work = CurveWork::prepare(
+        &mut pool,
+        context,
+        curves,
+        samples,
+        limits,
+        Placement::Local,
+    )?;
     work.run(context)?;
     work.read(&pool, context)
 }
@@ -235,19 +248,23 @@ pub(super) struct CurveWork {
     chunks: Vec<CurveChunk>,
     bind_groups: Vec<wgpu::BindGroup>,
     lines: Vec<GpuLines>,
+    /// Per curve, what readback adds to its positions (see [`Placement`]).
+    host_origins: Vec<DVec3>,
 }
 
 impl CurveWork {
     /// Plans curve k with `samples[k]` samples, packs the curves within `limits` and uploads
-    /// them into `pool`'s buffers.
+    /// them into `pool`'s buffers; positions are left as `placement` says.
     pub fn prepare(
         pool: &mut BufferPool,
         context: &GpuContext,
         curves: &[BSplineCurve],
         samples: &[u32],
         limits: Limits,
+        placement: Placement,
     ) -> Result<Self> {
-        let chunks = pack_curves(&CurvePlan::new(curves, samples)?, curves, &limits)?;
+        let plan = CurvePlan::new(curves, samples)?;
+        let chunks = pack_curves(&plan, curves, &limits, placement)?;
         let device = &context.device;
         let (bind_groups, lines) = scoped(device, || {
             let mut bind_groups = Vec::with_capacity(chunks.len());
@@ -276,6 +293,10 @@ impl CurveWork {
             chunks,
             bind_groups,
             lines,
+            host_origins: curves
+                .iter()
+                .map(|c| placement.host_origin(c.origin()))
+                .collect(),
         })
     }
 
@@ -323,9 +344,13 @@ impl CurveWork {
                 for job in &chunk.jobs {
                     let first = job.first_sample as usize * 12;
                     let samples = &floats[first..first + job.samples as usize * 12];
+                    let origin = self.host_origins[polylines.len()];
                     polylines.push(Polyline {
                         item: polylines.len() as u32,
-                        positions: samples.chunks_exact(12).map(|s| vector(&s[0..3])).collect(),
+                        positions: samples
+                            .chunks_exact(12)
+                            .map(|s| origin + vector(&s[0..3]))
+                            .collect(),
                         tangents: samples.chunks_exact(12).map(|s| vector(&s[4..7])).collect(),
                     });
                 }
@@ -356,7 +381,7 @@ mod tests {
             offset_alignment: 256,
         };
         let plan = CurvePlan::new(&curves, &samples).unwrap();
-        let chunks = pack_curves(&plan, &curves, &limits).unwrap();
+        let chunks = pack_curves(&plan, &curves, &limits, Placement::World).unwrap();
         assert!(chunks.len() > 3, "{} chunks", chunks.len());
         let mut next = 0;
         for chunk in &chunks {

@@ -4,6 +4,8 @@
 
 use super::context::{GpuContext, scoped};
 use crate::error::{Error, Result};
+use crate::mesh::{Mesh, Mesh32};
+use glam::DVec3;
 use rayon::prelude::*;
 use std::sync::Mutex;
 
@@ -156,4 +158,57 @@ pub(super) fn copy_out<T: bytemuck::Pod + Send + Sync>(bytes: &[u8], out: &mut V
     out.par_chunks_mut(COPY_CHUNK)
         .zip(source.par_chunks(COPY_CHUNK))
         .for_each(|(to, from)| to.copy_from_slice(from));
+}
+
+/// Where the kernels leave positions: in world coordinates, rounded to f32 — what a renderer
+/// draws — or relative to each item's origin, which the host adds in f64 on readback, so
+/// headless output keeps the kernels' precision however far the model is from the world
+/// origin (an f32 world coordinate at 1e5 is only good to 8e-3).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Placement {
+    World,
+    Local,
+}
+
+impl Placement {
+    /// The origin the kernel adds to an item whose local origin is `origin`.
+    pub fn kernel_origin(self, origin: DVec3) -> DVec3 {
+        match self {
+            Placement::World => origin,
+            Placement::Local => DVec3::ZERO,
+        }
+    }
+
+    /// The origin the host adds on readback to an item whose local origin is `origin`.
+    pub fn host_origin(self, origin: DVec3) -> DVec3 {
+        match self {
+            Placement::World => DVec3::ZERO,
+            Placement::Local => origin,
+        }
+    }
+}
+
+/// Moves part k's vertices by `origins[k]`, in f64.
+pub(super) fn place_f64(mesh: &mut Mesh, origins: &[DVec3]) {
+    for (part, &origin) in mesh.parts.iter().zip(origins) {
+        if origin != DVec3::ZERO {
+            let first = part.first_vertex as usize;
+            for p in &mut mesh.positions[first..first + part.vertex_count as usize] {
+                *p += origin;
+            }
+        }
+    }
+}
+
+/// Moves part k's vertices by `origins[k]`: added in f64, rounded once to f32.
+pub(super) fn place_f32(mesh: &mut Mesh32, origins: &[DVec3]) {
+    for (part, &origin) in mesh.parts.iter().zip(origins) {
+        if origin != DVec3::ZERO {
+            let first = part.first_vertex as usize;
+            for v in &mut mesh.vertices[first..first + part.vertex_count as usize] {
+                let world = origin + DVec3::from_array(v.position.map(f64::from));
+                v.position = world.as_vec3().to_array();
+            }
+        }
+    }
 }

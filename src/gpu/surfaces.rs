@@ -4,6 +4,7 @@
 //! the pieces grouped into chunks whose buffer ranges fit the adapter's binding limits.
 
 use super::chunks::chunk_ranges;
+use super::readback::Placement;
 use crate::error::{Error, Result};
 use crate::geom::{BSplineSurface, degenerate_cross_sq};
 use crate::mesh::MeshPart;
@@ -229,11 +230,12 @@ pub(crate) fn too_large(what: &'static str, bytes: u64, limit: u64) -> Error {
     Error::GpuJobTooLarge { what, bytes, limit }
 }
 
-/// Packs `plan` (made for `surfaces`) within `limits`.
+/// Packs `plan` (made for `surfaces`) within `limits`, positions left as `placement` says.
 pub(crate) fn pack(
     plan: &SurfacePlan,
     surfaces: &[BSplineSurface],
     limits: &Limits,
+    placement: Placement,
 ) -> Result<Packed> {
     check_item_count(plan.items.len(), surfaces.len())?;
     let parts = plan.layout.parts.clone();
@@ -320,7 +322,7 @@ pub(crate) fn pack(
             let rows = rows_per_piece.min(nv - first_row);
             let cell_rows = rows.min(nv - 1 - first_row);
             packed.pieces.push(Piece {
-                origin: origin.as_vec3().to_array(),
+                origin: placement.kernel_origin(origin).as_vec3().to_array(),
                 degenerate_sq: degenerate_sq as f32,
                 width_u: surface.range_u().width() as f32,
                 width_v: surface.range_v().width() as f32,
@@ -564,7 +566,7 @@ mod tests {
             offset_alignment: 256,
         };
         let plan = SurfacePlan::new(&surfaces, &options).unwrap();
-        let packed = pack(&plan, &surfaces, &limits).unwrap();
+        let packed = pack(&plan, &surfaces, &limits, Placement::World).unwrap();
         assert!(packed.chunks.len() > 5);
         let (mut next_piece, mut next_vertex, mut next_index) = (0u64, 0u64, 0u64);
         for chunk in &packed.chunks {

@@ -6,7 +6,7 @@ use super::batch::{BatchDescriptor, GpuBatch};
 use super::context::GpuContext;
 use super::coons;
 use super::curves::CurveWork;
-use super::readback::BufferPool;
+use super::readback::{BufferPool, Placement};
 use crate::Tessellator;
 use crate::error::Result;
 use crate::geom::patches::CoonsPatch;
@@ -65,6 +65,30 @@ impl GpuTessellator {
     }
 }
 
+impl GpuTessellator {
+    /// Loads `surfaces` into the kept readback batch (reloading it, or creating it the first
+    /// time) and dispatches it; returns the guard holding it.
+    fn dispatch(
+        &self,
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+    ) -> Result<std::sync::MutexGuard<'_, Option<GpuBatch>>> {
+        let mut kept = lock(&self.batch);
+        let batch = match kept.take() {
+            Some(mut batch) => {
+                batch.reload(surfaces, options)?;
+                batch
+            }
+            None => GpuBatch::new(
+                &self.context,
+                &BatchDescriptor::each(surfaces, options).for_readback(),
+            )?,
+        };
+        kept.insert(batch).dispatch()?;
+        Ok(kept)
+    }
+}
+
 /// The guarded value, also after a panic elsewhere (the kept buffers stay usable).
 fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     mutex.lock().unwrap_or_else(|e| e.into_inner())
@@ -77,9 +101,9 @@ impl Tessellator for GpuTessellator {
         options: &[TessOptions],
         mesh: &mut Mesh,
     ) -> Result<()> {
-        let mut mesh32 = Mesh32::default();
-        self.tessellate_each_into_f32(surfaces, options, &mut mesh32)?;
-        mesh.replace_grids(mesh32.to_f64());
+        // Read in f64: each surface's origin is added exactly.
+        let batch = self.dispatch(surfaces, options)?;
+        mesh.replace_grids(batch.as_ref().expect("dispatched").read_mesh()?);
         Ok(())
     }
 
@@ -89,20 +113,8 @@ impl Tessellator for GpuTessellator {
         options: &[TessOptions],
         mesh: &mut Mesh32,
     ) -> Result<()> {
-        let mut kept = lock(&self.batch);
-        let batch = match kept.take() {
-            Some(mut batch) => {
-                batch.reload(surfaces, options)?;
-                batch
-            }
-            None => GpuBatch::new(
-                &self.context,
-                &BatchDescriptor::each(surfaces, options).for_readback(),
-            )?,
-        };
-        let batch = kept.insert(batch);
-        batch.dispatch()?;
-        batch.read_into(mesh)
+        let batch = self.dispatch(surfaces, options)?;
+        batch.as_ref().expect("dispatched").read_into(mesh)
     }
 
     fn tessellate_coons_into(
@@ -125,7 +137,15 @@ impl Tessellator for GpuTessellator {
 
     fn tessellate_curves(&self, curves: &[BSplineCurve], samples: &[u32]) -> Result<Vec<Polyline>> {
         let pool = &mut lock(&self.curves);
-        let work = CurveWork::prepare(pool, &self.context, curves, samples, self.context.limits())?;
+        let limits = self.context.limits();
+        let work = CurveWork::prepare(
+            pool,
+            &self.context,
+            curves,
+            samples,
+            limits,
+            Placement::Local,
+        )?;
         work.run(&self.context)?;
         work.read(pool, &self.context)
     }

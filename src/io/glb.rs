@@ -6,6 +6,7 @@
 use super::cover_groups;
 use crate::mesh::{AnyMesh, Vertex};
 use crate::scene::ItemGroup;
+use glam::DVec3;
 use gltf::json;
 use json::validation::{Checked, USize64};
 use std::io::{Result, Write};
@@ -17,7 +18,10 @@ const VERTEX_STRIDE: usize = size_of::<Vertex>();
 /// and u32 indices; one mesh and node per group of items (`groups`, completed by
 /// [`cover_groups`]), in item order: a primitive of the group's triangles over the shared
 /// vertex accessors with its own index accessor, then a LINE_STRIP primitive per curve
-/// with POSITION and `_TANGENT` (f32 vec3); POSITION bounds filled in.
+/// with POSITION and `_TANGENT` (f32 vec3); POSITION bounds filled in. A group far from the
+/// origin for its size ([`FAR_IN_SIZES`]) keeps its precision: its node carries a
+/// translation (its centre) and its vertices and curves are stored relative to it; every
+/// group then has accessors of its own.
 pub fn write_glb<'a>(
     mesh: impl Into<AnyMesh<'a>>,
     groups: &[ItemGroup],
@@ -33,12 +37,44 @@ pub fn write_glb<'a>(
             "glTF needs at least one triangle or line: the input has no surfaces or curves",
         ));
     }
-    // The vertices interleaved as in a Mesh32 (and the GPU's buffers): one strided view.
-    let vertices = mesh.vertices_f32();
+    let groups = cover_groups(
+        groups,
+        mesh.parts()
+            .iter()
+            .map(|p| p.item)
+            .chain(polylines.iter().map(|l| l.item)),
+    );
+    let group_of = |item: u32| {
+        groups
+            .iter()
+            .position(|g| g.items.contains(&(item as usize)))
+    };
+    let frames = group_frames(&mesh, &groups);
+    let translated = frames.iter().any(|f| f.translation != DVec3::ZERO);
+    // The vertices interleaved as in a Mesh32 (and the GPU's buffers): one strided view;
+    // relative to their group's translation where a group has one (a copy then).
+    let mut vertices = mesh.vertices_f32();
+    let mut indices = std::borrow::Cow::Borrowed(indices);
+    if translated {
+        let (vertices, indices) = (vertices.to_mut(), indices.to_mut());
+        for frame in &frames {
+            for k in frame.vertices.clone() {
+                vertices[k].position = (mesh.position(k) - frame.translation).as_vec3().to_array();
+            }
+            for index in &mut indices[frame.indices.clone()] {
+                *index -= frame.vertices.start as u32;
+            }
+        }
+    }
     let (lo, hi) = bounds_of(vertices.iter().map(|v| v.position));
     let curve_points: Vec<[f32; 3]> = polylines
         .iter()
-        .flat_map(|l| l.positions.iter().map(|p| p.as_vec3().to_array()))
+        .flat_map(|l| {
+            let t = group_of(l.item).map_or(DVec3::ZERO, |g| frames[g].translation);
+            l.positions
+                .iter()
+                .map(move |p| (*p - t).as_vec3().to_array())
+        })
         .collect();
     let curve_tangents: Vec<[f32; 3]> = polylines
         .iter()
@@ -47,7 +83,7 @@ pub fn write_glb<'a>(
     // The binary chunk, in order; written straight from these slices, never copied into one.
     let pieces: [&[u8]; 4] = [
         bytemuck::cast_slice(&vertices),
-        bytemuck::cast_slice(indices),
+        bytemuck::cast_slice(&indices),
         bytemuck::cast_slice(&curve_points),
         bytemuck::cast_slice(&curve_tangents),
     ];
@@ -126,21 +162,8 @@ pub fn write_glb<'a>(
     };
     // Every group's primitives: its triangles (one index range: parts follow one another in
     // the index buffer), then a LINE_STRIP per curve.
-    let groups = cover_groups(
-        groups,
-        mesh.parts()
-            .iter()
-            .map(|p| p.item)
-            .chain(polylines.iter().map(|l| l.item)),
-    );
     let mut primitives: Vec<Vec<json::mesh::Primitive>> = vec![Vec::new(); groups.len()];
-    let group_of = |item: u32| {
-        groups
-            .iter()
-            .position(|g| g.items.contains(&(item as usize)))
-    };
     if !indices.is_empty() {
-        let vertex_view = view(&mut root, 0, n * VERTEX_STRIDE, Some(VERTEX_STRIDE), array);
         let index_view = view(
             &mut root,
             index_offset,
@@ -148,58 +171,59 @@ pub fn write_glb<'a>(
             None,
             Target::ElementArrayBuffer,
         );
-        let position = accessor(
-            &mut root,
-            vertex_view,
-            0,
-            n,
-            ComponentType::F32,
-            Type::Vec3,
-            Some((lo, hi)),
-        );
-        let normal = accessor(
-            &mut root,
-            vertex_view,
-            12,
-            n,
-            ComponentType::F32,
-            Type::Vec3,
-            None,
-        );
-        let uv = accessor(
-            &mut root,
-            vertex_view,
-            24,
-            n,
-            ComponentType::F32,
-            Type::Vec2,
-            None,
-        );
-        for (group, group_primitives) in groups.iter().zip(&mut primitives) {
-            let parts: Vec<&crate::MeshPart> = mesh
-                .parts()
-                .iter()
-                .filter(|p| group.items.contains(&(p.item as usize)))
-                .collect();
-            let index_count: usize = parts.iter().map(|p| p.index_count as usize).sum();
-            if index_count == 0 {
+        // The vertex attributes over `range` of the vertices, in one view.
+        let attributes = |root: &mut json::Root, range: std::ops::Range<usize>| {
+            let (first, count) = (range.start, range.len());
+            let vertex_view = view(
+                root,
+                first * VERTEX_STRIDE,
+                count * VERTEX_STRIDE,
+                Some(VERTEX_STRIDE),
+                array,
+            );
+            let bounds = if range == (0..n) {
+                (lo, hi)
+            } else {
+                bounds_of(vertices[range].iter().map(|v| v.position))
+            };
+            let f32x = ComponentType::F32;
+            vec![
+                (
+                    json::mesh::Semantic::Positions,
+                    accessor(root, vertex_view, 0, count, f32x, Type::Vec3, Some(bounds)),
+                ),
+                (
+                    json::mesh::Semantic::Normals,
+                    accessor(root, vertex_view, 12, count, f32x, Type::Vec3, None),
+                ),
+                (
+                    json::mesh::Semantic::TexCoords(0),
+                    accessor(root, vertex_view, 24, count, f32x, Type::Vec2, None),
+                ),
+            ]
+        };
+        // Untranslated, every group shares the attributes of all vertices; translated, each
+        // group has its own over its vertices (its indices count from its first).
+        let shared = (!translated).then(|| attributes(&mut root, 0..n));
+        for (frame, group_primitives) in frames.iter().zip(&mut primitives) {
+            if frame.indices.is_empty() {
                 continue;
             }
+            let group_attributes = match &shared {
+                Some(shared) => shared.clone(),
+                None => attributes(&mut root, frame.vertices.clone()),
+            };
             let group_indices = accessor(
                 &mut root,
                 index_view,
-                parts[0].first_index as usize * 4,
-                index_count,
+                frame.indices.start * 4,
+                frame.indices.len(),
                 ComponentType::U32,
                 Type::Scalar,
                 None,
             );
             group_primitives.push(primitive(
-                vec![
-                    (json::mesh::Semantic::Positions, position),
-                    (json::mesh::Semantic::Normals, normal),
-                    (json::mesh::Semantic::TexCoords(0), uv),
-                ],
+                group_attributes,
                 Some(group_indices),
                 json::mesh::Mode::Triangles,
             ));
@@ -245,7 +269,7 @@ pub fn write_glb<'a>(
         }
     }
     let mut nodes = Vec::new();
-    for (group, primitives) in groups.into_iter().zip(primitives) {
+    for ((group, primitives), frame) in groups.into_iter().zip(primitives).zip(&frames) {
         if primitives.is_empty() {
             continue;
         }
@@ -256,9 +280,11 @@ pub fn write_glb<'a>(
             primitives,
             weights: None,
         });
+        let t = frame.translation;
         nodes.push(root.push(json::Node {
             mesh: Some(mesh_index),
             name: Some(group.name),
+            translation: (t != DVec3::ZERO).then(|| t.as_vec3().to_array()),
             ..Default::default()
         }));
     }
@@ -296,6 +322,87 @@ fn write_container(w: &mut dyn Write, json: &[u8], pieces: &[&[u8]]) -> Result<(
         w.write_all(piece)?;
     }
     w.write_all(&[0u8; 3][..padded(bin_length) - bin_length])
+}
+
+/// A group whose centre is farther from the origin than this many of its sizes gets a node
+/// translation: there half an ulp of an f32 world coordinate (2⁻²⁴ of it) exceeds 1e-6 of
+/// the group's size, more than the mesh's own error.
+pub const FAR_IN_SIZES: f64 = 16.0;
+
+/// Where a group's vertices and indices are, and the translation its node carries.
+struct GroupFrame {
+    vertices: std::ops::Range<usize>,
+    indices: std::ops::Range<usize>,
+    /// The centre of the group's bounding box, rounded to f32 (glTF stores translations in
+    /// f32; the vertices are relative to exactly this value), where the group lies farther
+    /// from the origin than [`FAR_IN_SIZES`] of its sizes; else zero.
+    translation: DVec3,
+}
+
+/// The frame of each group: the span of its parts' vertices and indices (parts are in item
+/// order, so a group's are contiguous; after welding they may reach back into earlier
+/// groups' vertices) and its translation, from the f64 positions of its vertices and
+/// curves. Groups whose vertex spans overlap share one translation, that of them all.
+fn group_frames(mesh: &AnyMesh, groups: &[ItemGroup]) -> Vec<GroupFrame> {
+    let span = |ranges: &mut dyn Iterator<Item = (u32, u32)>| {
+        ranges
+            .filter(|&(_, count)| count > 0)
+            .map(|(first, count)| first as usize..(first + count) as usize)
+            .reduce(|a, b| a.start.min(b.start)..a.end.max(b.end))
+            .unwrap_or(0..0)
+    };
+    let mut frames: Vec<GroupFrame> = groups
+        .iter()
+        .map(|group| {
+            let inside = |item: u32| group.items.contains(&(item as usize));
+            let parts: Vec<_> = mesh.parts().iter().filter(|p| inside(p.item)).collect();
+            let curve_points = mesh
+                .polylines()
+                .iter()
+                .filter(|l| inside(l.item))
+                .flat_map(|l| l.positions.iter().copied());
+            let vertices = span(&mut parts.iter().map(|p| (p.first_vertex, p.vertex_count)));
+            GroupFrame {
+                indices: span(&mut parts.iter().map(|p| (p.first_index, p.index_count))),
+                translation: far_centre(
+                    vertices
+                        .clone()
+                        .map(|k| mesh.position(k))
+                        .chain(curve_points),
+                ),
+                vertices,
+            }
+        })
+        .collect();
+    let overlap = frames
+        .windows(2)
+        .any(|pair| pair[1].vertices.start < pair[0].vertices.end);
+    if overlap {
+        let all = (0..mesh.vertex_count()).map(|k| mesh.position(k));
+        let curve_points = mesh
+            .polylines()
+            .iter()
+            .flat_map(|l| l.positions.iter().copied());
+        let translation = far_centre(all.chain(curve_points));
+        for frame in &mut frames {
+            frame.translation = translation;
+        }
+    }
+    frames
+}
+
+/// The centre of `points`' bounding box rounded to f32, if it is farther from the origin
+/// than [`FAR_IN_SIZES`] of the box's diagonal; else zero.
+fn far_centre(points: impl Iterator<Item = DVec3>) -> DVec3 {
+    let (lo, hi) = points.fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+        (lo.min(p), hi.max(p))
+    });
+    let centre = 0.5 * (lo + hi);
+    if centre.is_finite() && centre.length() > FAR_IN_SIZES * (hi - lo).length() {
+        centre.as_vec3().as_dvec3()
+    } else {
+        DVec3::ZERO
+    }
 }
 
 /// Component-wise (min, max) of `points`: the bounds glTF requires on POSITION accessors.
