@@ -97,6 +97,10 @@ pub enum Command {
         /// The model's up axis: x, y (the tea set's .bpt files) or z.
         #[arg(long, value_enum, default_value_t = UpAxis::Z)]
         up: UpAxis,
+        /// Frame the tessellated model tightly as seen from the view (default: the sphere
+        /// around its control points, which fits every view).
+        #[arg(long)]
+        fit: bool,
     },
     /// List the GPU adapters and the limits that matter to knotwork.
     Info,

@@ -32,6 +32,10 @@ pub struct RenderOptions {
     pub view: View,
     /// The model's up axis.
     pub up: Axis,
+    /// Frame the tessellated geometry as seen from `view`, edge to edge with a small margin,
+    /// instead of the sphere around the control points (which fits any view and any
+    /// tessellation, with room to spare).
+    pub fit: bool,
 }
 
 impl RenderOptions {
@@ -43,6 +47,7 @@ impl RenderOptions {
         control_net: false,
         view: View::ISO,
         up: Axis::Z,
+        fit: false,
     };
 }
 
@@ -135,28 +140,105 @@ pub fn render(
     Preview::new(context, options)?.render(context, batch, surfaces)
 }
 
-/// The camera and lights framing the box (`lo`, `hi`) for an image of `width` × `height`.
-fn frame_for((lo, hi): (Vec3, Vec3), options: &RenderOptions) -> Frame {
-    let (width, height) = (options.width, options.height);
-    let centre = 0.5 * (lo + hi);
-    let radius = (0.5 * (hi - lo).length()).max(1e-6);
-    let aspect = width as f32 / height as f32;
-    let fov = 35f32.to_radians();
-    // Far enough that the bounding sphere fits the narrower half-angle of view.
-    let half = ((0.5 * fov).tan() * aspect.min(1.0)).atan();
-    // (The sphere around the control box is a generous bound: 0.85 of it still frames models.)
-    let distance = radius / half.sin() * 0.85;
+/// Field of view along the image's height.
+const FOV_Y_DEGREES: f32 = 35.0;
+
+/// The camera's axes for `options`' view and up axis: toward the eye, right, up.
+fn camera_axes(options: &RenderOptions) -> (Vec3, Vec3, Vec3) {
     let towards_eye = options.up.rotate_z_up(options.view.direction());
-    let eye = centre + towards_eye * distance;
     // Looking straight down or up the up axis, the front direction serves as "up" instead.
-    let up = if options.view.elevation.abs() > 89.0 {
+    let up_hint = if options.view.elevation.abs() > 89.0 {
         options.up.rotate_z_up(Vec3::Y)
     } else {
         options.up.rotate_z_up(Vec3::Z)
     };
+    let right = (-towards_eye).cross(up_hint).normalize();
+    (towards_eye, right, right.cross(-towards_eye))
+}
+
+/// Half the angle of view horizontally and vertically, radians.
+fn half_angles(options: &RenderOptions) -> (f32, f32) {
+    let aspect = options.width as f32 / options.height as f32;
+    let half_y = 0.5 * FOV_Y_DEGREES.to_radians();
+    ((half_y.tan() * aspect).atan(), half_y)
+}
+
+/// The camera and lights framing the box (`lo`, `hi`): its bounding sphere within the
+/// narrower half-angle of view.
+fn frame_for((lo, hi): (Vec3, Vec3), options: &RenderOptions) -> Frame {
+    let centre = 0.5 * (lo + hi);
+    let radius = (0.5 * (hi - lo).length()).max(1e-6);
+    let (half_x, half_y) = half_angles(options);
+    // (The sphere around the control box is a generous bound: 0.85 of it still frames models.)
+    let distance = radius / half_x.min(half_y).sin() * 0.85;
+    camera(centre, distance, radius, options)
+}
+
+/// The camera and lights framing `points` tightly as seen from `options`' view: the target
+/// centred on their extent across the view, the eye as near as keeps every point inside the
+/// frustum with a 4 % margin. `None` without points.
+fn frame_fitting(points: &[Vec3], options: &RenderOptions) -> Option<Frame> {
+    if points.is_empty() {
+        return None;
+    }
+    let (towards_eye, right, up) = camera_axes(options);
+    let extent = |axis: Vec3| {
+        points
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| {
+                let x = p.dot(axis);
+                (lo.min(x), hi.max(x))
+            })
+    };
+    let ((x0, x1), (y0, y1), (z0, z1)) = (extent(right), extent(up), extent(towards_eye));
+    let mut centre = 0.5 * ((x0 + x1) * right + (y0 + y1) * up + (z0 + z1) * towards_eye);
+    let (half_x, half_y) = half_angles(options);
+    let (tan_x, tan_y) = (half_x.tan() / 1.04, half_y.tan() / 1.04);
+    // A point at depth z toward the eye, offsets (x, y) across, is inside the frustum of an
+    // eye at distance D when |x| ≤ (D − z)·tan_x and |y| ≤ (D − z)·tan_y: the nearest such
+    // eye, then the target moved across to centre the points' projection (perspective
+    // enlarges the near side), a few times.
+    let required_distance = |centre: Vec3| {
+        points
+            .iter()
+            .map(|p| {
+                let d = *p - centre;
+                d.dot(towards_eye) + (d.dot(right).abs() / tan_x).max(d.dot(up).abs() / tan_y)
+            })
+            .fold(0.0f32, f32::max)
+    };
+    for _ in 0..4 {
+        let distance = required_distance(centre);
+        let projected = |axis: Vec3, tan: f32| {
+            points
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| {
+                    let d = *p - centre;
+                    let x = d.dot(axis) / ((distance - d.dot(towards_eye)).max(1e-6) * tan);
+                    (lo.min(x), hi.max(x))
+                })
+        };
+        let ((a0, a1), (b0, b1)) = (projected(right, tan_x), projected(up, tan_y));
+        centre += 0.5 * distance * ((a0 + a1) * tan_x * right + (b0 + b1) * tan_y * up);
+    }
+    let distance = required_distance(centre);
+    let radius = points
+        .iter()
+        .map(|p| (*p - centre).length())
+        .fold(0.0f32, f32::max)
+        .max(1e-6);
+    Some(camera(centre, distance.max(1e-6), radius, options))
+}
+
+/// The view-projection, eye and lights of a camera `distance` from `centre` along the view,
+/// for geometry within `radius` of `centre`.
+fn camera(centre: Vec3, distance: f32, radius: f32, options: &RenderOptions) -> Frame {
+    let (towards_eye, _, up) = camera_axes(options);
+    let eye = centre + towards_eye * distance;
     let view = look_at(eye, centre, up);
+    let aspect = options.width as f32 / options.height as f32;
     let projection = perspective(
-        fov,
+        FOV_Y_DEGREES.to_radians(),
         aspect,
         (distance - radius * 1.5).max(distance * 1e-3),
         distance + radius * 1.5,
@@ -194,6 +276,24 @@ fn perspective(fov_y: f32, aspect: f32, near: f32, far: f32) -> Mat4 {
         glam::Vec4::new(0.0, 0.0, r, -1.0),
         glam::Vec4::new(0.0, 0.0, r * near, 0.0),
     )
+}
+
+/// Every vertex the batch's items tessellate to (its surfaces, Coons patches and curve
+/// samples), read back.
+fn tessellated_points(batch: &GpuBatch) -> Result<Vec<Vec3>> {
+    let mut mesh = crate::Mesh32::default();
+    batch.read_into(&mut mesh)?;
+    let mut points: Vec<Vec3> = mesh
+        .vertices
+        .iter()
+        .map(|v| Vec3::from(v.position))
+        .collect();
+    batch.read_coons_into(&mut mesh)?;
+    points.extend(mesh.vertices.iter().map(|v| Vec3::from(v.position)));
+    for line in batch.read_curves()? {
+        points.extend(line.positions.iter().map(|p| p.as_vec3()));
+    }
+    Ok(points)
 }
 
 /// Line segments between neighbouring control points (along u and along v), as point pairs.
@@ -447,22 +547,25 @@ impl Preview {
     ) -> Result<image::RgbaImage> {
         let (device, mesh) = (context.device(), batch.mesh());
         let (width, height) = (self.options.width, self.options.height);
-        let framed = batch
+        let boxed = batch
             .control_box()
             .map_or((Vec3::ZERO, Vec3::ONE), |(lo, hi)| {
                 (lo.as_vec3(), hi.as_vec3())
             });
+        let fitted = match self.options.fit {
+            true => frame_fitting(&tessellated_points(batch)?, &self.options),
+            false => None,
+        };
+        let frame = fitted.unwrap_or_else(|| frame_for(boxed, &self.options));
         // The wireframe needs each triangle's edges: read them back before the draw.
         let wire_indices = match self.options.wireframe {
             true => Some(wireframe_indices(&read_indices(context, mesh)?)),
             false => None,
         };
         scoped(device, || {
-            context.queue().write_buffer(
-                &self.uniform,
-                0,
-                bytemuck::bytes_of(&frame_for(framed, &self.options)),
-            );
+            context
+                .queue()
+                .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&frame));
             let wire = wire_indices.as_ref().map(|edges| {
                 device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("knotwork wireframe"),

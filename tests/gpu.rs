@@ -1293,3 +1293,54 @@ fn headless_gpu_output_far_from_the_origin_keeps_the_kernels_precision() {
         assert!(off <= bar, "curve: GPU {off:e} from the CPU (bar {bar:e})");
     }
 }
+
+/// `fit` frames the tessellated model edge to edge: the teapot seen from the front of its
+/// y-up frame spans 85–100 % of the image across its wider extent with no pixel on the
+/// border, where the default control-sphere framing leaves it well inside.
+#[test]
+#[cfg(feature = "render")]
+fn render_fit_frames_the_model_edge_to_edge() {
+    use knotwork::render::{Axis, RenderOptions, View};
+    let Some(context) = gpu() else { return };
+    let scene = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt")).unwrap();
+    let surfaces = scene.surface_list();
+    let grid = TessOptions::DEFAULT.with_grid(9, 9);
+    let batch = GpuBatch::new(context, &BatchDescriptor::new(&surfaces, &grid)).unwrap();
+    batch.dispatch().unwrap();
+    let (width, height) = (160u32, 120u32);
+    // Fraction of width and height the model's pixels span, and whether any is on the border.
+    let spans = |fit: bool, view: View| {
+        let options = RenderOptions {
+            width,
+            height,
+            view,
+            up: Axis::Y,
+            fit,
+            ..RenderOptions::DEFAULT
+        };
+        let image = knotwork::render::render(context, &batch, &[], &options).unwrap();
+        let background = *image.get_pixel(0, height / 2);
+        let (mut lo, mut hi) = ((u32::MAX, u32::MAX), (0, 0));
+        let mut border = false;
+        for (x, y, p) in image.enumerate_pixels() {
+            if *p != background {
+                lo = (lo.0.min(x), lo.1.min(y));
+                hi = (hi.0.max(x), hi.1.max(y));
+                border |= x == 0 || y == 0 || x == width - 1 || y == height - 1;
+            }
+        }
+        let span_x = f64::from(hi.0 - lo.0 + 1) / f64::from(width);
+        let span_y = f64::from(hi.1 - lo.1 + 1) / f64::from(height);
+        (span_x.max(span_y), border)
+    };
+    for view in [View::FRONT, View::ISO, View::TOP] {
+        let (fitted, border) = spans(true, view);
+        assert!(!border, "{view:?}: the fitted model touches the border");
+        assert!(fitted >= 0.85, "{view:?}: fitted model spans {fitted}");
+        let (boxed, _) = spans(false, view);
+        assert!(
+            boxed < fitted - 0.1,
+            "{view:?}: default framing {boxed} vs fitted {fitted}"
+        );
+    }
+}

@@ -109,6 +109,7 @@ fn main() -> ExitCode {
             control_net,
             view,
             up,
+            fit,
         } => {
             let options = knotwork::render::RenderOptions {
                 width: size.0,
@@ -117,6 +118,7 @@ fn main() -> ExitCode {
                 control_net,
                 view,
                 up: up.axis(),
+                fit,
             };
             render(&input, &output, grid, &options).map(|()| true)
         }
