@@ -92,7 +92,7 @@ pub enum Command {
         control_net: bool,
         /// Where to look from: front, back, left, right, top, bottom, iso, or AZIMUTH,ELEVATION
         /// in degrees (azimuth about the up axis, 0 from +x; elevation above the horizon).
-        #[arg(long, default_value = "iso", value_parser = parse_view)]
+        #[arg(long, default_value = "iso", value_parser = parse_view, allow_hyphen_values = true)]
         view: crate::render::View,
         /// The model's up axis: x, y (the tea set's .bpt files) or z.
         #[arg(long, value_enum, default_value_t = UpAxis::Z)]
@@ -331,4 +331,22 @@ pub fn output_targets(
         targets.push((input.clone(), target));
     }
     Ok(targets)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A negative azimuth is a value, not a flag: `--view -90,50` parses.
+    #[test]
+    fn negative_view_angles_parse() {
+        let cli = Cli::try_parse_args([
+            "knotwork", "render", "a.bpt", "-o", "a.png", "--view", "-90,50",
+        ])
+        .unwrap();
+        let Command::Render { view, .. } = cli.command else {
+            panic!("not a render command")
+        };
+        assert_eq!((view.azimuth, view.elevation), (-90.0, 50.0));
+    }
 }
