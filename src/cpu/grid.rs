@@ -10,7 +10,7 @@
 use super::lanes::Avx2;
 use super::lanes::{F64x4, Portable};
 use crate::error::{Error, Result};
-use crate::geom::{BSplineSurface, degenerate_cross_sq};
+use crate::geom::{BSplineSurface, DEGENERATE_EPSILONS, degenerate_cross_sq};
 use crate::mesh::{Mesh, Mesh32, MeshPart, TessOptions, Vertex};
 use crate::plan::{AxisSamples, GridLayout, SurfacePlan, cell_triangles, check_item_count};
 use glam::{DVec2, DVec3, DVec4};
@@ -323,6 +323,10 @@ fn contract_columns(
     }
 }
 
+/// (DEGENERATE_EPSILONS·ε)², the factor of [`crate::geom::quotient_noise_sq`].
+const QUOTIENT_NOISE_SQ: f64 =
+    (DEGENERATE_EPSILONS * f64::EPSILON) * (DEGENERATE_EPSILONS * f64::EPSILON);
+
 /// One grid row ready for the u contraction.
 struct Row<'a> {
     surface: &'a BSplineSurface,
@@ -390,6 +394,19 @@ impl Row<'_> {
                 let inv_len = V::splat(1.0).div(len_sq.sqrt());
                 let w_sq = acc[3].mul(acc[3]);
                 let limit = w_sq.mul(w_sq).mul(V::splat(threshold)).to_array();
+                // The rounding noise of the quotient rule, squared and scaled by w⁴ as the
+                // cross product is (geom::quotient_noise_sq, with (a + b)² ≤ 2(a² + b²)).
+                let s_sq = x.mul_add(x, y.mul_add(y, z.mul(z)));
+                let hu_sq = acc[4].mul_add(acc[4], acc[5].mul_add(acc[5], acc[6].mul(acc[6])));
+                let hv_sq = acc[8].mul_add(acc[8], acc[9].mul_add(acc[9], acc[10].mul(acc[10])));
+                let m_u_sq = acc[7].mul(acc[7]).mul_add(s_sq, hu_sq);
+                let m_v_sq = acc[11].mul(acc[11]).mul_add(s_sq, hv_sq);
+                let su_sq = su[0].mul_add(su[0], su[1].mul_add(su[1], su[2].mul(su[2])));
+                let sv_sq = sv[0].mul_add(sv[0], sv[1].mul_add(sv[1], sv[2].mul(sv[2])));
+                let noise = m_u_sq
+                    .mul_add(sv_sq, su_sq.mul(m_v_sq))
+                    .mul(V::splat(4.0 * QUOTIENT_NOISE_SQ))
+                    .to_array();
                 let (x, y, z) = (x.to_array(), y.to_array(), z.to_array());
                 let (nx, ny, nz) = (
                     cx.mul(inv_len).to_array(),
@@ -400,7 +417,7 @@ impl Row<'_> {
                 for l in 0..LANES.min(end - i0) {
                     let i = i0 + l;
                     positions[i] = origin + DVec3::new(x[l], y[l], z[l]);
-                    normals[i] = if len_sq[l] > limit[l] {
+                    normals[i] = if len_sq[l] > limit[l] && len_sq[l] > noise[l] {
                         DVec3::new(nx[l], ny[l], nz[l])
                     } else {
                         self.surface

@@ -10,17 +10,22 @@ pub(crate) const MAX_ORDER: usize = MAX_DEGREE + 1;
 /// for k ≤ the requested order (≤ 2) and r in 0..=p.
 pub(crate) type BasisDers = [[f64; MAX_ORDER]; 3];
 
-/// Fills `ders` with the values and first `order` (0..=2) derivatives of the non-zero basis
-/// functions at `u` in span `span` (from [`KnotVector::find_span`]).
-pub(crate) fn basis_ders(
+/// Fills `ders` with the values and first `order` (< N) derivatives of the non-zero basis
+/// functions at `u` in span `span` (from [`KnotVector::find_span`]); derivatives above the
+/// degree are zero.
+pub(crate) fn basis_ders<const N: usize>(
     knots: &KnotVector,
     span: usize,
     u: f64,
     order: usize,
-    ders: &mut BasisDers,
+    ders: &mut [[f64; MAX_ORDER]; N],
 ) {
-    debug_assert!(order <= 2);
+    debug_assert!(order < N);
     let p = knots.degree();
+    for row in ders.iter_mut().take(order + 1).skip(p + 1) {
+        row.fill(0.0);
+    }
+    let order = order.min(p);
     let k = knots.knots();
     // ndu[j][r] (r ≤ j): basis values of degree j in the upper triangle, knot differences in
     // the lower triangle.

@@ -27,6 +27,20 @@ pub fn degenerate_cross_sq(scale: f64, epsilon: f64) -> f64 {
     t * t
 }
 
+/// The squared rounding noise of S_u × S_v as the quotient rule forms it from the homogeneous
+/// point `h` (relative to the origin) and its derivatives `hu`, `hv`: S_u = (A_u − w_u·S)/w
+/// cancels terms as large as m_u = (|A_u| + |w_u|·|S|)/w (S_v likewise), which extreme weights
+/// make far larger than the model's size over its parameter width — then the cross product
+/// carries [`DEGENERATE_EPSILONS`]·ε·(m_u·|S_v| + |S_u|·m_v) of noise, more than
+/// [`degenerate_cross_sq`] allows for. Where S_u × S_v is below both, it counts as zero.
+pub fn quotient_noise_sq(h: DVec4, hu: DVec4, hv: DVec4, du: DVec3, dv: DVec3) -> f64 {
+    let s = (h.truncate() / h.w).length();
+    let m_u = (hu.truncate().length() + hu.w.abs() * s) / h.w;
+    let m_v = (hv.truncate().length() + hv.w.abs() * s) / h.w;
+    let t = DEGENERATE_EPSILONS * f64::EPSILON * (m_u * dv.length() + du.length() * m_v);
+    t * t
+}
+
 /// A surface point with its partial derivatives (model units per unit of parameter) and
 /// unit normal.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -43,13 +57,17 @@ pub struct SurfaceSample {
 
 /// The normal at (u, v) of a sample `s` over the parameter ranges: unit(S_u × S_v), or where
 /// |S_u × S_v|² ≤ `threshold` its limit toward the centre of the ranges (the contract of
-/// [`BSplineSurface::evaluate`]); `first_derivatives` gives [S_u, S_v] at nearby points for
-/// when the first-order term vanishes too.
+/// [`BSplineSurface::evaluate`]). Along the diagonal d = (±width_u, ±width_v), S_u × S_v at
+/// distance t is t·A₁ + t²·A₂ + …: the limit is the direction of A₁ (second derivatives), of
+/// A₂ where A₁ vanishes too (third derivatives, from `third` = [S_uuu, S_uuv, S_uvv, S_vvv]
+/// when the form provides them), each taken only when it stands above the rounding of its
+/// own terms; `first_derivatives` gives [S_u, S_v] at nearby points for what is left.
 pub(crate) fn limit_normal(
     s: &SurfaceSample,
     (u, v): (f64, f64),
     (ru, rv): (Interval, Interval),
     threshold: f64,
+    third: Option<&dyn Fn() -> [DVec3; 4]>,
     first_derivatives: impl Fn(f64, f64) -> [DVec3; 2],
 ) -> DVec3 {
     let n = s.du.cross(s.dv);
@@ -66,10 +84,31 @@ pub(crate) fn limit_normal(
     } else {
         rv.width()
     };
-    let first_order = step_u * (s.du.cross(s.duv) + s.duu.cross(s.dv))
-        + step_v * (s.du.cross(s.dvv) + s.duv.cross(s.dv));
-    if first_order.length_squared() > threshold {
+    // A term counts when it exceeds the threshold and the rounding of the products it sums.
+    let noise = |terms: &[(f64, DVec3, DVec3)]| {
+        let bound: f64 = terms
+            .iter()
+            .map(|(c, a, b)| c.abs() * a.length() * b.length())
+            .sum();
+        (DEGENERATE_EPSILONS * f64::EPSILON * bound).max(threshold.sqrt())
+    };
+    let (su, sv) = (s.du, s.dv);
+    // S_u and S_v along d: first and second directional derivatives.
+    let su1 = step_u * s.duu + step_v * s.duv;
+    let sv1 = step_u * s.duv + step_v * s.dvv;
+    let first_order = su1.cross(sv) + su.cross(sv1);
+    if first_order.length() > noise(&[(1.0, su1, sv), (1.0, su, sv1)]) {
         return first_order.normalize();
+    }
+    if let Some(third) = third {
+        let [uuu, uuv, uvv, vvv] = third();
+        let (a, b) = (step_u, step_v);
+        let su2 = a * a * uuu + 2.0 * a * b * uuv + b * b * uvv;
+        let sv2 = a * a * uuv + 2.0 * a * b * uvv + b * b * vvv;
+        let second_order = 0.5 * su2.cross(sv) + su1.cross(sv1) + 0.5 * su.cross(sv2);
+        if second_order.length() > noise(&[(0.5, su2, sv), (1.0, su1, sv1), (0.5, su, sv2)]) {
+            return second_order.normalize();
+        }
     }
     for fraction in [1e-6, 1e-4, 1e-2] {
         let (hu, hv) = (u + step_u * fraction, v + step_v * fraction);
@@ -93,9 +132,10 @@ impl BSplineSurface {
     /// derivatives: S_u×S_v ≈ du(S_u×S_uv + S_uu×S_v) + dv(S_u×S_vv + S_uv×S_v). Along a
     /// collapsed edge this limit does not depend on the direction; at a corner where it does
     /// (e.g. where a collapsed edge meets a crease), it is the limit along that diagonal. If
-    /// the first-order term vanishes too, the normal is taken at nearby points along the same
-    /// diagonal; a surface with no tangent plane anywhere near (collapsed to a point or a line)
-    /// gets +Z.
+    /// the first-order term vanishes too (to the rounding of its terms), the next order gives
+    /// the limit, from third derivatives; past that the normal is taken at nearby points along
+    /// the same diagonal; a surface with no tangent plane anywhere near (collapsed to a point
+    /// or a line) gets +Z.
     pub fn evaluate(&self, u: f64, v: f64) -> SurfaceSample {
         // In the local frame (see [`BSplineSurface::origin`]): the quotient rule's
         // cancellation h_u − w_u·S then works on the model's size, not on its offset.
@@ -116,7 +156,8 @@ impl BSplineSurface {
             dvv,
             normal: DVec3::ZERO,
         };
-        sample.normal = self.normal_of(&sample, u, v);
+        let noise = quotient_noise_sq(h, hu, hv, du, dv);
+        sample.normal = self.normal_of(&sample, u, v, noise);
         sample
     }
 
@@ -132,14 +173,77 @@ impl BSplineSurface {
         cross_scale(self.control_box_diagonal(), u1 - u0, v1 - v0)
     }
 
-    fn normal_of(&self, s: &SurfaceSample, u: f64, v: f64) -> DVec3 {
+    /// The normal of `s` at (u, v), S_u × S_v counting as zero below the degeneracy rule's
+    /// threshold or `quotient_noise` ([`quotient_noise_sq`]), whichever is larger.
+    fn normal_of(&self, s: &SurfaceSample, u: f64, v: f64, quotient_noise: f64) -> DVec3 {
         limit_normal(
             s,
             (u, v),
             (self.range_u(), self.range_v()),
-            degenerate_cross_sq(self.cross_scale(), f64::EPSILON),
+            degenerate_cross_sq(self.cross_scale(), f64::EPSILON).max(quotient_noise),
+            Some(&|| self.third_derivatives(u, v)),
             |u, v| self.rational_first_derivatives(u, v),
         )
+    }
+
+    /// [S_uuu, S_uuv, S_uvv, S_vvv] at (u, v): the quotient rule to third order on the
+    /// homogeneous derivatives (Leibniz: A^(i,j) = Σ C(i,k)·C(j,l)·w^(k,l)·S^(i−k,j−l)).
+    fn third_derivatives(&self, u: f64, v: f64) -> [DVec3; 4] {
+        let (ku, kv) = (self.knots_u(), self.knots_v());
+        let (p, q) = (ku.degree(), kv.degree());
+        let (u, v) = (
+            u.clamp(ku.domain().0, ku.domain().1),
+            v.clamp(kv.domain().0, kv.domain().1),
+        );
+        let (span_u, span_v) = (ku.find_span(u), kv.find_span(v));
+        let mut bu = [[0.0; MAX_ORDER]; 4];
+        let mut bv = [[0.0; MAX_ORDER]; 4];
+        basis_ders(ku, span_u, u, 3, &mut bu);
+        basis_ders(kv, span_v, v, 3, &mut bv);
+        let count_u = self.count_u();
+        let points = self.homogeneous_points();
+        // h[i][j] = ∂ᵢᵤ∂ⱼᵥ of the homogeneous point, i + j ≤ 3.
+        let mut h = [[DVec4::ZERO; 4]; 4];
+        for b in 0..=q {
+            let row = &points[(span_v - q + b) * count_u + span_u - p..][..=p];
+            for (i, hi) in h.iter_mut().enumerate() {
+                let along_u: DVec4 = row.iter().enumerate().map(|(a, &pt)| bu[i][a] * pt).sum();
+                for (j, hij) in hi.iter_mut().enumerate().take(4 - i) {
+                    *hij += bv[j][b] * along_u;
+                }
+            }
+        }
+        // C(n, k) for n ≤ 3.
+        const BINOMIAL: [[f64; 4]; 4] = [
+            [1.0, 0.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0, 0.0],
+            [1.0, 2.0, 1.0, 0.0],
+            [1.0, 3.0, 3.0, 1.0],
+        ];
+        let mut cartesian = [[DVec3::ZERO; 4]; 4];
+        for order in 0..=3 {
+            for i in 0..=order {
+                let j = order - i;
+                let mut value = h[i][j].truncate();
+                for k in 0..=i {
+                    for l in 0..=j {
+                        if k + l > 0 {
+                            value -= BINOMIAL[i][k]
+                                * BINOMIAL[j][l]
+                                * h[k][l].w
+                                * cartesian[i - k][j - l];
+                        }
+                    }
+                }
+                cartesian[i][j] = value / h[0][0].w;
+            }
+        }
+        [
+            cartesian[3][0],
+            cartesian[2][1],
+            cartesian[1][2],
+            cartesian[0][3],
+        ]
     }
 
     /// First derivatives [S_u, S_v] at (u, v).
@@ -299,6 +403,7 @@ impl CoonsPatch {
             (u, v),
             (unit, unit),
             degenerate_cross_sq(self.cross_scale(), f64::EPSILON),
+            None,
             |u, v| {
                 let (column, row) = (self.rail(u, false), self.rail(v, true));
                 [

@@ -1,5 +1,7 @@
-//! Shared test helpers: named tolerances, exact conic surfaces, an independent evaluator.
+//! Shared test helpers: named tolerances, exact conic surfaces, independent evaluators.
 #![allow(dead_code)]
+
+pub mod exact;
 
 use glam::DVec3;
 use knotwork::{BSplineSurface, KnotVector};
