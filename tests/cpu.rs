@@ -1355,3 +1355,43 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// Curves against the same exact oracle (a curve is a surface of degree 0 in v):
+    /// degrees 1..=7, creases and 1e-6 spans, weights 1e-3..1e3, placements to 1e7 at scales
+    /// 1e-4..1e6. Positions within 1e-12 of the size (+ ulps of the offset); C′ within 1e-9
+    /// of the larger of |C′| and the size over the parameter width.
+    #[test]
+    fn cpu_curves_match_the_exact_oracle(
+        case in oracle_case(),
+        params in prop::collection::vec(0.0f64..=1.0, 4),
+    ) {
+        // The first row of the case's net as a curve.
+        let p = case.degree.0;
+        let count = case.knots_u.len() - p - 1;
+        let (points, weights) = (&case.points[..count], &case.weights[..count]);
+        let curve = BSplineCurve::try_new(
+            KnotVector::try_new(p, case.knots_u.clone()).unwrap(),
+            points,
+            Some(weights),
+        ).unwrap();
+        let oracle = common::exact::ExactSurface::new((p, 0), &case.knots_u, &[0.0, 1.0], points, weights);
+        let (lo, hi) = curve.control_box();
+        let size = (hi - lo).length();
+        let offset = curve.origin().abs().max_element();
+        let position_bar = ORACLE_POSITION_REL * size + OFFSET_ULPS * f64::EPSILON * offset;
+        let range = curve.range();
+        for t in [0.0, 1.0, 0.5].into_iter().chain(params) {
+            let u = range.lerp(t);
+            let [position, first, _] = curve.derivatives(u);
+            let exact = oracle.evaluate(u, 0.5);
+            let off = (position - exact.position).length();
+            prop_assert!(off <= position_bar, "position off by {off:e} (bar {position_bar:e}) at {u}");
+            let tangent_off = (first - exact.du).length();
+            let tangent_bar = 1e-9 * exact.du.length().max(size / range.width());
+            prop_assert!(tangent_off <= tangent_bar, "C′ off by {tangent_off:e} (bar {tangent_bar:e}) at {u}");
+        }
+    }
+}
