@@ -1344,3 +1344,24 @@ fn render_fit_frames_the_model_edge_to_edge() {
         );
     }
 }
+
+/// GPU results come from a dispatch: the kernels evaluate in f32, so most vertices differ
+/// from the f64 reference both as it is and rounded to f32 (a tessellator that quietly ran
+/// the CPU path would match one of the two everywhere) — while staying within the bounds.
+#[test]
+fn gpu_output_carries_the_f32_evaluation_signature() {
+    let Some(context) = gpu() else { return };
+    let tessellator = tessellator_on(context);
+    let surfaces = peer_and_teapot();
+    let options = TessOptions::DEFAULT.with_grid(17, 17);
+    let gpu_mesh = tessellator.tessellate(&surfaces, &options).unwrap();
+    let cpu_mesh = CpuTessellator.tessellate(&surfaces, &options).unwrap();
+    let own = gpu_mesh
+        .positions
+        .iter()
+        .zip(&cpu_mesh.positions)
+        .filter(|(g, c)| **g != **c && **g != c.as_vec3().as_dvec3())
+        .count();
+    let fraction = own as f64 / gpu_mesh.positions.len() as f64;
+    assert!(fraction > 0.5, "only {fraction} of the vertices carry f32 evaluation");
+}

@@ -652,6 +652,17 @@ fn stl_round_trips_through_an_independent_reader() {
             length == 0.0 || (length - 1.0).abs() < 1e-5,
             "unit face normal (zero only for collapsed triangles)"
         );
+        // The face normal follows the winding (counter-clockwise seen from the side it
+        // points to): the direction of the corners' cross product.
+        let corner = |c: usize| mesh.positions[mesh.indices[3 * t + c] as usize];
+        let winding = (corner(1) - corner(0)).cross(corner(2) - corner(0));
+        if winding.length() > 1e-9 {
+            let facing = DVec3::new(n[0].into(), n[1].into(), n[2].into());
+            assert!(
+                common::angle(facing, winding) < 1e-3,
+                "triangle {t}: face normal {facing} against winding {winding}"
+            );
+        }
     }
 }
 
@@ -1708,5 +1719,69 @@ fn far_models_keep_their_precision_in_obj_and_glb() {
     for p in primitive.reader(|_| Some(blob)).read_positions().unwrap() {
         let off = ((t + DVec3::from_array(p.map(f64::from)) - centre).length() - 0.25).abs();
         assert!(off <= bar, "welded vertex {off:e} off the sphere");
+    }
+}
+
+/// `--weld` merges vertices closer than 1e-6 of the model's diagonal and no farther: two
+/// bilinear patches whose shared edge is split by 0.9e-6 of the diagonal merge its two
+/// vertices; split by 1.1e-6 they stay apart.
+#[test]
+fn weld_tolerance_is_one_millionth_of_the_diagonal() {
+    let dir = scratch_dir("weld-tolerance");
+    let diagonal = 5f64.sqrt(); // the two unit squares side by side: 2 × 1
+    for (fraction, merged) in [(0.9e-6, "2 vertices merged"), (1.1e-6, "0 vertices merged")] {
+        // The box grows by the gap too: place the second square so the diagonal stays √5
+        // to well within the margin (the gap is 1e-6 of it).
+        let gap = fraction * diagonal;
+        let scene = dir.join(format!("gap-{fraction}.json"));
+        std::fs::write(
+            &scene,
+            format!(
+                r#"{{ "surfaces": [
+                    {{ "kind": "bilinear", "corners": [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]] }},
+                    {{ "kind": "bilinear", "corners": [[{a}, 0, 0], [2, 0, 0], [{a}, 1, 0], [2, 1, 0]] }}
+                ] }}"#,
+                a = 1.0 + gap
+            ),
+        )
+        .unwrap();
+        let out = dir.join(format!("gap-{fraction}.obj"));
+        let run = knotwork(&[
+            "tessellate",
+            scene.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--weld",
+            "--grid",
+            "2x2",
+            "--backend",
+            "cpu",
+        ]);
+        let stdout = String::from_utf8_lossy(&run.stdout);
+        assert!(
+            stdout.contains(merged),
+            "gap {fraction} of the diagonal: {stdout}"
+        );
+    }
+}
+
+/// JSON curves keep their weights: a B-spline and a Bezier quarter circle (weights 1, √2/2,
+/// 1) sample onto the unit circle to 1e-12, which without the weights they would miss by up
+/// to 0.086 (the parabola through the same points).
+#[test]
+fn json_curve_weights_make_them_rational() {
+    let text = r#"{ "curves": [
+        { "kind": "bspline", "degree": 2, "knots": [0, 0, 0, 1, 1, 1],
+          "points": [[1, 0, 0], [1, 1, 0], [0, 1, 0]], "weights": [1, 0.7071067811865476, 1] },
+        { "kind": "bezier", "points": [[1, 0, 0], [1, 1, 0], [0, 1, 0]],
+          "weights": [1, 0.7071067811865476, 1] }
+    ] }"#;
+    let scene = knotwork::io::read_json_scene(text).unwrap();
+    let curves = scene.curve_list();
+    assert_eq!(curves.len(), 2);
+    for polyline in CpuTessellator.tessellate_curves(&curves, &[33, 33]).unwrap() {
+        for p in &polyline.positions {
+            assert!((p.length() - 1.0).abs() < 1e-12, "{p} is off the unit circle");
+        }
     }
 }
