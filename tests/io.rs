@@ -1765,9 +1765,9 @@ fn weld_tolerance_is_one_millionth_of_the_diagonal() {
     }
 }
 
-/// JSON curves keep their weights: a B-spline and a Bezier quarter circle (weights 1, √2/2,
-/// 1) sample onto the unit circle to 1e-12, which without the weights they would miss by up
-/// to 0.086 (the parabola through the same points).
+/// JSON curves keep their weights: a B-spline and a Bezier quarter circle (weights 1, √2/2
+/// and 1) sample onto the unit circle to 1e-12; without the weights they would be the
+/// parabola through the same points, up to 0.086 off it.
 #[test]
 fn json_curve_weights_make_them_rational() {
     let text = r#"{ "curves": [
