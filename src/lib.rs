@@ -34,12 +34,15 @@
 //! - Control nets are stored the same way: point (i, j) at j·count_u + i.
 //! - Triangles are counter-clockwise seen from the side the normal points to
 //!   ([`plan::cell_triangles`]); the normal is unit(S_u × S_v), and its limit where
-//!   S_u × S_v vanishes (see [`BSplineSurface::evaluate`], [`geom::degenerate_cross_sq`]).
+//!   S_u × S_v vanishes — below the rounding of its evaluation (see
+//!   [`BSplineSurface::evaluate`], [`geom::degenerate_cross_sq`], [`geom::quotient_noise_sq`]).
 //! - `uv` is the surface parameter mapped to [0, 1]² over the evaluation range.
 //!
 //! # Precision
-//! - CPU: f64 with the stable Cox–de Boor recurrence; positions agree with the exact surface
-//!   to a few ulps of the model size (tests hold exact conics to ≤ 1e-12 of it).
+//! - CPU: f64 with the stable Cox–de Boor recurrence, relative to each item's origin (the
+//!   centre of its control box); positions agree with the exact surface to a few ulps of the
+//!   model size wherever it is (tests hold exact conics, and property-generated surfaces
+//!   against exact rational evaluation, to ≤ 1e-12 of it).
 //! - GPU: f32, each surface relative to its own origin with basis values computed in f64 on the
 //!   host. Bound, checked by [`conformance::suite`] on every run of the tests: position error
 //!   ≤ 1e-5 × the surface's bounding-box diagonal + 2⁻²³ × |position| (the f32 rounding of the
