@@ -39,9 +39,9 @@ pub enum Command {
     /// Tessellate surface files (.obj free-form, .bpt, .json) into mesh files (.obj, .ply, .stl, .glb).
     ///
     /// One input and an output file name: writes that file. Several inputs, a directory of
-    /// inputs, or an output that is a directory: writes OUTPUT/NAME.FORMAT (NAME: the input file name) for each,
-    /// files in parallel. The GPU computes in f32 (positions within 1e-5 of each surface's
-    /// size); `--backend cpu` gives the f64 reference.
+    /// inputs, or an output that is a directory: writes OUTPUT/NAME.FORMAT for each (NAME:
+    /// the input's file name), files in parallel. The GPU computes in f32 (positions within
+    /// 1e-5 of each surface's size); `--backend cpu` gives the f64 reference.
     Tessellate {
         /// Input files or directories (their .obj, .bpt and .json files).
         #[arg(required = true)]
