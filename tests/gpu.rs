@@ -148,6 +148,36 @@ fn conformance_suite_passes_on_this_adapter() {
     );
 }
 
+/// On Mesa's software drivers, where CI runs, the suite is held to about ten times the
+/// figures measured there (positions ≤ 9.2e-8 of the diagonal, regular normals ≤ 3.3e-5 rad,
+/// normals at degenerate points ≤ 6.8e-7 rad) — tight enough that a 1e-5 scaling of the
+/// positions or a 5 mrad tilt of the limit normals fails, where the documented bounds
+/// (1e-5, 1e-4 and 1e-2 rad) are the promise to other drivers.
+#[test]
+fn conformance_holds_to_the_measured_figures_on_mesa() {
+    const POSITION: f64 = 1e-6;
+    const NORMAL: f64 = 3e-4;
+    const DEGENERATE_NORMAL: f64 = 1e-5;
+    let Some(context) = gpu() else { return };
+    if !context.adapter_summary().contains("llvmpipe") {
+        return;
+    }
+    for case in conformance::suite() {
+        let options = vec![case.options; case.surfaces.len()];
+        let r = conformance::compare_executors(context, &case.surfaces, &options).unwrap();
+        assert!(
+            r.worst_position <= POSITION
+                && r.worst_normal <= NORMAL
+                && r.worst_degenerate_normal <= DEGENERATE_NORMAL,
+            "{}: position {:e}, normal {:e}, degenerate {:e}",
+            case.name,
+            r.worst_position,
+            r.worst_normal,
+            r.worst_degenerate_normal
+        );
+    }
+}
+
 /// Perturbing one weight of the GPU input by 2% must make the comparison fail.
 #[test]
 fn negative_control_one_perturbed_weight_fails() {
@@ -1363,5 +1393,8 @@ fn gpu_output_carries_the_f32_evaluation_signature() {
         .filter(|(g, c)| **g != **c && **g != c.as_vec3().as_dvec3())
         .count();
     let fraction = own as f64 / gpu_mesh.positions.len() as f64;
-    assert!(fraction > 0.5, "only {fraction} of the vertices carry f32 evaluation");
+    assert!(
+        fraction > 0.5,
+        "only {fraction} of the vertices carry f32 evaluation"
+    );
 }

@@ -1779,9 +1779,15 @@ fn json_curve_weights_make_them_rational() {
     let scene = knotwork::io::read_json_scene(text).unwrap();
     let curves = scene.curve_list();
     assert_eq!(curves.len(), 2);
-    for polyline in CpuTessellator.tessellate_curves(&curves, &[33, 33]).unwrap() {
+    for polyline in CpuTessellator
+        .tessellate_curves(&curves, &[33, 33])
+        .unwrap()
+    {
         for p in &polyline.positions {
-            assert!((p.length() - 1.0).abs() < 1e-12, "{p} is off the unit circle");
+            assert!(
+                (p.length() - 1.0).abs() < 1e-12,
+                "{p} is off the unit circle"
+            );
         }
     }
 }
