@@ -11,8 +11,11 @@ use knotwork::{CpuTessellator, Scene, SceneOptions, TessOptions, Tessellator};
 use std::path::PathBuf;
 
 /// Memory a fuzzed scene's mesh may take: small, so an input asking for a huge grid is
-/// refused by the budget check (the behaviour under test) instead of exhausting the fuzzer.
-const FUZZ_MEMORY_BUDGET: u64 = 16 << 20;
+/// refused by the budget check (the behaviour under test) instead of exhausting the fuzzer,
+/// and an accepted one (at most ~24 thousand vertices) is tessellated and written in every
+/// format well within the campaign's 1 s timeout (16 MiB allowed 0.35 s inputs, which
+/// timed out on a loaded machine).
+const FUZZ_MEMORY_BUDGET: u64 = 2 << 20;
 
 fn text(data: &[u8]) -> Option<&str> {
     std::str::from_utf8(data).ok()

@@ -30,7 +30,8 @@ fn to_dvec(v: &Q3) -> DVec3 {
 fn basis(knots: &[Q], i: usize, p: usize, t: &Q, end: &Q) -> [Q; 3] {
     if p == 0 {
         let (a, b) = (&knots[i], &knots[i + 1]);
-        let inside = a <= t && t < b;
+        // Unclamped knots continue past the domain end: the span after it is not the end's.
+        let inside = a <= t && t < b && t < end;
         let at_end = t == end && b == end && a < b;
         let one = if inside || at_end {
             Q::from_integer(1.into())
