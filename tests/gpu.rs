@@ -1398,3 +1398,64 @@ fn gpu_output_carries_the_f32_evaluation_signature() {
         "only {fraction} of the vertices carry f32 evaluation"
     );
 }
+
+/// The curve kernel's second derivative — what directly evaluated Coons patches build their
+/// second derivatives from, and which polylines do not carry — matches the f64 C″ of every
+/// curve of the curve suite within 1e-4 of the largest |C″| of that curve.
+#[test]
+fn curve_second_derivatives_conform() {
+    use knotwork::wgpu;
+    let Some(context) = gpu() else { return };
+    for case in conformance::curve_suite() {
+        let samples = vec![case.samples; case.curves.len()];
+        let batch = GpuBatch::new(
+            context,
+            &BatchDescriptor::new(&[], &TessOptions::DEFAULT).with_curves(&case.curves, &samples),
+        )
+        .unwrap();
+        batch.dispatch().unwrap();
+        let device = context.device();
+        let mut curve = 0;
+        for lines in batch.curve_lines() {
+            let bytes = lines.samples.size();
+            let staging = device.create_buffer(&wgpu::BufferDescriptor {
+                label: None,
+                size: bytes,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let mut encoder = device.create_command_encoder(&Default::default());
+            encoder.copy_buffer_to_buffer(&lines.samples, 0, &staging, 0, bytes);
+            context.queue().submit([encoder.finish()]);
+            staging.map_async(wgpu::MapMode::Read, .., |r| r.unwrap());
+            device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+            let view = staging.get_mapped_range(..).unwrap();
+            let floats: &[f32] = bytemuck::cast_slice(&view);
+            for &(first, count) in &lines.strips {
+                let c = &case.curves[curve];
+                let range = c.range();
+                let expected: Vec<DVec3> = (0..count)
+                    .map(|k| c.derivatives(range.lerp(f64::from(k) / f64::from(count - 1)))[2])
+                    .collect();
+                let scale = expected
+                    .iter()
+                    .fold(0.0f64, |m, d| m.max(d.length()))
+                    .max(1e-300);
+                for (k, want) in expected.iter().enumerate() {
+                    let at = (first as usize + k) * 12 + 8;
+                    let got = DVec3::new(
+                        floats[at].into(),
+                        floats[at + 1].into(),
+                        floats[at + 2].into(),
+                    );
+                    assert!(
+                        (got - *want).length() <= 1e-4 * scale,
+                        "{}: curve {curve} sample {k}: C″ {got} vs {want}",
+                        case.name
+                    );
+                }
+                curve += 1;
+            }
+        }
+    }
+}
