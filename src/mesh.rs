@@ -446,8 +446,14 @@ impl Mesh {
             'search: for dx in -1..=1 {
                 for dy in -1..=1 {
                     for dz in -1..=1 {
-                        for &candidate in grid.get(&(x + dx, y + dy, z + dz)).into_iter().flatten()
-                        {
+                        // Saturating: keys of coordinates beyond i64's cells (|p| ≳ 9e18 ×
+                        // the tolerance) all clamp to the end cell.
+                        let neighbour = (
+                            x.saturating_add(dx),
+                            y.saturating_add(dy),
+                            z.saturating_add(dz),
+                        );
+                        for &candidate in grid.get(&neighbour).into_iter().flatten() {
                             if (welded.positions[candidate as usize] - p).length() <= tolerance {
                                 found = Some(candidate);
                                 break 'search;
