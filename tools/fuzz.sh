@@ -5,6 +5,8 @@
 # test `fuzz_corpus_replays` (tests/io.rs) replays on every test run.
 # Needs the nightly toolchain and cargo-fuzz (`cargo install cargo-fuzz`).
 # Usage: tools/fuzz.sh [RUNS] [TARGET...]     e.g. tools/fuzz.sh 100000 json
+# FUZZ_WORKERS=N splits RUNS over N processes sharing the corpus (their logs: fuzz-0.log …);
+# the 2026-12-01 campaign ran `scene` with 2, the other targets with 1.
 # A crash stops the run; its input is in fuzz/artifacts/TARGET/: copy it into
 # fuzz/regressions/TARGET/ with the fix, so the replay test keeps it fixed.
 set -euo pipefail
@@ -22,9 +24,12 @@ for target in "${targets[@]}"; do
   [ "$target" = cli_args ] && seeds=seeds/cli_args
   mkdir -p "corpus/$target"
   start=$(date +%s)
+  workers=${FUZZ_WORKERS:-1}
+  parallel=()
+  [ "$workers" -gt 1 ] && parallel=(-jobs="$workers" -workers="$workers")
   cargo +nightly fuzz run "${build[@]}" "$target" "corpus/$target" "$seeds" -- \
-    -runs="$runs" -timeout=1 -rss_limit_mb=2048 -max_len=8192 -print_final_stats=1 \
-    2> "fuzz-$target.log"
+    -runs=$((runs / workers)) "${parallel[@]}" -timeout=1 -rss_limit_mb=2048 -max_len=8192 \
+    -print_final_stats=1 2> "fuzz-$target.log"
   seconds=$(( $(date +%s) - start ))
   { grep -a -E "DONE" "fuzz-$target.log" || true; } | tail -1 | sed "s/^/$target: /"
   grep -a -E "stat::(number_of_executed_units|peak_rss_mb)" "fuzz-$target.log" | sed "s/^/$target: /"
