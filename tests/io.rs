@@ -500,6 +500,17 @@ fn knotwork(args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
+/// Runs `knotwork ARGS` and asserts it succeeded (showing its stderr if not).
+fn succeeds(args: &[&str]) -> std::process::Output {
+    let run = knotwork(args);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    run
+}
+
 #[test]
 fn cli_tessellates_the_teapot() {
     let dir = scratch_dir("cli-ok");
@@ -1645,17 +1656,17 @@ fn far_models_keep_their_precision_in_obj_and_glb() {
     for backend in backends {
         for extension in ["obj", "glb"] {
             let out = dir.join(format!("far-{backend}.{extension}"));
-            let run = Command::new(env!("CARGO_BIN_EXE_knotwork"))
-                .args(["tessellate", "--grid", "17x17", "--backend", backend, "-o"])
-                .arg(&out)
-                .arg(&scene)
-                .output()
-                .unwrap();
-            assert!(
-                run.status.success(),
-                "{}",
-                String::from_utf8_lossy(&run.stderr)
-            );
+            let (out_arg, scene_arg) = (out.to_str().unwrap(), scene.to_str().unwrap());
+            succeeds(&[
+                "tessellate",
+                "--grid",
+                "17x17",
+                "--backend",
+                backend,
+                "-o",
+                out_arg,
+                scene_arg,
+            ]);
             let positions: Vec<DVec3> = if extension == "obj" {
                 // The `v` lines, in vertex order.
                 std::fs::read_to_string(&out)
@@ -1697,17 +1708,16 @@ fn far_models_keep_their_precision_in_obj_and_glb() {
     }
     // Welded (parts share vertices): one translation, every vertex on the sphere.
     let out = dir.join("far-welded.glb");
-    let run = Command::new(env!("CARGO_BIN_EXE_knotwork"))
-        .args(["tessellate", "--weld", "--backend", "cpu", "-o"])
-        .arg(&out)
-        .arg(&scene)
-        .output()
-        .unwrap();
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let (out_arg, scene_arg) = (out.to_str().unwrap(), scene.to_str().unwrap());
+    succeeds(&[
+        "tessellate",
+        "--weld",
+        "--backend",
+        "cpu",
+        "-o",
+        out_arg,
+        scene_arg,
+    ]);
     validate_with_khronos(&out);
     let bytes = std::fs::read(&out).unwrap();
     let gltf = gltf::Gltf::from_slice(&bytes).unwrap();

@@ -106,12 +106,7 @@ impl BSplineSurface {
     pub fn bezier_patches(&self) -> Vec<BezierPatch> {
         let (p, q) = (self.degree_u(), self.degree_v());
         let (nu, nv) = (self.count_u(), self.count_v());
-        let origin = self.origin();
-        let pts: Vec<DVec4> = self
-            .homogeneous_points()
-            .iter()
-            .map(|h| h + (origin * h.w).extend(0.0))
-            .collect();
+        let pts = super::LocalPoints::absolute(self.homogeneous_points(), self.origin());
         // Along u, one row (fixed j) at a time.
         let rows: Vec<(Vec<f64>, Vec<DVec4>)> = (0..nv)
             .map(|j| refine_to_bezier(p, self.knots_u().knots(), &pts[j * nu..(j + 1) * nu]))

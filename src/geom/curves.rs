@@ -270,12 +270,7 @@ impl BSplineCurve {
     /// The curve over its evaluation range as Bezier pieces (absolute homogeneous points,
     /// (x·w, y·w, z·w, w)).
     pub(crate) fn bezier_form(&self) -> Piecewise<DVec4> {
-        let origin = self.origin();
-        let absolute: Vec<DVec4> = self
-            .homogeneous_points()
-            .iter()
-            .map(|h| h + (origin * h.w).extend(0.0))
-            .collect();
+        let absolute = super::LocalPoints::absolute(self.homogeneous_points(), self.origin());
         let whole = Piecewise::from_bspline(self.degree(), self.knots().knots(), &absolute);
         let range = self.range();
         let (a, b) = (whole.breaks[0], *whole.breaks.last().expect("breakpoints"));

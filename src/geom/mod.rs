@@ -97,6 +97,15 @@ impl LocalPoints {
         Self::from_weighted(points.iter().map(|h| (h.truncate() / h.w).extend(h.w)))
     }
 
+    /// `points` relative to `origin` back in absolute homogeneous form (x·w, y·w, z·w, w), for
+    /// the conversions that work in it.
+    pub fn absolute(points: &[DVec4], origin: DVec3) -> Vec<DVec4> {
+        points
+            .iter()
+            .map(|h| h + (origin * h.w).extend(0.0))
+            .collect()
+    }
+
     /// From points already relative to `origin` (the results of linear operations — knot
     /// insertion, subdivision, reordering — on another set relative to it).
     pub fn relative_to(origin: DVec3, points: Vec<DVec4>) -> Self {
