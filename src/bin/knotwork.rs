@@ -296,10 +296,10 @@ fn process(
             .and_then(|e| MeshFormat::from_extension(&e.to_string_lossy()))
     });
     let far_glb = format == Some(MeshFormat::Glb)
-        && scene.items.iter().any(|item| {
-            let (lo, hi) = item.geometry.control_box();
-            (0.5 * (lo + hi)).length() > knotwork::io::FAR_IN_SIZES * (hi - lo).length()
-        });
+        && scene
+            .items
+            .iter()
+            .any(|item| knotwork::io::is_far_from_origin(item.geometry.control_box()));
     let groups = scene.groups();
     let mut merged = None;
     let f64_mesh = matches!(format, Some(MeshFormat::Obj) | None) || job.weld || far_glb;

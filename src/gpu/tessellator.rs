@@ -67,12 +67,13 @@ impl GpuTessellator {
 
 impl GpuTessellator {
     /// Loads `surfaces` into the kept readback batch (reloading it, or creating it the first
-    /// time) and dispatches it; returns the guard holding it.
-    fn dispatch(
+    /// time), dispatches it and reads it with `read`.
+    fn run<T>(
         &self,
         surfaces: &[BSplineSurface],
         options: &[TessOptions],
-    ) -> Result<std::sync::MutexGuard<'_, Option<GpuBatch>>> {
+        read: impl FnOnce(&GpuBatch) -> Result<T>,
+    ) -> Result<T> {
         let mut kept = lock(&self.batch);
         let batch = match kept.take() {
             Some(mut batch) => {
@@ -84,8 +85,9 @@ impl GpuTessellator {
                 &BatchDescriptor::each(surfaces, options).for_readback(),
             )?,
         };
-        kept.insert(batch).dispatch()?;
-        Ok(kept)
+        let batch = kept.insert(batch);
+        batch.dispatch()?;
+        read(batch)
     }
 }
 
@@ -102,8 +104,7 @@ impl Tessellator for GpuTessellator {
         mesh: &mut Mesh,
     ) -> Result<()> {
         // Read in f64: each surface's origin is added exactly.
-        let batch = self.dispatch(surfaces, options)?;
-        mesh.replace_grids(batch.as_ref().expect("dispatched").read_mesh()?);
+        mesh.replace_grids(self.run(surfaces, options, GpuBatch::read_mesh)?);
         Ok(())
     }
 
@@ -113,8 +114,7 @@ impl Tessellator for GpuTessellator {
         options: &[TessOptions],
         mesh: &mut Mesh32,
     ) -> Result<()> {
-        let batch = self.dispatch(surfaces, options)?;
-        batch.as_ref().expect("dispatched").read_into(mesh)
+        self.run(surfaces, options, |batch| batch.read_into(mesh))
     }
 
     fn tessellate_coons_into(

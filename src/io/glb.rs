@@ -19,7 +19,7 @@ const VERTEX_STRIDE: usize = size_of::<Vertex>();
 /// [`cover_groups`]), in item order: a primitive of the group's triangles over the shared
 /// vertex accessors with its own index accessor, then a LINE_STRIP primitive per curve
 /// with POSITION and `_TANGENT` (f32 vec3); POSITION bounds filled in. A group far from the
-/// origin for its size ([`FAR_IN_SIZES`]) keeps its precision: its node carries a
+/// origin for its size ([`is_far_from_origin`]) keeps its precision: its node carries a
 /// translation (its centre) and its vertices and curves are stored relative to it; every
 /// group then has accessors of its own.
 pub fn write_glb<'a>(
@@ -327,7 +327,7 @@ fn write_container(w: &mut dyn Write, json: &[u8], pieces: &[&[u8]]) -> Result<(
 /// A group whose centre is farther from the origin than this many of its sizes gets a node
 /// translation: there half an ulp of an f32 world coordinate (2⁻²⁴ of it) exceeds 1e-6 of
 /// the group's size, more than the mesh's own error.
-pub const FAR_IN_SIZES: f64 = 16.0;
+const FAR_IN_SIZES: f64 = 16.0;
 
 /// Where a group's vertices and indices are, and the translation its node carries.
 struct GroupFrame {
@@ -397,12 +397,19 @@ fn far_centre(points: impl Iterator<Item = DVec3>) -> DVec3 {
     let (lo, hi) = points.fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
         (lo.min(p), hi.max(p))
     });
-    let centre = 0.5 * (lo + hi);
-    if centre.is_finite() && centre.length() > FAR_IN_SIZES * (hi - lo).length() {
-        centre.as_vec3().as_dvec3()
+    if is_far_from_origin((lo, hi)) {
+        (0.5 * (lo + hi)).as_vec3().as_dvec3()
     } else {
         DVec3::ZERO
     }
+}
+
+/// Whether the box (`lo`, `hi`) lies farther from the origin than 16 of its diagonals:
+/// where glb stores a group relative to a node translation (half an ulp of an f32 world
+/// coordinate would exceed 1e-6 of the box).
+pub fn is_far_from_origin((lo, hi): (DVec3, DVec3)) -> bool {
+    let centre = 0.5 * (lo + hi);
+    centre.is_finite() && centre.length() > FAR_IN_SIZES * (hi - lo).length()
 }
 
 /// Component-wise (min, max) of `points`: the bounds glTF requires on POSITION accessors.

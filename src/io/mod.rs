@@ -15,7 +15,7 @@ mod obj_mesh;
 pub use binary_meshes::{write_ply, write_stl};
 pub use bpt::read_bpt;
 #[cfg(feature = "gltf")]
-pub use glb::{FAR_IN_SIZES, write_glb};
+pub use glb::{is_far_from_origin, write_glb};
 #[cfg(feature = "json")]
 pub use json::read_json_scene;
 pub use obj_freeform::read_obj_freeform;
