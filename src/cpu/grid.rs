@@ -10,7 +10,7 @@
 use super::lanes::Avx2;
 use super::lanes::{F64x4, Portable};
 use crate::error::{Error, Result};
-use crate::geom::{BSplineSurface, DEGENERATE_EPSILONS, degenerate_cross_sq};
+use crate::geom::{BSplineSurface, degenerate_cross_sq};
 use crate::mesh::{Mesh, Mesh32, MeshPart, TessOptions, Vertex};
 use crate::plan::{AxisSamples, GridLayout, SurfacePlan, cell_triangles, check_item_count};
 use glam::{DVec2, DVec3, DVec4};
@@ -323,9 +323,15 @@ fn contract_columns(
     }
 }
 
-/// (DEGENERATE_EPSILONS·ε)², the factor of [`crate::geom::quotient_noise_sq`].
-const QUOTIENT_NOISE_SQ: f64 =
-    (DEGENERATE_EPSILONS * f64::EPSILON) * (DEGENERATE_EPSILONS * f64::EPSILON);
+/// The largest rounding (rad) the row kernel lets its normals carry, as its estimate of the
+/// quotient rule's cancellation puts it (see [`Row::evaluate`]); vertices estimated above
+/// it are evaluated by [`BSplineSurface::evaluate`], which sums relative to the dominant
+/// control point and stays within a few ε wherever the weights pull.
+const KERNEL_NORMAL_ROUNDING: f64 = 1e-12;
+
+/// (ε / KERNEL_NORMAL_ROUNDING)²: the factor of the kernel's estimate.
+const ROUNDING_RATIO_SQ: f64 =
+    (f64::EPSILON / KERNEL_NORMAL_ROUNDING) * (f64::EPSILON / KERNEL_NORMAL_ROUNDING);
 
 /// One grid row ready for the u contraction.
 struct Row<'a> {
@@ -343,8 +349,9 @@ impl Row<'_> {
     }
 
     /// Writes the positions and unit normals of the row, four vertices of one knot span at a
-    /// time with the accumulators in registers; vertices where S_u × S_v vanishes take the
-    /// limit normal of [`BSplineSurface::evaluate`].
+    /// time with the accumulators in registers; vertices where S_u × S_v vanishes, or where
+    /// the quotient rule's rounding would turn the normal by more than
+    /// [`KERNEL_NORMAL_ROUNDING`], take the normal of [`BSplineSurface::evaluate`].
     #[inline(always)]
     fn evaluate<V: F64x4>(&self, positions: &mut [DVec3], normals: &mut [DVec3]) {
         let threshold = degenerate_cross_sq(self.surface.cross_scale(), f64::EPSILON);
@@ -394,8 +401,10 @@ impl Row<'_> {
                 let inv_len = V::splat(1.0).div(len_sq.sqrt());
                 let w_sq = acc[3].mul(acc[3]);
                 let limit = w_sq.mul(w_sq).mul(V::splat(threshold)).to_array();
-                // The rounding noise of the quotient rule, squared and scaled by w⁴ as the
-                // cross product is (geom::quotient_noise_sq, with (a + b)² ≤ 2(a² + b²)).
+                // The rounding of the quotient rule: it cancels terms as large as
+                // m_u = |A_u| + |w_u|·|S| (m_v likewise), turning S_u × S_v by about
+                // ε·(m_u·|S_v| + |S_u|·m_v)/|S_u × S_v| (geom::quotient_noise_sq; all of it
+                // scaled by w⁴ as the cross product is, and (a + b)² ≤ 2(a² + b²)).
                 let s_sq = x.mul_add(x, y.mul_add(y, z.mul(z)));
                 let hu_sq = acc[4].mul_add(acc[4], acc[5].mul_add(acc[5], acc[6].mul(acc[6])));
                 let hv_sq = acc[8].mul_add(acc[8], acc[9].mul_add(acc[9], acc[10].mul(acc[10])));
@@ -403,9 +412,9 @@ impl Row<'_> {
                 let m_v_sq = acc[11].mul(acc[11]).mul_add(s_sq, hv_sq);
                 let su_sq = su[0].mul_add(su[0], su[1].mul_add(su[1], su[2].mul(su[2])));
                 let sv_sq = sv[0].mul_add(sv[0], sv[1].mul_add(sv[1], sv[2].mul(sv[2])));
-                let noise = m_u_sq
+                let rounding = m_u_sq
                     .mul_add(sv_sq, su_sq.mul(m_v_sq))
-                    .mul(V::splat(4.0 * QUOTIENT_NOISE_SQ))
+                    .mul(V::splat(4.0 * ROUNDING_RATIO_SQ))
                     .to_array();
                 let (x, y, z) = (x.to_array(), y.to_array(), z.to_array());
                 let (nx, ny, nz) = (
@@ -417,7 +426,7 @@ impl Row<'_> {
                 for l in 0..LANES.min(end - i0) {
                     let i = i0 + l;
                     positions[i] = origin + DVec3::new(x[l], y[l], z[l]);
-                    normals[i] = if len_sq[l] > limit[l] && len_sq[l] > noise[l] {
+                    normals[i] = if len_sq[l] > limit[l] && len_sq[l] > rounding[l] {
                         DVec3::new(nx[l], ny[l], nz[l])
                     } else {
                         self.surface

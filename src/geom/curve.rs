@@ -12,6 +12,8 @@ use glam::{DVec3, DVec4};
 pub struct BSplineCurve {
     knots: KnotVector,
     points: Vec<DVec4>,
+    /// P − origin per point (see [`LocalPoints`]).
+    cartesian: Vec<DVec3>,
     origin: DVec3,
     rational: bool,
     range: Interval,
@@ -40,6 +42,7 @@ impl BSplineCurve {
         Self {
             knots,
             points: local.points,
+            cartesian: local.cartesian,
             origin: local.origin,
             rational,
             range: Interval::new(start, end),
@@ -113,6 +116,11 @@ impl BSplineCurve {
     pub fn homogeneous_points(&self) -> &[DVec4] {
         &self.points
     }
+    /// Cartesian control points relative to [`origin`](Self::origin), P − origin: the
+    /// differences [`homogeneous_points`](Self::homogeneous_points) are formed from.
+    pub(crate) fn local_points(&self) -> &[DVec3] {
+        &self.cartesian
+    }
     /// The local origin evaluation is relative to: the centre of the control points'
     /// bounding box (model units).
     pub fn origin(&self) -> DVec3 {
@@ -120,8 +128,7 @@ impl BSplineCurve {
     }
     /// Cartesian control point `i`.
     pub fn control_point(&self, i: usize) -> DVec3 {
-        let h = self.points[i];
-        self.origin + h.truncate() / h.w
+        self.origin + self.cartesian[i]
     }
     /// Weight of control point `i`.
     pub fn weight(&self, i: usize) -> f64 {

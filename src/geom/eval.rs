@@ -41,6 +41,62 @@ pub fn quotient_noise_sq(h: DVec4, hu: DVec4, hv: DVec4, du: DVec3, dv: DVec3) -
     t * t
 }
 
+/// A₁ of [`limit_normal`] for a rational surface, (a·S_uu + b·S_uv) × S_v + S_u × (a·S_uv +
+/// b·S_vv), with the rounding bound of its terms, from the homogeneous point and derivatives
+/// `h` = [A, A_u, A_v, A_uu, A_uv, A_vv], (S_u, S_v) and S (the same frame as `h`). The
+/// quotient rule's terms along S_u in S_uv (−w_v·S_u/w) and along S_v (−w_u·S_v/w) drop out
+/// of the cross products they would enter exactly, instead of cancelling there in rounding:
+/// with a weight ratio r in the support they are r times larger than what remains.
+fn first_order_term(
+    [h, hu, hv, huu, huv, hvv]: [DVec4; 6],
+    (su, sv): (DVec3, DVec3),
+    s: DVec3,
+    (a, b): (f64, f64),
+) -> (DVec3, f64) {
+    let n = su.cross(sv);
+    let terms = [
+        // w·S_uu × S_v
+        (a, huu.truncate().cross(sv)),
+        (-2.0 * a * hu.w, n),
+        (-a * huu.w, s.cross(sv)),
+        // w·S_uv × S_v, without −w_u·S_v × S_v
+        (b, huv.truncate().cross(sv)),
+        (-b * hv.w, n),
+        (-b * huv.w, s.cross(sv)),
+        // w·S_u × S_uv, without −w_v·S_u × S_u
+        (a, su.cross(huv.truncate())),
+        (-a * hu.w, n),
+        (-a * huv.w, su.cross(s)),
+        // w·S_u × S_vv
+        (b, su.cross(hvv.truncate())),
+        (-2.0 * b * hv.w, n),
+        (-b * hvv.w, su.cross(s)),
+    ];
+    let value: DVec3 = terms.iter().map(|(c, x)| *c * *x).sum();
+    let bound = [
+        (a.abs(), huu.truncate().length() * sv.length()),
+        (b.abs(), huv.truncate().length() * sv.length()),
+        (a.abs(), su.length() * huv.truncate().length()),
+        (b.abs(), su.length() * hvv.truncate().length()),
+        (
+            (2.0 * a * hu.w).abs() + (b * hv.w).abs() + (a * hu.w).abs() + (2.0 * b * hv.w).abs(),
+            su.length() * sv.length(),
+        ),
+        (
+            (a * huu.w).abs() + (b * huv.w).abs(),
+            s.length() * sv.length(),
+        ),
+        (
+            (a * huv.w).abs() + (b * hvv.w).abs(),
+            su.length() * s.length(),
+        ),
+    ]
+    .iter()
+    .map(|(c, x)| c * x)
+    .sum::<f64>();
+    (value / h.w, bound / h.w)
+}
+
 /// A surface point with its partial derivatives (model units per unit of parameter) and
 /// unit normal.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -61,12 +117,15 @@ pub struct SurfaceSample {
 /// distance t is t·A₁ + t²·A₂ + …: the limit is the direction of A₁ (second derivatives), of
 /// A₂ where A₁ vanishes too (third derivatives, from `third` = [S_uuu, S_uuv, S_uvv, S_vvv]
 /// when the form provides them), each taken only when it stands above the rounding of its
-/// own terms; `first_derivatives` gives [S_u, S_v] at nearby points for what is left.
+/// own terms; `first_derivatives` gives [S_u, S_v] at nearby points for what is left. A₁
+/// comes from `first_order` (A₁ and the rounding bound of its terms, for the direction
+/// (step_u, step_v)) when the form can form it more precisely than from `s`.
 pub(crate) fn limit_normal(
     s: &SurfaceSample,
     (u, v): (f64, f64),
     (ru, rv): (Interval, Interval),
     threshold: f64,
+    first_order: Option<&dyn Fn(f64, f64) -> (DVec3, f64)>,
     third: Option<&dyn Fn() -> [DVec3; 4]>,
     first_derivatives: impl Fn(f64, f64) -> [DVec3; 2],
 ) -> DVec3 {
@@ -96,9 +155,15 @@ pub(crate) fn limit_normal(
     // S_u and S_v along d: first and second directional derivatives.
     let su1 = step_u * s.duu + step_v * s.duv;
     let sv1 = step_u * s.duv + step_v * s.dvv;
-    let first_order = su1.cross(sv) + su.cross(sv1);
-    if first_order.length() > noise(&[(1.0, su1, sv), (1.0, su, sv1)]) {
-        return first_order.normalize();
+    let (first, bound) = match first_order {
+        Some(first_order) => first_order(step_u, step_v),
+        None => (
+            su1.cross(sv) + su.cross(sv1),
+            su1.length() * sv.length() + su.length() * sv1.length(),
+        ),
+    };
+    if first.length() > (DEGENERATE_EPSILONS * f64::EPSILON * bound).max(threshold.sqrt()) {
+        return first.normalize();
     }
     if let Some(third) = third {
         let [uuu, uuv, uvv, vvv] = third();
@@ -137,9 +202,10 @@ impl BSplineSurface {
     /// the same diagonal; a surface with no tangent plane anywhere near (collapsed to a point
     /// or a line) gets +Z.
     pub fn evaluate(&self, u: f64, v: f64) -> SurfaceSample {
-        // In the local frame (see [`BSplineSurface::origin`]): the quotient rule's
-        // cancellation h_u − w_u·S then works on the model's size, not on its offset.
-        let (h, [hu, hv, huu, huv, hvv]) = self.homogeneous_derivatives(u, v);
+        // Relative to the support's reference point (see [`rebased`]): the quotient rule's
+        // cancellation h_u − w_u·S then works on the distances that shape the surface there,
+        // not on the model's offset or a heavy weight's pull.
+        let (reference, h, [hu, hv, huu, huv, hvv]) = self.homogeneous_derivatives(u, v);
         let w = h.w;
         let position = h.truncate() / w;
         let du = (hu.truncate() - hu.w * position) / w;
@@ -148,7 +214,7 @@ impl BSplineSurface {
         let duv = (huv.truncate() - hu.w * dv - hv.w * du - huv.w * position) / w;
         let dvv = (hvv.truncate() - 2.0 * hv.w * dv - hvv.w * position) / w;
         let mut sample = SurfaceSample {
-            position: self.origin() + position,
+            position: self.origin() + (reference + position),
             du,
             dv,
             duu,
@@ -157,7 +223,18 @@ impl BSplineSurface {
             normal: DVec3::ZERO,
         };
         let noise = quotient_noise_sq(h, hu, hv, du, dv);
-        sample.normal = self.normal_of(&sample, u, v, noise);
+        let first_order = |a: f64, b: f64| {
+            first_order_term([h, hu, hv, huu, huv, hvv], (du, dv), position, (a, b))
+        };
+        sample.normal = limit_normal(
+            &sample,
+            (u, v),
+            (self.range_u(), self.range_v()),
+            degenerate_cross_sq(self.cross_scale(), f64::EPSILON).max(noise),
+            Some(&first_order),
+            Some(&|| self.third_derivatives(u, v)),
+            |u, v| self.rational_first_derivatives(u, v),
+        );
         sample
     }
 
@@ -173,43 +250,20 @@ impl BSplineSurface {
         cross_scale(self.control_box_diagonal(), u1 - u0, v1 - v0)
     }
 
-    /// The normal of `s` at (u, v), S_u × S_v counting as zero below the degeneracy rule's
-    /// threshold or `quotient_noise` ([`quotient_noise_sq`]), whichever is larger.
-    fn normal_of(&self, s: &SurfaceSample, u: f64, v: f64, quotient_noise: f64) -> DVec3 {
-        limit_normal(
-            s,
-            (u, v),
-            (self.range_u(), self.range_v()),
-            degenerate_cross_sq(self.cross_scale(), f64::EPSILON).max(quotient_noise),
-            Some(&|| self.third_derivatives(u, v)),
-            |u, v| self.rational_first_derivatives(u, v),
-        )
-    }
-
     /// [S_uuu, S_uuv, S_uvv, S_vvv] at (u, v): the quotient rule to third order on the
     /// homogeneous derivatives (Leibniz: A^(i,j) = Σ C(i,k)·C(j,l)·w^(k,l)·S^(i−k,j−l)).
     fn third_derivatives(&self, u: f64, v: f64) -> [DVec3; 4] {
-        let (ku, kv) = (self.knots_u(), self.knots_v());
-        let (p, q) = (ku.degree(), kv.degree());
-        let (u, v) = (
-            u.clamp(ku.domain().0, ku.domain().1),
-            v.clamp(kv.domain().0, kv.domain().1),
-        );
-        let (span_u, span_v) = (ku.find_span(u), kv.find_span(v));
-        let mut bu = [[0.0; MAX_ORDER]; 4];
-        let mut bv = [[0.0; MAX_ORDER]; 4];
-        basis_ders(ku, span_u, u, 3, &mut bu);
-        basis_ders(kv, span_v, v, 3, &mut bv);
-        let count_u = self.count_u();
-        let points = self.homogeneous_points();
+        let support = Support::<4>::new(self, u, v, 3);
+        let (p, q) = (self.degree_u(), self.degree_v());
         // h[i][j] = ∂ᵢᵤ∂ⱼᵥ of the homogeneous point, i + j ≤ 3.
         let mut h = [[DVec4::ZERO; 4]; 4];
         for b in 0..=q {
-            let row = &points[(span_v - q + b) * count_u + span_u - p..][..=p];
             for (i, hi) in h.iter_mut().enumerate() {
-                let along_u: DVec4 = row.iter().enumerate().map(|(a, &pt)| bu[i][a] * pt).sum();
+                let along_u: DVec4 = (0..=p)
+                    .map(|a| support.bu[i][a] * support.point(a, b))
+                    .sum();
                 for (j, hij) in hi.iter_mut().enumerate().take(4 - i) {
-                    *hij += bv[j][b] * along_u;
+                    *hij += support.bv[j][b] * along_u;
                 }
             }
         }
@@ -248,7 +302,7 @@ impl BSplineSurface {
 
     /// First derivatives [S_u, S_v] at (u, v).
     fn rational_first_derivatives(&self, u: f64, v: f64) -> [DVec3; 2] {
-        let (h, [hu, hv, ..]) = self.homogeneous_derivatives(u, v);
+        let (_, h, [hu, hv, ..]) = self.homogeneous_derivatives(u, v);
         let position = h.truncate() / h.w;
         [
             (hu.truncate() - hu.w * position) / h.w,
@@ -256,35 +310,123 @@ impl BSplineSurface {
         ]
     }
 
-    /// Homogeneous point, relative to the origin, and its derivatives [∂u, ∂v, ∂uu, ∂uv, ∂vv] at (u, v).
-    fn homogeneous_derivatives(&self, u: f64, v: f64) -> (DVec4, [DVec4; 5]) {
-        let (ku, kv) = (self.knots_u(), self.knots_v());
-        let (p, q) = (ku.degree(), kv.degree());
-        let (su, sv) = (ku.find_span(u), kv.find_span(v));
-        let mut bu: BasisDers = [[0.0; MAX_ORDER]; 3];
-        let mut bv: BasisDers = [[0.0; MAX_ORDER]; 3];
-        basis_ders(ku, su, u.clamp(ku.domain().0, ku.domain().1), 2, &mut bu);
-        basis_ders(kv, sv, v.clamp(kv.domain().0, kv.domain().1), 2, &mut bv);
-        let count_u = self.count_u();
-        let points = self.homogeneous_points();
+    /// At (u, v): the support's reference point (relative to the origin), and the homogeneous
+    /// point relative to it with its derivatives [∂u, ∂v, ∂uu, ∂uv, ∂vv].
+    fn homogeneous_derivatives(&self, u: f64, v: f64) -> (DVec3, DVec4, [DVec4; 5]) {
+        let support = Support::<3>::new(self, u, v, 2);
+        let (p, q) = (self.degree_u(), self.degree_v());
+        let (bu, bv) = (&support.bu, &support.bv);
         let mut out = [DVec4::ZERO; 6];
         for b in 0..=q {
-            let row = &points[(sv - q + b) * count_u + su - p..][..=p];
             // Contract along u first: value, ∂u, ∂uu of this control row.
-            let (mut c0, mut c1, mut c2) = (DVec4::ZERO, DVec4::ZERO, DVec4::ZERO);
-            for (a, &pt) in row.iter().enumerate() {
-                c0 += bu[0][a] * pt;
-                c1 += bu[1][a] * pt;
-                c2 += bu[2][a] * pt;
-            }
-            out[0] += bv[0][b] * c0;
-            out[1] += bv[0][b] * c1;
-            out[2] += bv[1][b] * c0;
-            out[3] += bv[0][b] * c2;
-            out[4] += bv[1][b] * c1;
-            out[5] += bv[2][b] * c0;
+            let [c0, c1, c2] =
+                bu.map(|row| (0..=p).map(|a| row[a] * support.point(a, b)).sum::<DVec4>());
+            let [n, dn, ddn] = bv.map(|row| row[b]);
+            out[0] += n * c0;
+            out[1] += n * c1;
+            out[2] += dn * c0;
+            out[3] += n * c2;
+            out[4] += dn * c1;
+            out[5] += ddn * c0;
         }
-        (out[0], [out[1], out[2], out[3], out[4], out[5]])
+        (
+            support.reference,
+            out[0],
+            [out[1], out[2], out[3], out[4], out[5]],
+        )
+    }
+}
+
+/// A control point P (relative to an origin o) of weight w in homogeneous form rebased to
+/// `reference` (relative to the same origin): ((P − reference)·w, w). Points that coincide
+/// stay coincident (their terms cancel exactly), whatever their weights.
+///
+/// Evaluation sums these over a support whose reference is its dominant control point (the
+/// largest basis value × weight there, [`dominant`]): that point's term is exactly zero, so
+/// the quotient rule (A_u − w_u·S)/w cancels only the other points' terms, each as large as
+/// its own weight makes it. Without it a heavy weight that pins the surface near its point
+/// makes S_u small while the cancelled terms stay as large as the point's offset: the
+/// derivatives lose the ratio of the weights in relative precision (1e-5 rad normals at
+/// weights 1e-3..1e3 in f64, 1e-2 in f32).
+pub(crate) fn rebased(point: DVec3, weight: f64, reference: DVec3) -> DVec4 {
+    ((point - reference) * weight).extend(weight)
+}
+
+/// The control point with the largest `basis value × weight` among `(basis value, point,
+/// weight)` triples: the reference of [`rebased`].
+pub(crate) fn dominant(terms: impl Iterator<Item = (f64, DVec3, f64)>) -> DVec3 {
+    let (_, point) = terms.fold(
+        (f64::NEG_INFINITY, DVec3::ZERO),
+        |best, (basis, point, w)| {
+            let score = basis * w;
+            if score > best.0 { (score, point) } else { best }
+        },
+    );
+    point
+}
+
+/// The control points and basis functions that are non-zero at one (u, v) of a surface,
+/// with the reference point they are summed relative to ([`rebased`]).
+struct Support<'a, const N: usize> {
+    surface: &'a BSplineSurface,
+    span_u: usize,
+    span_v: usize,
+    /// Basis values and derivatives along u and v (see [`basis_ders`]).
+    bu: [[f64; MAX_ORDER]; N],
+    bv: [[f64; MAX_ORDER]; N],
+    reference: DVec3,
+}
+
+impl<'a, const N: usize> Support<'a, N> {
+    /// The support at (u, v), clamped to the knot domain, with derivatives up to `order`.
+    fn new(surface: &'a BSplineSurface, u: f64, v: f64, order: usize) -> Self {
+        let (ku, kv) = (surface.knots_u(), surface.knots_v());
+        let (u, v) = (
+            u.clamp(ku.domain().0, ku.domain().1),
+            v.clamp(kv.domain().0, kv.domain().1),
+        );
+        let (span_u, span_v) = (ku.find_span(u), kv.find_span(v));
+        let mut bu = [[0.0; MAX_ORDER]; N];
+        let mut bv = [[0.0; MAX_ORDER]; N];
+        basis_ders(ku, span_u, u, order, &mut bu);
+        basis_ders(kv, span_v, v, order, &mut bv);
+        let mut support = Self {
+            surface,
+            span_u,
+            span_v,
+            bu,
+            bv,
+            reference: DVec3::ZERO,
+        };
+        let (p, q) = (ku.degree(), kv.degree());
+        support.reference = dominant((0..=q).flat_map(|b| {
+            let support = &support;
+            (0..=p).map(move |a| {
+                let index = support.index(a, b);
+                (
+                    support.bu[0][a] * support.bv[0][b],
+                    support.surface.local_points()[index],
+                    support.surface.homogeneous_points()[index].w,
+                )
+            })
+        }));
+        support
+    }
+
+    /// The index of control point (a, b) of the support (a ≤ p along u, b ≤ q along v).
+    fn index(&self, a: usize, b: usize) -> usize {
+        let (p, q) = (self.surface.degree_u(), self.surface.degree_v());
+        (self.span_v - q + b) * self.surface.count_u() + self.span_u - p + a
+    }
+
+    /// Control point (a, b) of the support, rebased to the reference.
+    fn point(&self, a: usize, b: usize) -> DVec4 {
+        let index = self.index(a, b);
+        rebased(
+            self.surface.local_points()[index],
+            self.surface.homogeneous_points()[index].w,
+            self.reference,
+        )
     }
 }
 
@@ -316,11 +458,18 @@ impl BSplineCurve {
         let mut basis: BasisDers = [[0.0; MAX_ORDER]; 3];
         let (a, b) = knots.domain();
         basis_ders(knots, span, u.clamp(a, b), 2, &mut basis);
-        let mut h = [DVec4::ZERO; 3];
-        for (r, &pt) in self.homogeneous_points()[span - p..=span]
+        let points = &self.local_points()[span - p..=span];
+        let weights = self.homogeneous_points()[span - p..=span]
             .iter()
-            .enumerate()
-        {
+            .map(|h| h.w);
+        let reference = dominant(
+            (basis[0].iter().copied().zip(points.iter().copied()))
+                .zip(weights.clone())
+                .map(|((n, pt), w)| (n, pt, w)),
+        );
+        let mut h = [DVec4::ZERO; 3];
+        for (r, (&pt, w)) in points.iter().zip(weights).enumerate() {
+            let pt = rebased(pt, w, reference);
             for (k, hk) in h.iter_mut().enumerate() {
                 *hk += basis[k][r] * pt;
             }
@@ -329,6 +478,7 @@ impl BSplineCurve {
         let position = h[0].truncate() / w;
         let first = (h[1].truncate() - h[1].w * position) / w;
         let second = (h[2].truncate() - 2.0 * h[1].w * first - h[2].w * position) / w;
+        let position = reference + position;
         [position, first, second]
     }
 }
@@ -403,6 +553,7 @@ impl CoonsPatch {
             (u, v),
             (unit, unit),
             degenerate_cross_sq(self.cross_scale(), f64::EPSILON),
+            None,
             None,
             |u, v| {
                 let (column, row) = (self.rail(u, false), self.rail(v, true));

@@ -69,6 +69,9 @@ pub(crate) struct LocalPoints {
     pub origin: DVec3,
     /// ((P − origin)·w, w) per point, in the input order.
     pub points: Vec<DVec4>,
+    /// P − origin per point: the same difference `points` multiplies by the weight, so points
+    /// that coincide here coincide exactly, whatever their weights.
+    pub cartesian: Vec<DVec3>,
     /// (min, max) of the Cartesian points.
     pub bounds: (DVec3, DVec3),
 }
@@ -82,12 +85,15 @@ impl LocalPoints {
             |(lo, hi), p| (lo.min(p.truncate()), hi.max(p.truncate())),
         );
         let origin = 0.5 * (bounds.0 + bounds.1);
+        let cartesian: Vec<DVec3> = weighted.clone().map(|p| p.truncate() - origin).collect();
         let points = weighted
-            .map(|p| ((p.truncate() - origin) * p.w).extend(p.w))
+            .zip(&cartesian)
+            .map(|(p, &c)| (c * p.w).extend(p.w))
             .collect();
         Self {
             origin,
             points,
+            cartesian,
             bounds,
         }
     }
@@ -112,6 +118,7 @@ impl LocalPoints {
         let (lo, hi) = cartesian_box(&points);
         Self {
             origin,
+            cartesian: points.iter().map(|h| h.truncate() / h.w).collect(),
             points,
             bounds: (origin + lo, origin + hi),
         }

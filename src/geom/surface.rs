@@ -64,6 +64,8 @@ pub struct BSplineSurface {
     knots_u: KnotVector,
     knots_v: KnotVector,
     points: Vec<DVec4>,
+    /// P − origin per point (see [`LocalPoints`]).
+    cartesian: Vec<DVec3>,
     origin: DVec3,
     rational: bool,
     range_u: Interval,
@@ -112,6 +114,7 @@ impl BSplineSurface {
             knots_u,
             knots_v,
             points: local.points,
+            cartesian: local.cartesian,
             origin: local.origin,
             rational,
             range_u: Interval::new(u0, u1),
@@ -170,6 +173,11 @@ impl BSplineSurface {
     pub fn homogeneous_points(&self) -> &[DVec4] {
         &self.points
     }
+    /// Cartesian control points relative to [`origin`](Self::origin), P − origin, u fastest:
+    /// the differences [`homogeneous_points`](Self::homogeneous_points) are formed from.
+    pub(crate) fn local_points(&self) -> &[DVec3] {
+        &self.cartesian
+    }
     /// The local origin evaluation is relative to: the centre of the control box (model
     /// units).
     pub fn origin(&self) -> DVec3 {
@@ -188,8 +196,7 @@ impl BSplineSurface {
 
     /// Cartesian control point (i, j).
     pub fn control_point(&self, i: usize, j: usize) -> DVec3 {
-        let p = self.points[j * self.count_u() + i];
-        self.origin + p.truncate() / p.w
+        self.origin + self.cartesian[j * self.count_u() + i]
     }
 
     /// Weight of control point (i, j).
@@ -263,9 +270,10 @@ impl BSplineSurface {
     /// kept): exact, since rational B-splines are affinely invariant.
     pub fn mapped(&self, f: impl Fn(DVec3) -> DVec3) -> Self {
         let moved = self
-            .points
+            .cartesian
             .iter()
-            .map(|h| f(self.origin + h.truncate() / h.w).extend(h.w));
+            .zip(&self.points)
+            .map(|(&c, h)| f(self.origin + c).extend(h.w));
         let mut surface = Self::from_local(
             self.knots_u.clone(),
             self.knots_v.clone(),
