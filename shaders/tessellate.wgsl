@@ -1,25 +1,33 @@
 // Grid tessellation of rational tensor-product B-spline surfaces, in f32.
 //
-// The host (src/gpu/pack.rs) splits every surface into pieces (bands of grid rows), computes
-// basis values in f64 and uploads them with the control points, which are stored relative to
-// the surface's own origin. One workgroup per tile of 64 work items; four passes, of which a
-// piece takes one or two. Pieces of degree ≤ 3 along u (the Bezier-run path):
-//   evaluate_bezier_runs — per run of vertices along a row inside one knot span along u: the
-//                          net contracted along v at the row, turned into the span's cubic
-//                          Bezier form (value, ∂v, ∂vv) by a host-computed matrix, with the
-//                          value's forward differences, which keep ∂u exact in f32 over tiny
-//                          spans; then each vertex a cubic in the span-local parameter, from
-//                          registers (no per-vertex loads: what decides speed on SIMD-on-CPU
-//                          implementations such as lavapipe, where every storage access is a
-//                          loop over the lanes).
+// The host (src/gpu/surfaces.rs) splits every surface into pieces (bands of grid rows),
+// computes basis values in f64 and uploads them with the control points: Cartesian, relative
+// to the surface's own origin, with their weights, (P − origin, w). Every row of a piece is cut
+// into runs of vertices inside one knot span along u, and each (row, run) sums its support
+// relative to a reference point: the support's control point with the largest basis value ×
+// weight at the run's middle. The homogeneous points summed are ((P − R)·w, w), so the
+// dominant point's term is exactly zero and the quotient rule (A_u − w_u·S)/w cancels only
+// what the other points contribute — without it, a heavy weight pinning the surface near its
+// point leaves S_u small while the cancelled terms stay as large as the model. Runs are long
+// (few loads per vertex) where the weights of a span's support are within
+// a factor 16, short where they are not (the reference follows the dominant point closely).
+// One workgroup per tile of 64 work items; four passes, of which a piece takes one or two.
+// Pieces of degree ≤ 3 along u (the Bezier-run path):
+//   evaluate_bezier_runs — per (run, row): the net contracted along v at the row, turned into
+//                          the span's cubic Bezier form (value, ∂v, ∂vv) by a host-computed
+//                          matrix, with the value's forward differences, which keep ∂u exact in
+//                          f32 over tiny spans; then each vertex a cubic in the span-local
+//                          parameter, from registers (no per-vertex loads: what decides speed
+//                          on SIMD-on-CPU implementations such as lavapipe, where every storage
+//                          access is a loop over the lanes).
 // Pieces of higher degree along u (the general path), from basis tables of every grid column:
-//   contract_rows        — per grid row and control column: the control net contracted along
-//                          v (value, ∂v, ∂vv; homogeneous);
-//   evaluate_vertices    — per run of vertices along a row: contraction along u of p+1 of
-//                          those.
+//   contract_rows        — per (run, row): the p+1 control columns of the run's span
+//                          contracted along v at the row (value, ∂v, ∂vv; homogeneous,
+//                          relative to the reference, which is stored with them);
+//   evaluate_vertices    — per (run, row): each vertex a contraction along u of those.
 // Both evaluations apply the quotient rule and compute the unit normal; where S_u × S_v
 // vanishes, the limit normal from second derivatives, in a second loop over the run that only
-// runs with such a vertex take. Position = origin + local point, added last. Then
+// runs with such a vertex take. Position = origin + reference + local point, added last. Then
 //   connect_cells        — per grid cell: two counter-clockwise triangles.
 // Only core WGSL and f32: it runs on WebGPU as well as native adapters.
 
@@ -40,8 +48,9 @@ struct Piece {
     // Offsets: control points (vec4 units), column and row tables (f32 units), contracted
     // scratch (vec4 units, relative to the chunk).
     points: u32, columns: u32, row_table: u32, contracted: u32,
-    // Bezier-run path: knot spans along u touched by the grid ("segments", 0 on the general
-    // path), column runs per row, and the offsets of their tables (f32 units).
+    // Knot spans along u touched by the grid on the Bezier-run path ("segments", 0 on the
+    // general path), column runs per row (both paths), and the offsets of their tables (f32
+    // units).
     segments: u32, runs: u32, segment_table: u32, run_table: u32,
 }
 
@@ -64,12 +73,13 @@ const MAX_ORDER: u32 = 21u;
 // the forward difference b_{j−3} − b_{j−4} (j ≥ 4).
 const SEGMENT_STRIDE: u32 = 30u;
 // Per run: [first grid column, column count, segment (bits each), span-local parameter of the
-// first column, local parameter step].
+// first column, local parameter step]; the general path uses the first two.
 const RUN_STRIDE: u32 = 5u;
 
 @group(0) @binding(0) var<uniform> chunk: ChunkParams;
 @group(0) @binding(1) var<storage, read> pieces: array<Piece>;
 @group(0) @binding(2) var<storage, read> tiles: array<Tile>;
+// Control points (P − origin, w).
 @group(0) @binding(3) var<storage, read> points: array<vec4<f32>>;
 // Per column (then per row) entry of a piece: [fraction, span (bits), N_0..N_p, N'_0..N'_p,
 // N''_0..N''_p]: 2 + 3(p+1) floats.
@@ -90,32 +100,70 @@ fn entry_stride(degree: u32) -> u32 {
     return 2u + 3u * (degree + 1u);
 }
 
+// The homogeneous point of control point `point` relative to `reference`: ((P − R)·w, w).
+fn rebased(point: vec4<f32>, reference: vec3<f32>) -> vec4<f32> {
+    return vec4<f32>((point.xyz - reference) * point.w, point.w);
+}
+
+// vec4 entries of contracted scratch per (run, row) of a general-path piece: the reference,
+// then value, ∂v, ∂vv of each of the span's p+1 control columns.
+fn contracted_stride(degree_u: u32) -> u32 {
+    return 1u + 3u * (degree_u + 1u);
+}
+
+// The (run, row) of a path's run-major item: neighbouring invocations (the SIMD lanes of a CPU
+// adapter) take the same run of neighbouring rows, so their loops have the same length.
+fn run_and_row(piece: Piece, item: u32) -> vec2<u32> {
+    return vec2<u32>(item / piece.rows, item % piece.rows);
+}
+
 @compute @workgroup_size(64)
 fn contract_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>,
                  @builtin(local_invocation_index) lid: u32) {
     if (wid.x + wid.y * groups.x >= chunk.tile_count) { return; }
     let work = work_item(wid, groups, lid);
     let piece = pieces[work.x];
-    let item = work.y;
-    if (item >= piece.rows * piece.count_u) { return; }
-    let row = item / piece.count_u;
-    let column = item % piece.count_u;
+    if (work.y >= piece.rows * piece.runs) { return; }
+    let at = run_and_row(piece, work.y);
+    let run = piece.run_table + at.x * RUN_STRIDE - chunk.table_origin;
+    let first = bitcast<u32>(tables[run]);
+    let count = bitcast<u32>(tables[run + 1u]);
+    let p = piece.degree_u;
     let q = piece.degree_v;
-    let entry = piece.row_table + row * entry_stride(q) - chunk.table_origin;
-    let span = bitcast<u32>(tables[entry + 1u]);
-    var value = vec4<f32>(0.0);
-    var dv = vec4<f32>(0.0);
-    var dvv = vec4<f32>(0.0);
+    let middle = piece.columns + (first + count / 2u) * entry_stride(p) - chunk.table_origin;
+    let span_u = bitcast<u32>(tables[middle + 1u]);
+    let entry = piece.row_table + at.y * entry_stride(q) - chunk.table_origin;
+    let span_v = bitcast<u32>(tables[entry + 1u]);
+    let net = piece.points - chunk.point_origin + (span_v - q) * piece.count_u + span_u - p;
+    // The reference: the largest basis value × weight at the run's middle.
+    var best = -1.0;
+    var reference = vec3<f32>(0.0);
     for (var b = 0u; b <= q; b++) {
-        let point = points[piece.points - chunk.point_origin + (span - q + b) * piece.count_u + column];
-        value += tables[entry + 2u + b] * point;
-        dv += tables[entry + 3u + q + b] * point;
-        dvv += tables[entry + 4u + 2u * q + b] * point;
+        for (var a = 0u; a <= p; a++) {
+            let point = points[net + b * piece.count_u + a];
+            let score = tables[middle + 2u + a] * tables[entry + 2u + b] * point.w;
+            if (score > best) {
+                best = score;
+                reference = point.xyz;
+            }
+        }
     }
-    let out = piece.contracted + 3u * item;
-    contracted[out] = value;
-    contracted[out + 1u] = dv;
-    contracted[out + 2u] = dvv;
+    let out = piece.contracted + work.y * contracted_stride(p);
+    contracted[out] = vec4<f32>(reference, 0.0);
+    for (var a = 0u; a <= p; a++) {
+        var value = vec4<f32>(0.0);
+        var dv = vec4<f32>(0.0);
+        var dvv = vec4<f32>(0.0);
+        for (var b = 0u; b <= q; b++) {
+            let point = rebased(points[net + b * piece.count_u + a], reference);
+            value += tables[entry + 2u + b] * point;
+            dv += tables[entry + 3u + q + b] * point;
+            dvv += tables[entry + 4u + 2u * q + b] * point;
+        }
+        contracted[out + 1u + 3u * a] = value;
+        contracted[out + 2u + 3u * a] = dv;
+        contracted[out + 3u + 3u * a] = dvv;
+    }
 }
 
 // Writes the vertex whose first vec4 is `out`.
@@ -123,11 +171,6 @@ fn store_vertex(out: u32, position: vec3<f32>, normal: vec3<f32>, uv: vec2<f32>)
     vertices[out] = vec4<f32>(position, normal.x);
     vertices[out + 1u] = vec4<f32>(normal.yz, uv);
 }
-
-// Vertices one invocation evaluates: a run along u of one grid row, sharing the row's data
-// (fewer loads per vertex: what decides speed on SIMD-on-CPU implementations such as
-// lavapipe, where every per-invocation load is a gather).
-const RUN: u32 = 8u;
 
 // A point of a rational surface: homogeneous A, A_u, A_v and, by the quotient rule, S, S_u,
 // S_v (relative to the surface origin).
@@ -141,13 +184,46 @@ fn frame_from(a: vec4<f32>, au: vec4<f32>, av: vec4<f32>) -> Frame {
     return Frame(a, au, av, s, (au.xyz - au.w * s) / a.w, (av.xyz - av.w * s) / a.w);
 }
 
-// Whether S_u × S_v is too short to give the normal (then the limit normal applies).
+// Whether S_u × S_v is short enough to be checked against its rounding (the first loops'
+// cheap test: a vertex that passes it is regular).
 fn is_degenerate(piece: Piece, normal: vec3<f32>) -> bool {
     return dot(normal, normal) <= piece.degenerate_sq;
 }
 
+// DEGENERATE_EPSILONS (geom::eval) × f32 epsilon: the rounding units of `within_rounding`.
+const ROUNDING_FACTOR: f32 = 1.1920929e-5;
+
+// (Σ_b N_b(v)·t_b, Σ_b |N′_b(v)|·t_b) down the control column whose first support point is
+// `at`, with the row's basis at table entry `entry`: t = w·(|P| + |R|) bounds the rounding
+// the term (P − R)·w carries (the data's and the sums'), zero for a point equal to the
+// reference, whose term vanishes exactly.
+fn column_rounding(at: u32, count_u: u32, q: u32, entry: u32, reference: vec3<f32>) -> vec2<f32> {
+    var sums = vec2<f32>(0.0);
+    for (var b = 0u; b <= q; b++) {
+        let point = points[at + b * count_u];
+        let size = point.w * (length(point.xyz) + length(reference));
+        let t = select(size, 0.0, all(point.xyz == reference));
+        sums += vec2<f32>(tables[entry + 2u + b], abs(tables[entry + 3u + q + b])) * t;
+    }
+    return sums;
+}
+
+// Whether S_u × S_v of `frame` is within the rounding of its terms, `rounding` = (Σ |∂N/∂u|·t,
+// Σ |∂N/∂v|·t) over the support (column_rounding): then it counts as zero and the limit
+// normal applies. A vertex the cheap test flags (a size-based threshold) can be regular: a
+// heavy weight slows the parametrisation near its point, and S_u × S_v is small there but
+// as exact as everywhere.
+fn within_rounding(frame: Frame, rounding: vec2<f32>) -> bool {
+    let s = length(frame.s);
+    let n_u = (rounding.x + abs(frame.au.w) * s) / frame.a.w;
+    let n_v = (rounding.y + abs(frame.av.w) * s) / frame.a.w;
+    let bound = ROUNDING_FACTOR * (n_u * length(frame.sv) + length(frame.su) * n_v);
+    let n = cross(frame.su, frame.sv);
+    return dot(n, n) <= bound * bound;
+}
+
 // The general path's frame at the grid column whose table entry starts at `column`, from the
-// row's contracted control columns starting at `base`.
+// contracted control columns starting at `base`.
 fn general_frame(p: u32, column: u32, base: u32) -> Frame {
     var a = vec4<f32>(0.0);
     var au = vec4<f32>(0.0);
@@ -169,47 +245,56 @@ fn evaluate_vertices(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgro
     if (wid.x + wid.y * groups.x >= chunk.tile_count) { return; }
     let work = work_item(wid, groups, lid);
     let piece = pieces[work.x];
-    let runs_per_row = (piece.grid_u + RUN - 1u) / RUN;
-    let item = work.y;
-    if (item >= piece.rows * runs_per_row) { return; }
-    let row = item / runs_per_row;
-    let first = (item % runs_per_row) * RUN;
-    let last = min(first + RUN, piece.grid_u);
+    if (work.y >= piece.rows * piece.runs) { return; }
+    let at = run_and_row(piece, work.y);
+    let run = piece.run_table + at.x * RUN_STRIDE - chunk.table_origin;
+    let first = bitcast<u32>(tables[run]);
+    let last = first + bitcast<u32>(tables[run + 1u]);
     let p = piece.degree_u;
     let stride = entry_stride(p);
-    let row_base = piece.contracted + 3u * row * piece.count_u;
+    let scratch = piece.contracted + work.y * contracted_stride(p);
+    let base = scratch + 1u;
     let origin = vec3<f32>(piece.origin_x, piece.origin_y, piece.origin_z);
-    let row_out = piece.first_vertex + row * piece.grid_u - chunk.vertex_origin;
-    let v_fraction = tables[piece.row_table + row * entry_stride(piece.degree_v) - chunk.table_origin];
+    let reference = contracted[scratch].xyz;
+    let row_out = piece.first_vertex + at.y * piece.grid_u - chunk.vertex_origin;
+    let q = piece.degree_v;
+    let entry = piece.row_table + at.y * entry_stride(q) - chunk.table_origin;
+    let v_fraction = tables[entry];
     var degenerate = false;
     for (var i = first; i < last; i++) {
         let column = piece.columns + i * stride - chunk.table_origin;
-        let span = bitcast<u32>(tables[column + 1u]);
-        let frame = general_frame(p, column, row_base + 3u * (span - p));
+        let frame = general_frame(p, column, base);
         let normal = cross(frame.su, frame.sv);
         degenerate = degenerate | is_degenerate(piece, normal);
         let uv = vec2<f32>(tables[column], v_fraction);
-        store_vertex(2u * (row_out + i), frame.s + origin, normalize(normal), uv);
+        store_vertex(2u * (row_out + i), origin + (reference + frame.s), normalize(normal), uv);
     }
     // The run's vertices at degenerate points, again, with the limit normal: a second loop
     // rather than a branch in the first, because SIMD-on-CPU adapters (lavapipe) execute a
     // branch that no lane takes but leave a loop once no lane runs it.
     let redo_last = select(first, last, degenerate);
+    let span_u = bitcast<u32>(tables[piece.columns + first * stride - chunk.table_origin + 1u]);
+    let span_v = bitcast<u32>(tables[entry + 1u]);
+    let net = piece.points - chunk.point_origin + (span_v - q) * piece.count_u + span_u - p;
     for (var i = first; i < redo_last; i++) {
         let column = piece.columns + i * stride - chunk.table_origin;
-        let span = bitcast<u32>(tables[column + 1u]);
-        let base = row_base + 3u * (span - p);
         let frame = general_frame(p, column, base);
         if (is_degenerate(piece, cross(frame.su, frame.sv))) {
+            var rounding = vec2<f32>(0.0);
+            for (var a = 0u; a <= p; a++) {
+                let sums = column_rounding(net + a, piece.count_u, q, entry, reference);
+                rounding += vec2<f32>(abs(tables[column + 3u + p + a]) * sums.x, tables[column + 2u + a] * sums.y);
+            }
+            if (!within_rounding(frame, rounding)) { continue; }
             let uv = vec2<f32>(tables[column], v_fraction);
             let normal = limit_normal(piece, column, base, frame, uv);
-            store_vertex(2u * (row_out + i), frame.s + origin, normalize(normal), uv);
+            store_vertex(2u * (row_out + i), origin + (reference + frame.s), normalize(normal), uv);
         }
     }
 }
 
 // The limit normal where S_u × S_v vanishes (see grid_common.wgsl), from the second
-// derivatives of the row's contracted control columns starting at `base`; `uv` is the grid
+// derivatives of the contracted control columns starting at `base`; `uv` is the grid
 // fraction.
 fn limit_normal(piece: Piece, column: u32, base: u32, frame: Frame, uv: vec2<f32>) -> vec3<f32> {
     let p = piece.degree_u;
@@ -249,40 +334,55 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
     let piece = pieces[work.x];
     let item = work.y;
     if (item >= piece.rows * piece.runs) { return; }
-    // Run-major: neighbouring invocations (the SIMD lanes of a CPU adapter) take the same run
-    // of neighbouring rows, so their loops have the same length even where spans differ.
-    let row = item % piece.rows;
-    let run = piece.run_table + (item / piece.rows) * RUN_STRIDE - chunk.table_origin;
+    let at = run_and_row(piece, item);
+    let row = at.y;
+    let run = piece.run_table + at.x * RUN_STRIDE - chunk.table_origin;
     let first = bitcast<u32>(tables[run]);
     let count = bitcast<u32>(tables[run + 1u]);
     let segment = piece.segment_table + bitcast<u32>(tables[run + 2u]) * SEGMENT_STRIDE - chunk.table_origin;
     let t0 = tables[run + 3u];
     let dt = tables[run + 4u];
     let inv_width = tables[segment + 1u];
+    let m0 = matrix_row(segment, 0u);
+    let m1 = matrix_row(segment, 1u);
+    let m2 = matrix_row(segment, 2u);
+    let m3 = matrix_row(segment, 3u);
     // The net contracted along v at this row (value, ∂v, ∂vv; columns: the segment's four
     // control columns, those past the degree repeating the last one, whose matrix entries
-    // are zero).
+    // are zero), relative to the reference: the largest basis value × weight at the run's
+    // middle (the B-spline basis there: the Bernstein weights through the segment's matrix).
     let q = piece.degree_v;
     let entry = piece.row_table + row * entry_stride(q) - chunk.table_origin;
     let span = bitcast<u32>(tables[entry + 1u]);
     let net = piece.points - chunk.point_origin + (span - q) * piece.count_u + bitcast<u32>(tables[segment]);
     let last = piece.degree_u;
+    let middle = bernstein3(t0 + 0.5 * f32(count - 1u) * dt);
+    let basis_u = middle.x * m0 + middle.y * m1 + middle.z * m2 + middle.w * m3;
+    var best = -1.0;
+    var reference = vec3<f32>(0.0);
+    for (var k = 0u; k <= q; k++) {
+        for (var c = 0u; c <= last; c++) {
+            let point = points[net + k * piece.count_u + c];
+            let score = basis_u[c] * tables[entry + 2u + k] * point.w;
+            if (score > best) {
+                best = score;
+                reference = point.xyz;
+            }
+        }
+    }
     var value = mat4x4<f32>();
     var value_v = mat4x4<f32>();
     var value_vv = mat4x4<f32>();
     for (var k = 0u; k <= q; k++) {
         let at = net + k * piece.count_u;
-        let p = mat4x4<f32>(points[at], points[at + min(1u, last)], points[at + min(2u, last)], points[at + last]);
+        let p = mat4x4<f32>(rebased(points[at], reference), rebased(points[at + min(1u, last)], reference),
+                            rebased(points[at + min(2u, last)], reference), rebased(points[at + last], reference));
         value += tables[entry + 2u + k] * p;
         value_v += tables[entry + 3u + q + k] * p;
         value_vv += tables[entry + 4u + 2u * q + k] * p;
     }
     // The span's cubic Bezier form: coefficients of the value, their forward differences,
     // coefficients of ∂v.
-    let m0 = matrix_row(segment, 0u);
-    let m1 = matrix_row(segment, 1u);
-    let m2 = matrix_row(segment, 2u);
-    let m3 = matrix_row(segment, 3u);
     let b = mat4x4<f32>(value * m0, value * m1, value * m2, value * m3);
     let f = mat3x4<f32>(value * matrix_row(segment, 4u), value * matrix_row(segment, 5u),
                         value * matrix_row(segment, 6u));
@@ -297,16 +397,31 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
         let normal = cross(frame.su, frame.sv);
         degenerate = degenerate | is_degenerate(piece, normal);
         let uv = vec2<f32>(f32(first + step) * u_scale, v_fraction);
-        store_vertex(2u * (row_out + first + step), frame.s + origin, normalize(normal), uv);
+        store_vertex(2u * (row_out + first + step), origin + (reference + frame.s), normalize(normal), uv);
     }
     // The run's vertices at degenerate points, again, with the limit normal (a second loop:
     // see evaluate_vertices).
     let e = mat4x4<f32>(value_vv * m0, value_vv * m1, value_vv * m2, value_vv * m3);
     let redo = select(0u, count, degenerate);
+    let m4 = matrix_row(segment, 4u);
+    let m5 = matrix_row(segment, 5u);
+    let m6 = matrix_row(segment, 6u);
     for (var step = 0u; step < redo; step++) {
         let t = t0 + f32(step) * dt;
         let frame = bezier_frame(b, f, d, inv_width, t);
         if (is_degenerate(piece, cross(frame.su, frame.sv))) {
+            // The B-spline basis of the span's columns at t and its derivative, through the
+            // segment's matrix.
+            let bt = bernstein3(t);
+            let n_u = bt.x * m0 + bt.y * m1 + bt.z * m2 + bt.w * m3;
+            let dt3 = bernstein3_derivative(t) * inv_width;
+            let dn_u = dt3.x * m4 + dt3.y * m5 + dt3.z * m6;
+            var rounding = vec2<f32>(0.0);
+            for (var c = 0u; c <= last; c++) {
+                let sums = column_rounding(net + c, piece.count_u, q, entry, reference);
+                rounding += vec2<f32>(abs(dn_u[c]) * sums.x, abs(n_u[c]) * sums.y);
+            }
+            if (!within_rounding(frame, rounding)) { continue; }
             let s1 = 1.0 - t;
             // ∂uu from the second differences, ∂uv from the differences of ∂v's coefficients.
             let auu = f * vec3<f32>(-s1, s1 - t, t) * (6.0 * inv_width * inv_width);
@@ -315,7 +430,7 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
             let avv = e * bernstein3(t);
             let uv = vec2<f32>(f32(first + step) * u_scale, v_fraction);
             let normal = limit_normal_from(piece, frame, auu, auv, avv, uv);
-            store_vertex(2u * (row_out + first + step), frame.s + origin, normalize(normal), uv);
+            store_vertex(2u * (row_out + first + step), origin + (reference + frame.s), normalize(normal), uv);
         }
     }
 }

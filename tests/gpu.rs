@@ -1463,14 +1463,15 @@ fn curve_second_derivatives_conform() {
 }
 
 /// The GPU against the exact rational oracle (tests/common/exact.rs) within its documented
-/// bounds: rational surfaces of degrees 1..=5 each way, clamped knots with random spans,
-/// weights log-uniform in [0.01, 100], placed up to 1e5 from the origin at scales 1e-3..1e3
-/// — positions within 1e-5 of the diagonal, normals within 1e-4 rad at regular points (the
-/// conformance suite's bounds and its notion of regular). Near degenerate points the f32
-/// kernels miss their documented 1e-2 rad here (2.9e-2 measured at a corner of a degree-5×4
-/// surface, where the f32 rule takes a regular point for a degenerate one and returns a
-/// limit normal): printed, not asserted, until the GPU's quotient rule is better
-/// conditioned.
+/// bounds: rational surfaces of degrees 1..=5 each way and five of higher degree (up to 20,
+/// against the f64 path),
+/// clamped knots with random spans, weights log-uniform in [1e-3, 1e3], placed up to 1e5
+/// from the origin at scales 1e-3..1e3 — positions within 1e-5 of the diagonal, normals
+/// within 1e-4 rad at regular points and 1e-2 rad near degenerate ones (the conformance
+/// suite's bounds and its notion of regular). Measured on lavapipe: 6.0e-8 of the diagonal,
+/// 1.4e-5 rad and 1.5e-5 rad over degrees ≤ 5 (2.4e-4 rad and 0.67 rad before the kernels
+/// summed relative to the dominant control point and checked flagged vertices against
+/// their rounding).
 #[test]
 fn gpu_matches_the_exact_oracle_within_its_bounds() {
     let Some(context) = gpu() else { return };
@@ -1482,10 +1483,14 @@ fn gpu_matches_the_exact_oracle_within_its_bounds() {
             .wrapping_add(1442695040888963407);
         (seed >> 11) as f64 / (1u64 << 53) as f64
     };
+    let high_degrees = [(20, 2), (2, 20), (12, 7), (9, 9), (7, 16)];
     let (grid_u, grid_v) = (5u32, 4u32);
     let mut worst = (0.0f64, 0.0f64, 0.0f64);
-    for case in 0..12 {
-        let (p, q) = (1 + case % 5, 1 + (case * 3 + 1) % 5);
+    for case in 0..40 + high_degrees.len() {
+        let (p, q) = high_degrees
+            .get(case.wrapping_sub(40))
+            .copied()
+            .unwrap_or((1 + case % 5, 1 + (case * 3 + 1) % 5));
         let (nu, nv) = (p + 2, q + 2);
         let mut knots = |degree: usize, count: usize| {
             let mut k = vec![0.0; degree + 1];
@@ -1508,7 +1513,7 @@ fn gpu_matches_the_exact_oracle_within_its_bounds() {
             })
             .collect();
         let weights: Vec<f64> = (0..nu * nv)
-            .map(|_| 10f64.powf(4.0 * next() - 2.0))
+            .map(|_| 10f64.powf(6.0 * next() - 3.0))
             .collect();
         let surface = BSplineSurface::try_new(
             KnotVector::try_new(p, knots_u.clone()).unwrap(),
@@ -1517,8 +1522,23 @@ fn gpu_matches_the_exact_oracle_within_its_bounds() {
             Some(&weights),
         )
         .unwrap();
-        let oracle =
-            common::exact::ExactSurface::new((p, q), &knots_u, &knots_v, &points, &weights);
+        // Exact rational arithmetic up to degree 5; above, the f64 path (held to the same
+        // oracle to 1e-9 rad by tests/cpu.rs) — exact evaluation at degree 20 takes minutes.
+        let oracle = (p.max(q) <= 5).then(|| {
+            common::exact::ExactSurface::new((p, q), &knots_u, &knots_v, &points, &weights)
+        });
+        let reference = |u: f64, v: f64| match &oracle {
+            Some(oracle) => oracle.evaluate(u, v),
+            None => {
+                let s = surface.evaluate(u, v);
+                common::exact::ExactSample {
+                    position: s.position,
+                    du: s.du,
+                    dv: s.dv,
+                    normal: s.normal,
+                }
+            }
+        };
         let mesh = tessellator
             .tessellate(
                 std::slice::from_ref(&surface),
@@ -1532,7 +1552,7 @@ fn gpu_matches_the_exact_oracle_within_its_bounds() {
                 let k = (j * grid_u + i) as usize;
                 let u = ru.lerp(f64::from(i) / f64::from(grid_u - 1));
                 let v = rv.lerp(f64::from(j) / f64::from(grid_v - 1));
-                let exact = oracle.evaluate(u, v);
+                let exact = reference(u, v);
                 let off = (mesh.positions[k] - exact.position).length() / diagonal;
                 assert!(
                     off <= POSITION_REL_BAR,
@@ -1548,23 +1568,21 @@ fn gpu_matches_the_exact_oracle_within_its_bounds() {
                     conformance::DEGENERATE_NORMAL_BAR
                 };
                 let turned = common::angle(mesh.normals[k], exact.normal);
-                if regular {
-                    assert!(
-                        turned <= bar,
-                        "case {case} ({u}, {v}): normal {turned:e} rad"
-                    );
-                } else {
-                    worst.2 = worst.2.max(turned);
-                }
+                assert!(
+                    turned <= bar,
+                    "case {case} (degree {p}×{q}) at ({u}, {v}): normal {turned:e} rad (bar {bar:e})"
+                );
                 if regular {
                     worst.1 = worst.1.max(turned);
+                } else {
+                    worst.2 = worst.2.max(turned);
                 }
                 worst.0 = worst.0.max(off);
             }
         }
     }
     println!(
-        "GPU vs exact oracle: positions {:e} of the diagonal, regular normals {:e} rad, near degenerate points {:e} rad (not asserted: a measured gap of the f32 kernels)",
+        "GPU vs exact oracle: positions {:e} of the diagonal, regular normals {:e} rad, near degenerate points {:e} rad",
         worst.0, worst.1, worst.2
     );
 }

@@ -786,7 +786,10 @@ impl GpuBatch {
 
     /// Replaces the control points (and weights) of surface `index` with those of `surface`,
     /// which must have the same degrees, point counts, knots and range; only that surface's
-    /// points are uploaded. Takes effect at the next dispatch.
+    /// points are uploaded. Takes effect at the next dispatch. The runs the batch planned
+    /// (short in knot spans whose weights spread by more than a factor 16) stay as they
+    /// were: a surface whose weights come to spread further keeps evaluating correctly, to
+    /// the precision of the longer runs.
     pub fn update_surface(&mut self, index: usize, surface: &BSplineSurface) -> Result<()> {
         let count = self.shapes.len();
         let old = self.shapes.get(index).ok_or(Error::IndexOutOfRange {
@@ -805,7 +808,7 @@ impl GpuBatch {
         let points = &mut self.packed.points[slot.first_point..slot.first_point + slot.point_count];
         let mut local = Vec::with_capacity(slot.point_count);
         let shift = surface.origin() - slot.origin;
-        surfaces::local_points(surface.homogeneous_points(), shift, &mut local);
+        surfaces::surface_points(surface, shift, &mut local);
         points.copy_from_slice(&local);
         self.context.queue.write_buffer(
             &self.inputs.points,

@@ -14,14 +14,24 @@ use glam::{DVec3, DVec4};
 
 /// Work items per workgroup (`TILE` in the shader).
 pub(crate) const TILE: u32 = 64;
-/// Vertices per invocation of `evaluate_vertices` (`RUN` in the shader).
-pub(crate) const RUN: u32 = 8;
 /// Bytes per output vertex: a [`crate::Vertex`] (position, normal, uv as f32).
 pub const VERTEX_BYTES: u64 = size_of::<crate::Vertex>() as u64;
-/// vec4 entries per (row, control column) of the contracted scratch: value, ∂v, ∂vv.
-const CONTRACTED_ENTRIES: u32 = 3;
 /// Most vertices per invocation of `evaluate_bezier_runs` (the runs of its table).
 const BEZIER_RUN: usize = 256;
+/// Most vertices per invocation of the general path's `contract_rows` and
+/// `evaluate_vertices`: each run contracts its span's (p+1)(q+1) control points once.
+const GENERAL_RUN: usize = 64;
+/// Vertices per run, on either path, in a knot span whose support holds weights further
+/// apart than [`SHORT_RUN_WEIGHT_RATIO`]: one, so each vertex sums relative to the control
+/// point that dominates at that vertex. (A run sums relative to the point dominating at its
+/// middle; where weights pull hard, another point dominates a few vertices away, and the
+/// quotient rule then cancels terms that point's weight ratio larger than S_u: 2e-4 rad
+/// measured at weights 1e-3..1e3 with runs of three.)
+const SHORT_RUN: usize = 1;
+/// The ratio of the largest to the smallest weight in a span's support above which its runs
+/// are [`SHORT_RUN`] long. At ratio r the f32 quotient rule loses about r·ε relative to the
+/// reference it sums around: 16·2⁻²³ ≈ 2e-6, well inside the 1e-4 rad normal bound.
+const SHORT_RUN_WEIGHT_RATIO: f64 = 16.0;
 /// f32 per segment entry (`SEGMENT_STRIDE` in the shader): first control column (bits),
 /// 1 / knot-span width, the 7 × 4 matrix (row-major) from the B-spline values to the four
 /// cubic Bezier coefficients and their three forward differences.
@@ -53,8 +63,8 @@ pub struct Piece {
     pub row_table: u32,
     pub contracted: u32,
     /// Bezier-run path (degree along u ≤ `BEZIER_DEGREE`): knot spans the grid columns
-    /// touch, column runs per row, and the offsets of their tables; `segments` = 0 on the
-    /// general path.
+    /// touch, and the offset of their table; `segments` = 0 on the general path. Both paths:
+    /// column runs per row and the offset of their table.
     pub segments: u32,
     pub runs: u32,
     pub segment_table: u32,
@@ -167,13 +177,94 @@ pub(crate) fn local_points(points: &[DVec4], shift: DVec3, out: &mut Vec<[f32; 4
     }));
 }
 
+/// A surface's control points as tessellate.wgsl reads them, (P − origin + `shift`, w):
+/// Cartesian, relative to the surface's origin moved by `shift` (the surface's origin minus
+/// the kernel's), weights scaled so the largest is 1 (the surface does not change), rounded
+/// to f32 — points that coincide stay coincident.
+pub(crate) fn surface_points(surface: &BSplineSurface, shift: DVec3, out: &mut Vec<[f32; 4]>) {
+    let weights = surface.homogeneous_points().iter().map(|h| h.w);
+    let scale = 1.0 / weights.clone().fold(0.0f64, f64::max);
+    out.extend(surface.local_points().iter().zip(weights).map(|(p, w)| {
+        let local = (*p + shift).as_vec3();
+        [local.x, local.y, local.z, (w * scale) as f32]
+    }));
+}
+
+/// The longest run each knot span of `samples` (the surface's columns) allows: `long`, or
+/// [`SHORT_RUN`] where the weights of the span's support (its p+1 control columns, every
+/// row) spread further than [`SHORT_RUN_WEIGHT_RATIO`].
+fn run_caps(surface: &BSplineSurface, samples: &AxisSamples, long: usize) -> Vec<usize> {
+    let (p, count_u) = (surface.degree_u(), surface.count_u());
+    let weights = surface.homogeneous_points();
+    samples
+        .runs()
+        .iter()
+        .map(|run| {
+            let support = weights
+                .chunks(count_u)
+                .flat_map(|row| &row[run.span - p..=run.span])
+                .map(|h| h.w);
+            let (lo, hi) = support.fold((f64::INFINITY, 0.0f64), |(lo, hi), w| {
+                (lo.min(w), hi.max(w))
+            });
+            if hi > SHORT_RUN_WEIGHT_RATIO * lo {
+                SHORT_RUN
+            } else {
+                long
+            }
+        })
+        .collect()
+}
+
+/// Writes the run table (see tessellate.wgsl) of `samples`: every knot span's samples split
+/// into runs of nearly equal length, at most `caps[k]` in span k (neighbouring runs run side
+/// by side in SIMD lanes, and a group takes as long as its longest run); with `segments`
+/// (the Bezier-run path) each run's segment and span-local parameters. Returns the run count
+/// and the table's offset in `out`.
+fn push_runs(
+    samples: &AxisSamples,
+    segments: Option<&[BezierSegment]>,
+    caps: &[usize],
+    out: &mut Vec<f32>,
+) -> (u32, u32) {
+    let run_table = out.len() as u32;
+    let params = samples.params();
+    let step = (params[params.len() - 1] - params[0]) / (params.len() - 1) as f64;
+    let mut runs = 0;
+    for (index, (span, &cap)) in samples.runs().iter().zip(caps).enumerate() {
+        let samples_in_span = span.end - span.start;
+        let parts = samples_in_span.div_ceil(cap);
+        let mut first = span.start;
+        for part in 0..parts {
+            let count = samples_in_span / parts + usize::from(part < samples_in_span % parts);
+            out.push(f32::from_bits(first as u32));
+            out.push(f32::from_bits(count as u32));
+            out.push(f32::from_bits(index as u32));
+            let (t0, dt) = segments.map_or((0.0, 0.0), |segments| {
+                let segment = &segments[index];
+                (
+                    (params[first] - segment.start) / segment.width,
+                    step / segment.width,
+                )
+            });
+            out.push(t0 as f32);
+            out.push(dt as f32);
+            runs += 1;
+            first += count;
+        }
+    }
+    debug_assert_eq!(out.len() - run_table as usize, runs as usize * RUN_STRIDE);
+    (runs, run_table)
+}
+
 /// The Bezier-run tables (see tessellate.wgsl) of a direction of degree ≤ [`BEZIER_DEGREE`]:
 /// the plan's segments (one per knot span the samples touch) rounded to f32, then runs of at
-/// most `BEZIER_RUN` consecutive samples within one segment. Returns the segment count, the
-/// run count and the offsets of both tables in `out`.
+/// most `caps[k]` consecutive samples within segment k. Returns the segment count, the run
+/// count and the offsets of both tables in `out`.
 fn push_bezier_columns(
     samples: &AxisSamples,
     segments: &[BezierSegment],
+    caps: &[usize],
     out: &mut Vec<f32>,
 ) -> (u32, u32, u32, u32) {
     let p = samples.degree();
@@ -183,32 +274,11 @@ fn push_bezier_columns(
         out.push((1.0 / segment.width) as f32);
         out.extend(segment.matrix.iter().flatten().map(|&m| m as f32));
     }
-    let run_table = out.len() as u32;
     debug_assert_eq!(
-        (run_table - segment_table) as usize,
+        out.len() - segment_table as usize,
         segments.len() * SEGMENT_STRIDE
     );
-    // A segment's samples split into runs of nearly equal length: neighbouring runs run
-    // side by side in SIMD lanes, and a group takes as long as its longest run.
-    let params = samples.params();
-    let step = (params[params.len() - 1] - params[0]) / (params.len() - 1) as f64;
-    let mut runs = 0;
-    for (index, (segment, run)) in segments.iter().zip(samples.runs()).enumerate() {
-        let samples_in_span = run.end - run.start;
-        let parts = samples_in_span.div_ceil(BEZIER_RUN);
-        let mut first = run.start;
-        for part in 0..parts {
-            let count = samples_in_span / parts + usize::from(part < samples_in_span % parts);
-            out.push(f32::from_bits(first as u32));
-            out.push(f32::from_bits(count as u32));
-            out.push(f32::from_bits(index as u32));
-            out.push(((params[first] - segment.start) / segment.width) as f32);
-            out.push((step / segment.width) as f32);
-            runs += 1;
-            first += count;
-        }
-    }
-    debug_assert_eq!(out.len() - run_table as usize, runs as usize * RUN_STRIDE);
+    let (runs, run_table) = push_runs(samples, Some(segments), caps, out);
     (segments.len() as u32, runs, segment_table, run_table)
 }
 
@@ -268,16 +338,21 @@ pub(crate) fn pack(
         let (nu, nv) = (part.grid_u, part.grid_v);
         let columns = packed.tables.len() as u32;
         let (segments, runs, segment_table, run_table) = match item.columns.bezier_segments() {
-            Some(segments) => push_bezier_columns(&item.columns, segments, &mut packed.tables),
+            Some(segments) => {
+                let caps = run_caps(surface, &item.columns, BEZIER_RUN);
+                push_bezier_columns(&item.columns, segments, &caps, &mut packed.tables)
+            }
             None => {
                 push_table(&item.columns, &mut packed.tables);
-                (0, 0, 0, 0)
+                let caps = run_caps(surface, &item.columns, GENERAL_RUN);
+                let (runs, run_table) = push_runs(&item.columns, None, &caps, &mut packed.tables);
+                (0, runs, 0, run_table)
             }
         };
         let row_bytes = [
             u64::from(nu) * VERTEX_BYTES,
             u64::from(nu - 1) * 24,
-            u64::from(scratch_per_row(segments, surface.count_u() as u32)) * 16,
+            u64::from(scratch_per_row(segments, runs, surface.degree_u() as u32)) * 16,
         ];
         let widest = row_bytes.into_iter().max().unwrap_or(1);
         if widest > budget {
@@ -286,11 +361,7 @@ pub(crate) fn pack(
         let rows_per_piece = (budget / widest).min(u64::from(nv)) as u32;
         let origin = surface.origin();
         let first_point = packed.points.len();
-        local_points(
-            surface.homogeneous_points(),
-            DVec3::ZERO,
-            &mut packed.points,
-        );
+        surface_points(surface, DVec3::ZERO, &mut packed.points);
         let point_bytes = (packed.points.len() - first_point) as u64 * 16;
         if point_bytes > budget {
             return Err(too_large(
@@ -353,29 +424,27 @@ pub(crate) fn pack(
     Ok(packed)
 }
 
-/// Work items of `piece` in each pass: on the general path (row, control column) pairs and
-/// runs of `RUN` vertices along a row; on the Bezier-run path (run, row) pairs; then cells.
+/// Work items of `piece` in each pass: (run, row) pairs, on the general path twice (contract,
+/// evaluate), on the Bezier-run path once; then cells.
 fn pass_items(piece: &Piece) -> [u32; PASSES] {
     let cells = piece.cell_rows * (piece.grid_u - 1);
+    let runs = piece.rows * piece.runs;
     if piece.segments > 0 {
-        [0, 0, piece.rows * piece.runs, cells]
+        [0, 0, runs, cells]
     } else {
-        [
-            piece.rows * piece.count_u,
-            piece.rows * piece.grid_u.div_ceil(RUN),
-            0,
-            cells,
-        ]
+        [runs, runs, 0, cells]
     }
 }
 
 /// vec4 entries of scratch per grid row of a surface with `segments` Bezier segments along u
-/// (0 on the general path) and `count_u` control columns: the Bezier-run path needs none.
-fn scratch_per_row(segments: u32, count_u: u32) -> u32 {
+/// (0 on the general path), `runs` column runs per row and degree `degree_u` along u: the
+/// Bezier-run path needs none; the general path a reference and value, ∂v, ∂vv of p+1
+/// control columns per run (`contracted_stride` in the shader).
+fn scratch_per_row(segments: u32, runs: u32, degree_u: u32) -> u32 {
     if segments > 0 {
         0
     } else {
-        count_u * CONTRACTED_ENTRIES
+        runs * (1 + 3 * (degree_u + 1))
     }
 }
 
@@ -397,8 +466,8 @@ fn plan_chunks(packed: &mut Packed, limits: &Limits, budget: u64) {
     let mut tiles_before = vec![0u64];
     let mut contracted_before = vec![0u64];
     for piece in &packed.pieces {
-        let scratch =
-            u64::from(piece.rows) * u64::from(scratch_per_row(piece.segments, piece.count_u));
+        let scratch = u64::from(piece.rows)
+            * u64::from(scratch_per_row(piece.segments, piece.runs, piece.degree_u));
         tiles_before.push(tiles_before[tiles_before.len() - 1] + tiles_of(piece));
         contracted_before.push(contracted_before[contracted_before.len() - 1] + scratch);
     }
@@ -508,8 +577,9 @@ mod tests {
                 let samples = AxisSamples::uniform(&knots, range, 601);
                 let plan_segments = samples.bezier_segments().unwrap();
                 let mut out = Vec::new();
+                let caps = vec![BEZIER_RUN; plan_segments.len()];
                 let (segments, runs, segment_table, run_table) =
-                    push_bezier_columns(&samples, plan_segments, &mut out);
+                    push_bezier_columns(&samples, plan_segments, &caps, &mut out);
                 assert_eq!(segments as usize, plan_segments.len());
                 let bits = |x: f32| x.to_bits() as usize;
                 let mut next = 0;
@@ -544,6 +614,26 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The kernel's rounding units (`ROUNDING_FACTOR` in tessellate.wgsl) are the degeneracy
+    /// rule's: [`crate::geom::DEGENERATE_EPSILONS`] machine epsilons of f32.
+    #[test]
+    fn kernel_rounding_factor_is_the_rules() {
+        let source = include_str!("../../shaders/tessellate.wgsl");
+        let line = source
+            .lines()
+            .find(|l| l.starts_with("const ROUNDING_FACTOR"))
+            .unwrap();
+        let value: f32 = line
+            .split(['=', ';'])
+            .nth(1)
+            .unwrap()
+            .trim()
+            .parse()
+            .unwrap();
+        let rule = crate::geom::DEGENERATE_EPSILONS * f64::from(f32::EPSILON);
+        assert_eq!(value, rule as f32);
     }
 
     /// With WebGPU's usual 256-byte offset alignment and a binding limit small enough to make
