@@ -4,13 +4,14 @@
 // computes basis values in f64 and uploads them with the control points: Cartesian, relative
 // to the surface's own origin, with their weights, (P − origin, w). Every row of a piece is cut
 // into runs of vertices inside one knot span along u, and each (row, run) sums its support
-// relative to a reference point: the support's control point with the largest basis value ×
-// weight at the run's middle. The homogeneous points summed are ((P − R)·w, w), so the
-// dominant point's term is exactly zero and the quotient rule (A_u − w_u·S)/w cancels only
-// what the other points contribute — without it, a heavy weight pinning the surface near its
-// point leaves S_u small while the cancelled terms stay as large as the model. Runs are long
-// (few loads per vertex) where the weights of a span's support are within
-// a factor 16, short where they are not (the reference follows the dominant point closely).
+// relative to a reference control point R: the homogeneous points summed are ((P − R)·w, w).
+// Where the weights of a span's support spread by more than a factor 16, runs are single
+// vertices and R is the point with the largest basis value × weight there: its term is
+// exactly zero, and the quotient rule (A_u − w_u·S)/w cancels only what the other points
+// contribute — without it, a heavy weight pinning the surface near its point leaves S_u small
+// while the cancelled terms stay as large as the model. Elsewhere runs are long (few loads
+// per vertex) and R is the support's first point, which bounds that cancellation by the
+// weights' ratio.
 // One workgroup per tile of 64 work items; four passes, of which a piece takes one or two.
 // Pieces of degree ≤ 3 along u (the Bezier-run path):
 //   evaluate_bezier_runs — per (run, row): the net contracted along v at the row, turned into
@@ -130,18 +131,19 @@ fn contract_rows(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups)
     let count = bitcast<u32>(tables[run + 1u]);
     let p = piece.degree_u;
     let q = piece.degree_v;
-    let middle = piece.columns + (first + count / 2u) * entry_stride(p) - chunk.table_origin;
-    let span_u = bitcast<u32>(tables[middle + 1u]);
+    let column = piece.columns + first * entry_stride(p) - chunk.table_origin;
+    let span_u = bitcast<u32>(tables[column + 1u]);
     let entry = piece.row_table + at.y * entry_stride(q) - chunk.table_origin;
     let span_v = bitcast<u32>(tables[entry + 1u]);
     let net = piece.points - chunk.point_origin + (span_v - q) * piece.count_u + span_u - p;
-    // The reference: the largest basis value × weight at the run's middle.
+    // The reference: for a single vertex (a run where the weights pull hard) its dominant
+    // point, the largest basis value × weight there; else the support's first control point.
     var best = -1.0;
-    var reference = vec3<f32>(0.0);
-    for (var b = 0u; b <= q; b++) {
-        for (var a = 0u; a <= p; a++) {
+    var reference = points[net].xyz;
+    for (var b = 0u; b <= select(0u, q, count == 1u); b++) {
+        for (var a = 0u; a <= select(0u, p, count == 1u); a++) {
             let point = points[net + b * piece.count_u + a];
-            let score = tables[middle + 2u + a] * tables[entry + 2u + b] * point.w;
+            let score = tables[column + 2u + a] * tables[entry + 2u + b] * point.w;
             if (score > best) {
                 best = score;
                 reference = point.xyz;
@@ -347,42 +349,44 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
     let m1 = matrix_row(segment, 1u);
     let m2 = matrix_row(segment, 2u);
     let m3 = matrix_row(segment, 3u);
-    // The net contracted along v at this row (value, ∂v, ∂vv; columns: the segment's four
+    // The net contracted along v at this row (value and ∂v; columns: the segment's four
     // control columns, those past the degree repeating the last one, whose matrix entries
-    // are zero), relative to the reference: the largest basis value × weight at the run's
-    // middle (the B-spline basis there: the Bernstein weights through the segment's matrix).
+    // are zero), relative to the reference: the support's first point, or for a single
+    // vertex its dominant point (the B-spline basis there: the Bernstein weights through the
+    // segment's matrix).
     let q = piece.degree_v;
     let entry = piece.row_table + row * entry_stride(q) - chunk.table_origin;
     let span = bitcast<u32>(tables[entry + 1u]);
     let net = piece.points - chunk.point_origin + (span - q) * piece.count_u + bitcast<u32>(tables[segment]);
     let last = piece.degree_u;
-    let middle = bernstein3(t0 + 0.5 * f32(count - 1u) * dt);
-    let basis_u = middle.x * m0 + middle.y * m1 + middle.z * m2 + middle.w * m3;
-    var best = -1.0;
-    var reference = vec3<f32>(0.0);
-    for (var k = 0u; k <= q; k++) {
-        for (var c = 0u; c <= last; c++) {
-            let point = points[net + k * piece.count_u + c];
-            let score = basis_u[c] * tables[entry + 2u + k] * point.w;
-            if (score > best) {
-                best = score;
-                reference = point.xyz;
+    var reference = points[net].xyz;
+    // A single vertex (a run where the weights pull hard): its dominant point (the loop runs
+    // once or not at all: see evaluate_vertices).
+    for (var once = 0u; once < select(0u, 1u, count == 1u); once++) {
+        let at_t0 = bernstein3(t0);
+        let basis_u = at_t0.x * m0 + at_t0.y * m1 + at_t0.z * m2 + at_t0.w * m3;
+        var best = -1.0;
+        for (var k = 0u; k <= q; k++) {
+            for (var c = 0u; c <= last; c++) {
+                let point = points[net + k * piece.count_u + c];
+                let score = basis_u[c] * tables[entry + 2u + k] * point.w;
+                if (score > best) {
+                    best = score;
+                    reference = point.xyz;
+                }
             }
         }
     }
     var value = mat4x4<f32>();
     var value_v = mat4x4<f32>();
-    var value_vv = mat4x4<f32>();
     for (var k = 0u; k <= q; k++) {
-        let at = net + k * piece.count_u;
-        let p = mat4x4<f32>(rebased(points[at], reference), rebased(points[at + min(1u, last)], reference),
-                            rebased(points[at + min(2u, last)], reference), rebased(points[at + last], reference));
+        let p = support_row(net + k * piece.count_u, last, reference);
         value += tables[entry + 2u + k] * p;
         value_v += tables[entry + 3u + q + k] * p;
-        value_vv += tables[entry + 4u + 2u * q + k] * p;
     }
     // The span's cubic Bezier form: coefficients of the value, their forward differences,
-    // coefficients of ∂v.
+    // coefficients of ∂v. (What only the limit normals need is formed again in their loop:
+    // kept alive through the first loop it would cost the registers that loop runs in.)
     let b = mat4x4<f32>(value * m0, value * m1, value * m2, value * m3);
     let f = mat3x4<f32>(value * matrix_row(segment, 4u), value * matrix_row(segment, 5u),
                         value * matrix_row(segment, 6u));
@@ -401,38 +405,58 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
     }
     // The run's vertices at degenerate points, again, with the limit normal (a second loop:
     // see evaluate_vertices).
-    let e = mat4x4<f32>(value_vv * m0, value_vv * m1, value_vv * m2, value_vv * m3);
-    let redo = select(0u, count, degenerate);
-    let m4 = matrix_row(segment, 4u);
-    let m5 = matrix_row(segment, 5u);
-    let m6 = matrix_row(segment, 6u);
-    for (var step = 0u; step < redo; step++) {
-        let t = t0 + f32(step) * dt;
-        let frame = bezier_frame(b, f, d, inv_width, t);
-        if (is_degenerate(piece, cross(frame.su, frame.sv))) {
-            // The B-spline basis of the span's columns at t and its derivative, through the
-            // segment's matrix.
-            let bt = bernstein3(t);
-            let n_u = bt.x * m0 + bt.y * m1 + bt.z * m2 + bt.w * m3;
-            let dt3 = bernstein3_derivative(t) * inv_width;
-            let dn_u = dt3.x * m4 + dt3.y * m5 + dt3.z * m6;
-            var rounding = vec2<f32>(0.0);
-            for (var c = 0u; c <= last; c++) {
-                let sums = column_rounding(net + c, piece.count_u, q, entry, reference);
-                rounding += vec2<f32>(abs(dn_u[c]) * sums.x, abs(n_u[c]) * sums.y);
+    // The run's flagged vertices, again (a loop that runs once or not at all, not a branch:
+    // see evaluate_vertices): first what the rounding check and the limit normals need —
+    // the segment's matrix, the Bezier coefficients of ∂vv, the rounding sums of each
+    // control column.
+    for (var once = 0u; once < select(0u, 1u, degenerate); once++) {
+        var matrix: array<vec4<f32>, 7>;
+        var column_sums: array<vec2<f32>, 4>;
+        for (var j = 0u; j < 7u; j++) {
+            matrix[j] = matrix_row(segment, j);
+        }
+        var value_vv = mat4x4<f32>();
+        for (var k = 0u; k <= q; k++) {
+            value_vv += tables[entry + 4u + 2u * q + k] * support_row(net + k * piece.count_u, last, reference);
+        }
+        let e = mat4x4<f32>(value_vv * matrix[0], value_vv * matrix[1], value_vv * matrix[2], value_vv * matrix[3]);
+        for (var c = 0u; c <= last; c++) {
+            column_sums[c] = column_rounding(net + c, piece.count_u, q, entry, reference);
+        }
+        for (var step = 0u; step < count; step++) {
+            let t = t0 + f32(step) * dt;
+            let frame = bezier_frame(b, f, d, inv_width, t);
+            if (is_degenerate(piece, cross(frame.su, frame.sv))) {
+                // The B-spline basis of the span's columns at t and its derivative, through the
+                // segment's matrix.
+                let bt = bernstein3(t);
+                let n_u = bt.x * matrix[0] + bt.y * matrix[1] + bt.z * matrix[2] + bt.w * matrix[3];
+                let dt3 = bernstein3_derivative(t) * inv_width;
+                let dn_u = dt3.x * matrix[4] + dt3.y * matrix[5] + dt3.z * matrix[6];
+                var rounding = vec2<f32>(0.0);
+                for (var c = 0u; c <= last; c++) {
+                    rounding += vec2<f32>(abs(dn_u[c]), abs(n_u[c])) * column_sums[c];
+                }
+                if (!within_rounding(frame, rounding)) { continue; }
+                let s1 = 1.0 - t;
+                // ∂uu from the second differences, ∂uv from the differences of ∂v's coefficients.
+                let auu = f * vec3<f32>(-s1, s1 - t, t) * (6.0 * inv_width * inv_width);
+                let wt = bernstein3_derivative(t);
+                let auv = d * vec4<f32>(-wt.x, wt.x - wt.y, wt.y - wt.z, wt.z) * inv_width;
+                let avv = e * bt;
+                let uv = vec2<f32>(f32(first + step) * u_scale, v_fraction);
+                let normal = limit_normal_from(piece, frame, auu, auv, avv, uv);
+                store_vertex(2u * (row_out + first + step), origin + (reference + frame.s), normalize(normal), uv);
             }
-            if (!within_rounding(frame, rounding)) { continue; }
-            let s1 = 1.0 - t;
-            // ∂uu from the second differences, ∂uv from the differences of ∂v's coefficients.
-            let auu = f * vec3<f32>(-s1, s1 - t, t) * (6.0 * inv_width * inv_width);
-            let wt = bernstein3_derivative(t);
-            let auv = d * vec4<f32>(-wt.x, wt.x - wt.y, wt.y - wt.z, wt.z) * inv_width;
-            let avv = e * bernstein3(t);
-            let uv = vec2<f32>(f32(first + step) * u_scale, v_fraction);
-            let normal = limit_normal_from(piece, frame, auu, auv, avv, uv);
-            store_vertex(2u * (row_out + first + step), origin + (reference + frame.s), normalize(normal), uv);
         }
     }
+}
+
+// The four support points of a control row starting at `at` (those past the degree `last`
+// repeating the last one, whose matrix entries are zero), rebased to `reference`.
+fn support_row(at: u32, last: u32, reference: vec3<f32>) -> mat4x4<f32> {
+    return mat4x4<f32>(rebased(points[at], reference), rebased(points[at + min(1u, last)], reference),
+                       rebased(points[at + min(2u, last)], reference), rebased(points[at + last], reference));
 }
 
 // Row `j` of the 7 × 4 matrix of the segment entry at `segment`.

@@ -20,17 +20,17 @@ pub const VERTEX_BYTES: u64 = size_of::<crate::Vertex>() as u64;
 const BEZIER_RUN: usize = 256;
 /// Most vertices per invocation of the general path's `contract_rows` and
 /// `evaluate_vertices`: each run contracts its span's (p+1)(q+1) control points once.
-const GENERAL_RUN: usize = 64;
+const GENERAL_RUN: usize = 256;
 /// Vertices per run, on either path, in a knot span whose support holds weights further
 /// apart than [`SHORT_RUN_WEIGHT_RATIO`]: one, so each vertex sums relative to the control
-/// point that dominates at that vertex. (A run sums relative to the point dominating at its
-/// middle; where weights pull hard, another point dominates a few vertices away, and the
-/// quotient rule then cancels terms that point's weight ratio larger than S_u: 2e-4 rad
-/// measured at weights 1e-3..1e3 with runs of three.)
+/// point that dominates at that vertex. (Relative to the point dominating at a run's middle,
+/// another point dominates a few vertices away where weights pull hard, and the quotient
+/// rule then cancels terms that point's weight ratio larger than S_u: 2e-4 rad measured at
+/// weights 1e-3..1e3 with runs of three.)
 const SHORT_RUN: usize = 1;
 /// The ratio of the largest to the smallest weight in a span's support above which its runs
-/// are [`SHORT_RUN`] long. At ratio r the f32 quotient rule loses about r·ε relative to the
-/// reference it sums around: 16·2⁻²³ ≈ 2e-6, well inside the 1e-4 rad normal bound.
+/// are [`SHORT_RUN`] long. Below it runs sum relative to their support's first point, and
+/// the f32 quotient rule loses about r·ε: 16·2⁻²³ ≈ 2e-6, well inside the 1e-4 rad bound.
 const SHORT_RUN_WEIGHT_RATIO: f64 = 16.0;
 /// f32 per segment entry (`SEGMENT_STRIDE` in the shader): first control column (bits),
 /// 1 / knot-span width, the 7 × 4 matrix (row-major) from the B-spline values to the four
