@@ -317,15 +317,26 @@ fn limit_normal(piece: Piece, column: u32, base: u32, frame: Frame, uv: vec2<f32
 // The limit normal from the homogeneous second derivatives; `uv` is the grid fraction.
 fn limit_normal_from(piece: Piece, frame: Frame, auu: vec4<f32>, auv: vec4<f32>, avv: vec4<f32>,
                      uv: vec2<f32>) -> vec3<f32> {
-    let w = frame.a.w;
+    // The first-order term of grid_common.wgsl's first_order_limit_normal, times w, formed
+    // from the homogeneous derivatives with the quotient rule's terms along S_u in S_uv and
+    // along S_v dropped where they would cross themselves (exactly zero), instead of
+    // cancelling in rounding — as geom::eval's first_order_term does in f64.
     let s = frame.s;
     let su = frame.su;
     let sv = frame.sv;
-    let suu = (auu.xyz - 2.0 * frame.au.w * su - auu.w * s) / w;
-    let suv = (auv.xyz - frame.au.w * sv - frame.av.w * su - auv.w * s) / w;
-    let svv = (avv.xyz - 2.0 * frame.av.w * sv - avv.w * s) / w;
-    return first_order_limit_normal(su, sv, suu, suv, svv, vec2<f32>(piece.width_u, piece.width_v),
-                                    uv, piece.degenerate_sq);
+    let n = cross(su, sv);
+    let step_u = select(piece.width_u, -piece.width_u, uv.x > 0.5);
+    let step_v = select(piece.width_v, -piece.width_v, uv.y > 0.5);
+    let along_u = cross(auu.xyz, sv) - 3.0 * frame.au.w * n - auu.w * cross(s, sv)
+        + cross(su, auv.xyz) - auv.w * cross(su, s);
+    let along_v = cross(auv.xyz, sv) - 3.0 * frame.av.w * n - auv.w * cross(s, sv)
+        + cross(su, avv.xyz) - avv.w * cross(su, s);
+    let first = step_u * along_u + step_v * along_v;
+    let w = frame.a.w;
+    if (dot(first, first) <= piece.degenerate_sq * w * w) {
+        return vec3<f32>(0.0, 0.0, 1.0);
+    }
+    return first;
 }
 
 @compute @workgroup_size(64)

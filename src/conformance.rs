@@ -311,7 +311,9 @@ fn surface(
 
 /// The conformance suite: degrees 1..=20 in both directions, rational and not, clamped,
 /// unclamped and periodic knots, repeated interior knots, tiny spans, sub-ranges, large
-/// offsets and scales, weights from 0.01 to 100, collapsed edges and poles.
+/// offsets and scales, weights from 0.01 to 100, collapsed edges and poles; then the
+/// degeneracy cross product (placements to 1e7 × scales 1e-3..1e4 × poles, collapsed
+/// edges, corners, creases, tiny spans × weights to 1e-3..1e3 × low and high degree).
 pub fn suite() -> Vec<Case> {
     // Non-square grids, so that a u/v swap anywhere cannot pass.
     let grid = |n: u32| TessOptions::DEFAULT.with_grid(n, n * 3 / 4 + 1);
@@ -477,7 +479,117 @@ pub fn suite() -> Vec<Case> {
         surfaces: classic_forms(),
         options: grid(21),
     });
+    cases.extend(cross_product_cases(grid(11)));
     cases
+}
+
+/// The degeneracy cross product, one case per placement and scale: {near, 1e5 and 1e7 from
+/// the origin} × {scale 1e-3, 1, 1e4}, each with every feature {pole, collapsed edge, corner
+/// where a collapsed edge meets a crease, crease, 1e-6 span} × {polynomial, rational with
+/// weights 1e-3..1e3} × {degree ≤ 3, > 3}: 20 surfaces per case, 180 in all.
+fn cross_product_cases(options: TessOptions) -> Vec<Case> {
+    let placements = [
+        ("near the origin", DVec3::ZERO),
+        ("1e5 from the origin", DVec3::new(1e5, -7e4, 3e4)),
+        ("1e7 from the origin", DVec3::new(1e7, -4e6, 2e6)),
+    ];
+    let mut cases = Vec::new();
+    for (where_, offset) in placements {
+        for scale in [1e-3, 1.0, 1e4] {
+            let mut surfaces = Vec::new();
+            for feature in Feature::ALL {
+                for (p, q) in [(2, 3), (5, 4)] {
+                    let (knots_u, knots_v, net) = feature.net(p, q);
+                    let points: Vec<DVec3> = net.iter().map(|&x| x * scale + offset).collect();
+                    for weights in [None, Some(spread_weights(points.len(), 1e-3, 1e3))] {
+                        surfaces.push(surface(
+                            knots_u.clone(),
+                            knots_v.clone(),
+                            &points,
+                            weights.as_deref(),
+                        ));
+                    }
+                }
+            }
+            cases.push(Case {
+                name: format!(
+                    "cross product {where_}, scale {scale:e}: pole, collapsed edge, corner, crease, tiny span × polynomial, weights 1e-3..1e3 × degrees 2×3, 5×4"
+                ),
+                surfaces,
+                options,
+            });
+        }
+    }
+    cases
+}
+
+/// The degenerate and non-smooth features of the cross product.
+#[derive(Clone, Copy)]
+enum Feature {
+    /// A dome whose v = 0 row collapses to its apex: the limit normal is the same all
+    /// along it.
+    Pole,
+    /// A wavy net whose v = 0 row collapses to one point: the limit normal turns along it.
+    CollapsedEdge,
+    /// A collapsed v = 0 row meeting a C⁰ crease along u (an interior knot of multiplicity
+    /// p, the net kinked there).
+    Corner,
+    /// The C⁰ crease alone.
+    Crease,
+    /// Two interior knots 1e-6 apart along u.
+    TinySpan,
+}
+
+impl Feature {
+    const ALL: [Feature; 5] = [
+        Feature::Pole,
+        Feature::CollapsedEdge,
+        Feature::Corner,
+        Feature::Crease,
+        Feature::TinySpan,
+    ];
+
+    /// Knots along u and v and a unit-sized net (u fastest) of degrees (p, q).
+    fn net(self, p: usize, q: usize) -> (KnotVector, KnotVector, Vec<DVec3>) {
+        let clamped = |interior: &[f64]| {
+            let mut knots = vec![0.0; p + 1];
+            knots.extend_from_slice(interior);
+            knots.extend(std::iter::repeat_n(1.0, p + 1));
+            KnotVector::try_new(p, knots).expect("valid knots")
+        };
+        let knots_u = match self {
+            Feature::Pole | Feature::CollapsedEdge => clamped(&[0.5]),
+            Feature::Corner | Feature::Crease => clamped(&vec![0.5; p]),
+            Feature::TinySpan => clamped(&[0.5, 0.5 + 1e-6]),
+        };
+        let nv = q + 3;
+        let knots_v = KnotVector::clamped_uniform(q, nv).expect("valid knots");
+        let nu = knots_u.control_count();
+        let mut net = wavy_net(nu, nv, 1.0);
+        match self {
+            Feature::Pole => {
+                for (k, point) in net.iter_mut().enumerate() {
+                    let (i, j) = (k % nu, k / nu);
+                    let angle = PI * i as f64 / (nu - 1) as f64;
+                    let r = j as f64 / (nv - 1) as f64;
+                    *point = DVec3::new(r * angle.cos(), r * angle.sin(), 0.5 * (1.0 - r * r));
+                }
+            }
+            Feature::CollapsedEdge | Feature::Corner => {
+                for point in &mut net[..nu] {
+                    *point = DVec3::new(0.5, -0.1, 0.2);
+                }
+            }
+            Feature::Crease | Feature::TinySpan => {}
+        }
+        if matches!(self, Feature::Corner | Feature::Crease) {
+            // The column at the crease rises: the two sides meet at an angle.
+            for j in usize::from(matches!(self, Feature::Corner))..nv {
+                net[j * nu + p].z += 0.4;
+            }
+        }
+        (knots_u, knots_v, net)
+    }
 }
 
 /// One surface of each classic form whose conversion raises degrees or weights: a cubic-blend

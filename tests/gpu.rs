@@ -154,12 +154,15 @@ fn conformance_suite_passes_on_this_adapter() {
 /// figures measured there (positions ≤ 9.2e-8 of the diagonal, regular normals ≤ 3.3e-5 rad,
 /// normals at degenerate points ≤ 6.8e-7 rad) — tight enough that a 1e-5 scaling of the
 /// positions or a 5 mrad tilt of the limit normals fails, where the documented bounds
-/// (1e-5, 1e-4 and 1e-2 rad) are the promise to other drivers.
+/// (1e-5, 1e-4 and 1e-2 rad) are the promise to other drivers. The degeneracy cross
+/// product's limit normals (corners of collapsed edges with weights 1e-3..1e3, measured up
+/// to 1.4e-3 rad) are held to the documented 1e-2.
 #[test]
 fn conformance_holds_to_the_measured_figures_on_mesa() {
     const POSITION: f64 = 1e-6;
     const NORMAL: f64 = 3e-4;
     const DEGENERATE_NORMAL: f64 = 1e-5;
+    const CROSS_PRODUCT_DEGENERATE_NORMAL: f64 = conformance::DEGENERATE_NORMAL_BAR;
     let Some(context) = gpu() else { return };
     if !context.adapter_summary().contains("llvmpipe") {
         return;
@@ -167,10 +170,15 @@ fn conformance_holds_to_the_measured_figures_on_mesa() {
     for case in conformance::suite() {
         let options = vec![case.options; case.surfaces.len()];
         let r = conformance::compare_executors(context, &case.surfaces, &options).unwrap();
+        let degenerate_bar = if case.name.starts_with("cross product") {
+            CROSS_PRODUCT_DEGENERATE_NORMAL
+        } else {
+            DEGENERATE_NORMAL
+        };
         assert!(
             r.worst_position <= POSITION
                 && r.worst_normal <= NORMAL
-                && r.worst_degenerate_normal <= DEGENERATE_NORMAL,
+                && r.worst_degenerate_normal <= degenerate_bar,
             "{}: position {:e}, normal {:e}, degenerate {:e}",
             case.name,
             r.worst_position,
