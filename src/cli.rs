@@ -105,7 +105,13 @@ pub enum Command {
     /// List the GPU adapters and the limits that matter to knotwork.
     Info,
     /// Run the GPU-vs-CPU conformance suite on this machine's adapter.
-    Conformance,
+    Conformance {
+        /// Instead, write the suite's kernel inputs and f64 expectations to this directory,
+        /// to run the kernels on another WebGPU implementation (tests/webgpu runs them in
+        /// Chromium's); needs no adapter.
+        #[arg(long, value_name = "DIR")]
+        export: Option<PathBuf>,
+    },
 }
 
 /// The `--backend` values.

@@ -2,18 +2,19 @@
 //! the evaluators, and the comparison of a mesh or polylines from any backend against the f64
 //! reference, with the bars the GPU path promises.
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{
     BSplineCurve, BSplineSurface, Interval, KnotVector, bezier_curve, bezier_surface, curves,
     shapes,
 };
-use crate::gpu::{GpuBatch, GpuContext};
+use crate::gpu::{GpuBatch, GpuContext, KernelInputs};
 use crate::mesh::{Mesh, Polyline, TessOptions};
 use crate::plan::SurfacePlan;
 use crate::{CpuTessellator, Tessellator};
 use glam::{DVec2, DVec3};
 use std::f64::consts::{FRAC_PI_2, PI};
+use std::path::Path;
 
 /// Position bar, relative to the surface's bounding-box diagonal.
 pub const POSITION_REL_BAR: f64 = 1e-5;
@@ -204,6 +205,100 @@ fn compare_with_reference(
         }
     }
     report
+}
+
+/// Writes the surface suite's kernel inputs and f64 expectations to `dir`, for running
+/// tessellate.wgsl on another WebGPU implementation (tests/webgpu runs it in Chromium's):
+/// `tessellate.wgsl` (the kernels as the crate compiles them), `manifest.json` (entry
+/// points, bars, and per case its name, counts, chunk bindings and file names), and per case
+/// the binary inputs (`pieces`, `tiles`, `points`, `tables`, `uniforms`) and expectations:
+/// `expected` holds per vertex 10 little-endian f64 — position relative to its surface's
+/// origin (3), unit normal (3), uv (2), 1 if regular else 0, the surface's diagonal — and
+/// `indices` the f64 path's triangles (u32). Returns the number of cases.
+pub fn export_suite(dir: &Path) -> Result<usize> {
+    let io = |path: &Path, source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
+    let write = |name: &str, bytes: &[u8]| {
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).map_err(|e| io(&path, e))
+    };
+    write("tessellate.wgsl", crate::gpu::TESSELLATE_WGSL.as_bytes())?;
+    let mut cases_json = Vec::new();
+    let cases = suite();
+    for (index, case) in cases.iter().enumerate() {
+        let options = vec![case.options; case.surfaces.len()];
+        let plan = SurfacePlan::new(&case.surfaces, &options)?;
+        let inputs = KernelInputs::new(&plan, &case.surfaces)?;
+        let mut reference = Mesh::default();
+        crate::cpu::execute_surfaces(&plan, &case.surfaces, &mut reference)?;
+        let mut expected = Vec::with_capacity(reference.vertex_count() * 80);
+        for (part, item) in reference.parts.iter().zip(0..) {
+            let surface: &BSplineSurface = &case.surfaces[item];
+            let origin = inputs.origins[item];
+            let first = part.first_vertex as usize;
+            for k in first..first + part.vertex_count as usize {
+                let uv = reference.uvs[k];
+                let sample =
+                    surface.evaluate(surface.range_u().lerp(uv.x), surface.range_v().lerp(uv.y));
+                let regular =
+                    sample.du.cross(sample.dv).length() >= REGULAR_REL * surface.cross_scale();
+                let values = (reference.positions[k] - origin)
+                    .to_array()
+                    .into_iter()
+                    .chain(reference.normals[k].to_array())
+                    .chain(uv.to_array())
+                    .chain([f64::from(u8::from(regular)), surface.control_box_diagonal()]);
+                for value in values {
+                    expected.extend_from_slice(&value.to_le_bytes());
+                }
+            }
+        }
+        let file = |what: &str| format!("case{index}.{what}");
+        write(&file("pieces"), &inputs.pieces)?;
+        write(&file("tiles"), &inputs.tiles)?;
+        write(&file("points"), &inputs.points)?;
+        write(&file("tables"), &inputs.tables)?;
+        write(&file("uniforms"), &inputs.uniforms)?;
+        write(&file("expected"), &expected)?;
+        write(&file("indices"), bytemuck::cast_slice(&reference.indices))?;
+        let chunks: Vec<String> = inputs
+            .chunks
+            .iter()
+            .map(|chunk| {
+                format!(
+                    "{{\"passes\": {:?}, \"bindings\": {:?}}}",
+                    chunk.passes.map(|(first, count)| [first, count]),
+                    chunk.bindings.map(|(offset, size)| [offset, size])
+                )
+            })
+            .collect();
+        cases_json.push(format!(
+            "{{\"name\": {:?}, \"prefix\": {:?}, \"vertices\": {}, \"indices\": {}, \"scratch_bytes\": {}, \"chunks\": [{}]}}",
+            case.name,
+            format!("case{index}"),
+            inputs.vertex_count,
+            inputs.index_count,
+            inputs.scratch_bytes,
+            chunks.join(", ")
+        ));
+    }
+    let manifest = format!(
+        "{{\"entry_points\": {:?}, \"uniform_stride\": {}, \"vertex_bytes\": {}, \"bars\": {{\"position_rel\": {:e}, \"f32_rounding\": {:e}, \"normal\": {:e}, \"degenerate_normal\": {:e}, \"uv\": {:e}}}, \"cases\": [\n{}\n]}}\n",
+        KernelInputs::ENTRY_POINTS,
+        KernelInputs::UNIFORM_STRIDE,
+        KernelInputs::VERTEX_BYTES,
+        POSITION_REL_BAR,
+        F32_ROUNDING,
+        NORMAL_BAR,
+        DEGENERATE_NORMAL_BAR,
+        UV_BAR,
+        cases_json.join(",\n")
+    );
+    write("manifest.json", manifest.as_bytes())?;
+    Ok(cases.len())
 }
 
 /// One curve case: curves and the samples per curve.
@@ -483,13 +578,16 @@ pub fn suite() -> Vec<Case> {
     cases
 }
 
+/// The name every case of the degeneracy cross product starts with.
+pub const CROSS_PRODUCT: &str = "degeneracies";
+
 /// The degeneracy cross product, one case per placement and scale: {near, 1e5 and 1e7 from
 /// the origin} × {scale 1e-3, 1, 1e4}, each with every feature {pole, collapsed edge, corner
 /// where a collapsed edge meets a crease, crease, 1e-6 span} × {polynomial, rational with
 /// weights 1e-3..1e3} × {degree ≤ 3, > 3}: 20 surfaces per case, 180 in all.
 fn cross_product_cases(options: TessOptions) -> Vec<Case> {
     let placements = [
-        ("near the origin", DVec3::ZERO),
+        ("at the origin", DVec3::ZERO),
         ("1e5 from the origin", DVec3::new(1e5, -7e4, 3e4)),
         ("1e7 from the origin", DVec3::new(1e7, -4e6, 2e6)),
     ];
@@ -512,9 +610,7 @@ fn cross_product_cases(options: TessOptions) -> Vec<Case> {
                 }
             }
             cases.push(Case {
-                name: format!(
-                    "cross product {where_}, scale {scale:e}: pole, collapsed edge, corner, crease, tiny span × polynomial, weights 1e-3..1e3 × degrees 2×3, 5×4"
-                ),
+                name: format!("{CROSS_PRODUCT} {where_}, scale {scale:e}"),
                 surfaces,
                 options,
             });

@@ -170,7 +170,7 @@ fn conformance_holds_to_the_measured_figures_on_mesa() {
     for case in conformance::suite() {
         let options = vec![case.options; case.surfaces.len()];
         let r = conformance::compare_executors(context, &case.surfaces, &options).unwrap();
-        let degenerate_bar = if case.name.starts_with("cross product") {
+        let degenerate_bar = if case.name.starts_with(conformance::CROSS_PRODUCT) {
             CROSS_PRODUCT_DEGENERATE_NORMAL
         } else {
             DEGENERATE_NORMAL
@@ -504,6 +504,26 @@ fn cli_conformance_prints_a_table_and_a_verdict() {
         "{text}"
     );
     assert!(text.contains("verdict: this adapter conforms"), "{text}");
+    // --export writes the inputs for other WebGPU implementations: a manifest naming every
+    // case and each case's files.
+    let dir = std::env::temp_dir().join(format!("knotwork-export-{}", std::process::id()));
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_knotwork"))
+        .args(["conformance", "--export"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let cases = conformance::suite().len();
+    let text = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success() && text.contains(&format!("wrote {cases} cases")),
+        "{text}"
+    );
+    let manifest = std::fs::read_to_string(dir.join("manifest.json")).unwrap();
+    for (index, case) in conformance::suite().iter().enumerate() {
+        assert!(manifest.contains(&format!("{:?}", case.name)));
+        assert!(dir.join(format!("case{index}.expected")).is_file());
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// Surfaces with grids of their own (a JSON scene) give the same layout on the GPU and
@@ -1593,4 +1613,57 @@ fn gpu_matches_the_exact_oracle_within_its_bounds() {
         "GPU vs exact oracle: positions {:e} of the diagonal, regular normals {:e} rad, near degenerate points {:e} rad",
         worst.0, worst.1, worst.2
     );
+}
+
+/// The surface kernels in a browser's own WebGPU: `knotwork conformance --export` writes the
+/// suite's kernel inputs and f64 expectations, tests/webgpu/run.js dispatches tessellate.wgsl
+/// in headless Chromium (Dawn and its Tint compiler on SwiftShader, stricter WebGPU
+/// validation than wgpu's) and holds every case to the suite's bars. A negative control:
+/// one weight of the bicubic case's uploaded points 2 % off must fail there. Runs where
+/// KNOTWORK_WEBGPU_HARNESS names a folder with node_modules/playwright-core (.ci/run installs
+/// it and Debian's chromium); without it the test says so and skips.
+#[test]
+fn chromium_webgpu_runs_the_kernels_within_the_bars() {
+    let Ok(folder) = std::env::var("KNOTWORK_WEBGPU_HARNESS") else {
+        eprintln!(
+            "skipped the WebGPU harness: set KNOTWORK_WEBGPU_HARNESS to a folder with node_modules/playwright-core (and install chromium)"
+        );
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("knotwork-webgpu-{}", std::process::id()));
+    let cases = conformance::export_suite(&dir).unwrap();
+    let run = |only: &[&str]| {
+        let output = std::process::Command::new("node")
+            .arg("tests/webgpu/run.js")
+            .arg(&dir)
+            .args(only)
+            .env("KNOTWORK_WEBGPU_HARNESS", &folder)
+            .output()
+            .expect("node runs");
+        let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
+        println!("{stdout}{}", String::from_utf8_lossy(&output.stderr));
+        (output.status.success(), stdout)
+    };
+    let (passed, report) = run(&[]);
+    assert!(
+        passed && report.contains(&format!("verdict: all {cases} cases conform")),
+        "Chromium's WebGPU does not conform"
+    );
+    // The bicubic case with weights 0.01..100: one uploaded weight 2 % off.
+    let index = conformance::suite()
+        .iter()
+        .position(|case| case.name == "bicubic, weights 0.01..100")
+        .unwrap();
+    let points = dir.join(format!("case{index}.points"));
+    let mut bytes = std::fs::read(&points).unwrap();
+    let weight = 5 * 16 + 12;
+    let perturbed = f32::from_le_bytes(bytes[weight..weight + 4].try_into().unwrap()) * 1.02;
+    bytes[weight..weight + 4].copy_from_slice(&perturbed.to_le_bytes());
+    std::fs::write(&points, bytes).unwrap();
+    let (passed, report) = run(&[&format!("case{index}")]);
+    assert!(
+        !passed && report.contains("FAIL"),
+        "a perturbed weight passed"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -126,7 +126,12 @@ fn main() -> ExitCode {
             println!("{}", info());
             Ok(true)
         }
-        Command::Conformance => conformance(),
+        Command::Conformance { export: Some(dir) } => knotwork::conformance::export_suite(&dir)
+            .map(|cases| {
+                println!("wrote {cases} cases to {}", dir.display());
+                true
+            }),
+        Command::Conformance { export: None } => conformance(),
     };
     match result {
         Ok(true) => ExitCode::SUCCESS,

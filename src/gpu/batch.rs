@@ -898,7 +898,7 @@ fn uniform_usage() -> wgpu::BufferUsages {
 }
 
 /// The per-chunk, per-pass uniforms, each padded to [`UNIFORM_STRIDE`].
-fn chunk_uniforms(packed: &Packed) -> Vec<u8> {
+pub(super) fn chunk_uniforms(packed: &Packed) -> Vec<u8> {
     packed
         .chunks
         .iter()

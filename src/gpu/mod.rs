@@ -32,6 +32,7 @@ mod chunks;
 pub mod context;
 mod coons;
 mod curves;
+mod export;
 mod readback;
 mod surfaces;
 pub mod tessellator;
@@ -39,6 +40,7 @@ pub mod tessellator;
 pub use batch::{BatchDescriptor, BufferSlice, GpuBatch, GpuMesh, OutputTargets};
 pub use context::{GpuContext, headless_instance};
 pub use curves::{GpuLines, sample_curves};
+pub use export::{ChunkBindings, KernelInputs};
 pub use surfaces::{Limits, VERTEX_BYTES};
 pub use tessellator::GpuTessellator;
 
