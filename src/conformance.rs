@@ -972,7 +972,48 @@ pub fn coons_suite() -> Vec<CoonsCase> {
         };
         coons_patch(boundaries, Blend::Cosine, 1e-12).unwrap()
     };
+    // Boundaries that leave one corner in the same direction: S_u × S_v vanishes at (0, 0)
+    // without a collapsed boundary, and the limit normal there takes the blend's α″ (at a
+    // collapsed boundary it multiplies the difference of two equal points).
+    let tangent_corner = {
+        let v0 = cubic([
+            DVec3::ZERO,
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(2.0, 0.3, 0.4),
+            DVec3::new(3.0, 0.0, 0.0),
+        ]);
+        let u0 = cubic([
+            DVec3::ZERO,
+            DVec3::new(0.8, 0.0, 0.0),
+            DVec3::new(1.0, 1.5, 0.5),
+            DVec3::new(0.5, 3.0, 0.0),
+        ]);
+        let v1 = cubic([
+            DVec3::new(0.5, 3.0, 0.0),
+            DVec3::new(1.5, 3.5, 0.4),
+            DVec3::new(2.5, 3.2, 0.1),
+            DVec3::new(3.0, 3.0, 0.3),
+        ]);
+        let u1 = cubic([
+            DVec3::new(3.0, 0.0, 0.0),
+            DVec3::new(3.4, 1.0, 0.2),
+            DVec3::new(3.2, 2.0, 0.5),
+            DVec3::new(3.0, 3.0, 0.3),
+        ]);
+        let boundaries = CoonsBoundaries {
+            v0: &v0,
+            v1: &v1,
+            u0: &u0,
+            u1: &u1,
+        };
+        coons_patch(boundaries, Blend::Cosine, 1e-12).unwrap()
+    };
     vec![
+        CoonsCase {
+            name: "Coons: tangent corner (cosine blend)".into(),
+            patches: vec![tangent_corner],
+            options: TessOptions::DEFAULT.with_grid(21, 17),
+        },
         CoonsCase {
             name: "Coons: cosine, rational and cubic blends".into(),
             patches: vec![

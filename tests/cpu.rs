@@ -1576,3 +1576,48 @@ fn one_dominant_weight_keeps_normals_exact_on_both_paths() {
     assert!(worst_point <= 1e-9, "point evaluation: {worst_point:e} rad");
     assert!(worst_grid <= 1e-9, "grid: {worst_grid:e} rad");
 }
+
+/// A collapsed edge whose next control row collapses to the same point (a bicubic patch
+/// with rows 0 and 1 at one point): S_u × S_v vanishes there to third order, so neither the
+/// first-order term nor the second-order one (third derivatives) gives the limit, and the
+/// normal comes from the last fallback, S_u × S_v a little way (1e-6 of the width) along the
+/// diagonal. It must be the limit — within 1e-4 rad of the exact normal 1e-9 of the width
+/// from the edge (2.4e-5 measured: the normal turns that much over the fallback's step) —
+/// not the +Z left for a surface with no tangent plane anywhere near.
+#[test]
+fn third_order_degeneracy_takes_the_sampled_limit() {
+    let knots = [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0];
+    let apex = DVec3::new(0.5, 0.5, 1.0);
+    let points: Vec<DVec3> = (0..16)
+        .map(|k| {
+            let (i, j) = ((k % 4) as f64, (k / 4) as f64);
+            if j < 2.0 {
+                apex
+            } else {
+                DVec3::new(i / 3.0, j / 3.0, 0.3 * (i - 1.5) * (j - 2.5))
+            }
+        })
+        .collect();
+    let weights = [
+        1.0, 2.0, 0.5, 1.5, 1.0, 1.0, 1.0, 1.0, 0.7, 1.3, 1.1, 0.9, 1.0, 2.0, 1.0, 0.5,
+    ];
+    let surface = BSplineSurface::try_new(
+        KnotVector::try_new(3, knots.to_vec()).unwrap(),
+        KnotVector::try_new(3, knots.to_vec()).unwrap(),
+        &points,
+        Some(&weights),
+    )
+    .unwrap();
+    let oracle = common::exact::ExactSurface::new((3, 3), &knots, &knots, &points, &weights);
+    for u in [0.0, 0.3, 0.5, 0.8] {
+        let ours = surface.evaluate(u, 0.0).normal;
+        // Along the diagonal toward the centre: (+u, +v) below u = 0.5, (−u, +v) above.
+        let du = if u > 0.5 { -1e-9 } else { 1e-9 };
+        let near = oracle.evaluate(u + du, 1e-9).normal;
+        let turned = angle(ours, near);
+        assert!(
+            turned <= 1e-4,
+            "u = {u}: {ours} is {turned:e} rad from the exact normal next to the edge {near}"
+        );
+    }
+}
