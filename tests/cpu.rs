@@ -1530,6 +1530,23 @@ fn grid_kernel_takes_the_limit_normal_where_the_quotient_rule_is_noise() {
     assert!(angle(corner, exact) < 1e-6, "corner normal {corner}");
 }
 
+/// A rational bicubic Bezier patch of 16 points (u fastest) and its exact oracle.
+fn rational_bezier_with_oracle(
+    points: &[DVec3],
+    weights: &[f64],
+) -> (BSplineSurface, common::exact::ExactSurface) {
+    let knots = [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0];
+    let surface = BSplineSurface::try_new(
+        KnotVector::try_new(3, knots.to_vec()).unwrap(),
+        KnotVector::try_new(3, knots.to_vec()).unwrap(),
+        points,
+        Some(weights),
+    )
+    .unwrap();
+    let oracle = common::exact::ExactSurface::new((3, 3), &knots, &knots, points, weights);
+    (surface, oracle)
+}
+
 /// One heavy weight pinning a bicubic patch near its control point (weight 1e3 among 1e-3,
 /// 1e5 from the origin, a far corner making the control box 100× the pinned region): S_u
 /// and S_v are small there while the quotient rule cancels terms as large as the box, so
@@ -1538,7 +1555,6 @@ fn grid_kernel_takes_the_limit_normal_where_the_quotient_rule_is_noise() {
 /// it) hold 1e-9 rad against the exact oracle.
 #[test]
 fn one_dominant_weight_keeps_normals_exact_on_both_paths() {
-    let knots = [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0];
     let offset = DVec3::new(1e5, -3e4, 2e5);
     let points: Vec<DVec3> = (0..16)
         .map(|k| {
@@ -1552,14 +1568,7 @@ fn one_dominant_weight_keeps_normals_exact_on_both_paths() {
     points[15].z += 100.0;
     let mut weights = vec![1e-3; 16];
     weights[5] = 1e3;
-    let surface = BSplineSurface::try_new(
-        KnotVector::try_new(3, knots.to_vec()).unwrap(),
-        KnotVector::try_new(3, knots.to_vec()).unwrap(),
-        &points,
-        Some(&weights),
-    )
-    .unwrap();
-    let oracle = common::exact::ExactSurface::new((3, 3), &knots, &knots, &points, &weights);
+    let (surface, oracle) = rational_bezier_with_oracle(&points, &weights);
     let n = 9u32;
     let mut positions = vec![DVec3::ZERO; 81];
     let mut normals = vec![DVec3::ZERO; 81];
@@ -1586,7 +1595,6 @@ fn one_dominant_weight_keeps_normals_exact_on_both_paths() {
 /// not the +Z left for a surface with no tangent plane anywhere near.
 #[test]
 fn third_order_degeneracy_takes_the_sampled_limit() {
-    let knots = [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0];
     let apex = DVec3::new(0.5, 0.5, 1.0);
     let points: Vec<DVec3> = (0..16)
         .map(|k| {
@@ -1601,14 +1609,7 @@ fn third_order_degeneracy_takes_the_sampled_limit() {
     let weights = [
         1.0, 2.0, 0.5, 1.5, 1.0, 1.0, 1.0, 1.0, 0.7, 1.3, 1.1, 0.9, 1.0, 2.0, 1.0, 0.5,
     ];
-    let surface = BSplineSurface::try_new(
-        KnotVector::try_new(3, knots.to_vec()).unwrap(),
-        KnotVector::try_new(3, knots.to_vec()).unwrap(),
-        &points,
-        Some(&weights),
-    )
-    .unwrap();
-    let oracle = common::exact::ExactSurface::new((3, 3), &knots, &knots, &points, &weights);
+    let (surface, oracle) = rational_bezier_with_oracle(&points, &weights);
     for u in [0.0, 0.3, 0.5, 0.8] {
         let ours = surface.evaluate(u, 0.0).normal;
         // Along the diagonal toward the centre: (+u, +v) below u = 0.5, (−u, +v) above.
