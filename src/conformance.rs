@@ -8,7 +8,7 @@ use crate::geom::{
     BSplineCurve, BSplineSurface, Interval, KnotVector, bezier_curve, bezier_surface, curves,
     shapes,
 };
-use crate::gpu::{GpuBatch, GpuContext, KernelInputs};
+use crate::gpu::{CurveInputs, GpuBatch, GpuContext, KernelInputs};
 use crate::mesh::{Mesh, Polyline, TessOptions};
 use crate::plan::SurfacePlan;
 use crate::{CpuTessellator, Tessellator};
@@ -207,14 +207,17 @@ fn compare_with_reference(
     report
 }
 
-/// Writes the surface suite's kernel inputs and f64 expectations to `dir`, for running
-/// tessellate.wgsl on another WebGPU implementation (tests/webgpu runs it in Chromium's):
-/// `tessellate.wgsl` (the kernels as the crate compiles them), `manifest.json` (entry
-/// points, bars, and per case its name, counts, chunk bindings and file names), and per case
-/// the binary inputs (`pieces`, `tiles`, `points`, `tables`, `uniforms`) and expectations:
-/// `expected` holds per vertex 10 little-endian f64 — position relative to its surface's
-/// origin (3), unit normal (3), uv (2), 1 if regular else 0, the surface's diagonal — and
-/// `indices` the f64 path's triangles (u32). Returns the number of cases.
+/// Writes the surface and curve suites' kernel inputs and f64 expectations to `dir`, for
+/// running tessellate.wgsl and curves.wgsl on another WebGPU implementation (tests/webgpu
+/// runs them in Chromium's): the two WGSL files as the crate compiles them, `manifest.json`
+/// (entry points, bars, and per case its name, counts, chunk bindings and file names), per
+/// surface case the binary inputs (`caseK.pieces`, `.tiles`, `.points`, `.tables`,
+/// `.uniforms`) and expectations — `caseK.expected` holds per vertex 10 little-endian f64:
+/// position relative to its surface's origin (3), unit normal (3), uv (2), 1 if regular else
+/// 0, the surface's diagonal; `caseK.indices` the f64 path's triangles (u32) — and per curve
+/// case each chunk's inputs (`curvesK.C.jobs`, `.points`, `.tables`) and `curvesK.expected`:
+/// per sample 8 f64, position relative to its curve's origin (3), C′ (3), the curve's control
+/// extent and its scale of C′. Returns the number of cases.
 pub fn export_suite(dir: &Path) -> Result<usize> {
     let io = |path: &Path, source| Error::Io {
         path: path.to_path_buf(),
@@ -285,8 +288,54 @@ pub fn export_suite(dir: &Path) -> Result<usize> {
             chunks.join(", ")
         ));
     }
+    write("curves.wgsl", crate::gpu::CURVES_WGSL.as_bytes())?;
+    let mut curve_cases_json = Vec::new();
+    let curve_cases = curve_suite();
+    for (index, case) in curve_cases.iter().enumerate() {
+        let samples = vec![case.samples; case.curves.len()];
+        let plan = crate::plan::CurvePlan::new(&case.curves, &samples)?;
+        let inputs = CurveInputs::new(&plan, &case.curves)?;
+        let reference = CpuTessellator.tessellate_curves(&case.curves, &samples)?;
+        let mut expected = Vec::new();
+        for ((curve, polyline), origin) in case.curves.iter().zip(&reference).zip(&inputs.origins) {
+            let size = curve.control_extent();
+            let tangent_scale = polyline
+                .tangents
+                .iter()
+                .fold(size / curve.range().width(), |m, t| m.max(t.length()));
+            for (position, tangent) in polyline.positions.iter().zip(&polyline.tangents) {
+                let values = (*position - *origin)
+                    .to_array()
+                    .into_iter()
+                    .chain(tangent.to_array())
+                    .chain([size, tangent_scale]);
+                for value in values {
+                    expected.extend_from_slice(&value.to_le_bytes());
+                }
+            }
+        }
+        let prefix = format!("curves{index}");
+        write(&format!("{prefix}.expected"), &expected)?;
+        let mut chunks = Vec::new();
+        for (chunk_index, chunk) in inputs.chunks.iter().enumerate() {
+            for (what, bytes) in [
+                ("jobs", &chunk.jobs),
+                ("points", &chunk.points),
+                ("tables", &chunk.tables),
+            ] {
+                write(&format!("{prefix}.{chunk_index}.{what}"), bytes)?;
+            }
+            chunks.push(chunk.samples.to_string());
+        }
+        curve_cases_json.push(format!(
+            "{{\"name\": {:?}, \"prefix\": {:?}, \"chunk_samples\": [{}]}}",
+            case.name,
+            prefix,
+            chunks.join(", ")
+        ));
+    }
     let manifest = format!(
-        "{{\"entry_points\": {:?}, \"uniform_stride\": {}, \"vertex_bytes\": {}, \"bars\": {{\"position_rel\": {:e}, \"f32_rounding\": {:e}, \"normal\": {:e}, \"degenerate_normal\": {:e}, \"uv\": {:e}}}, \"cases\": [\n{}\n]}}\n",
+        "{{\"entry_points\": {:?}, \"uniform_stride\": {}, \"vertex_bytes\": {}, \"bars\": {{\"position_rel\": {:e}, \"f32_rounding\": {:e}, \"normal\": {:e}, \"degenerate_normal\": {:e}, \"uv\": {:e}, \"tangent_rel\": {:e}}}, \"cases\": [\n{}\n], \"curve_entry_point\": {:?}, \"sample_bytes\": {}, \"curve_cases\": [\n{}\n]}}\n",
         KernelInputs::ENTRY_POINTS,
         KernelInputs::UNIFORM_STRIDE,
         KernelInputs::VERTEX_BYTES,
@@ -295,10 +344,14 @@ pub fn export_suite(dir: &Path) -> Result<usize> {
         NORMAL_BAR,
         DEGENERATE_NORMAL_BAR,
         UV_BAR,
-        cases_json.join(",\n")
+        TANGENT_REL_BAR,
+        cases_json.join(",\n"),
+        CurveInputs::ENTRY_POINT,
+        CurveInputs::SAMPLE_BYTES,
+        curve_cases_json.join(",\n")
     );
     write("manifest.json", manifest.as_bytes())?;
-    Ok(cases.len())
+    Ok(cases.len() + curve_cases.len())
 }
 
 /// One curve case: curves and the samples per curve.

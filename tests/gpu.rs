@@ -512,7 +512,7 @@ fn cli_conformance_prints_a_table_and_a_verdict() {
         .arg(&dir)
         .output()
         .unwrap();
-    let cases = conformance::suite().len();
+    let cases = conformance::suite().len() + conformance::curve_suite().len();
     let text = String::from_utf8_lossy(&run.stdout);
     assert!(
         run.status.success() && text.contains(&format!("wrote {cases} cases")),
@@ -1615,11 +1615,12 @@ fn gpu_matches_the_exact_oracle_within_its_bounds() {
     );
 }
 
-/// The surface kernels in a browser's own WebGPU: `knotwork conformance --export` writes the
-/// suite's kernel inputs and f64 expectations, tests/webgpu/run.js dispatches tessellate.wgsl
-/// in headless Chromium (Dawn and its Tint compiler on SwiftShader, stricter WebGPU
-/// validation than wgpu's) and holds every case to the suite's bars. A negative control:
-/// one weight of the bicubic case's uploaded points 2 % off must fail there. Runs where
+/// The surface and curve kernels in a browser's own WebGPU: `knotwork conformance --export`
+/// writes the suites' kernel inputs and f64 expectations, tests/webgpu/run.js dispatches
+/// tessellate.wgsl and curves.wgsl in headless Chromium (Dawn and its Tint compiler on
+/// SwiftShader, stricter WebGPU validation than wgpu's) and holds every case to the suites'
+/// bars. Negative controls: one uploaded weight 2 % off, in a surface case and in a curve
+/// case, must fail there. Runs where
 /// KNOTWORK_WEBGPU_HARNESS names a folder with node_modules/playwright-core (.ci/run installs
 /// it and Debian's chromium); without it the test says so and skips.
 #[test]
@@ -1664,6 +1665,22 @@ fn chromium_webgpu_runs_the_kernels_within_the_bars() {
     assert!(
         !passed && report.contains("FAIL"),
         "a perturbed weight passed"
+    );
+    // The same for a curve: one weight of the NURBS case 2 % off.
+    let index = conformance::curve_suite()
+        .iter()
+        .position(|case| case.name.starts_with("NURBS"))
+        .unwrap();
+    let points = dir.join(format!("curves{index}.0.points"));
+    let mut bytes = std::fs::read(&points).unwrap();
+    let weight = 3 * 16 + 12;
+    let perturbed = f32::from_le_bytes(bytes[weight..weight + 4].try_into().unwrap()) * 1.02;
+    bytes[weight..weight + 4].copy_from_slice(&perturbed.to_le_bytes());
+    std::fs::write(&points, bytes).unwrap();
+    let (passed, report) = run(&[&format!("curves{index}")]);
+    assert!(
+        !passed && report.contains("FAIL"),
+        "a perturbed curve weight passed"
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }

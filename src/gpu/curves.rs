@@ -86,6 +86,15 @@ impl CurveChunk {
         self.sample_count += samples.len() as u64;
     }
 
+    /// The chunk's inputs as the kernel binds them: curve list, control points, tables.
+    pub fn inputs(&self) -> [&[u8]; 3] {
+        [
+            bytemuck::cast_slice(&self.jobs),
+            bytemuck::cast_slice(&self.points),
+            bytemuck::cast_slice(&self.tables),
+        ]
+    }
+
     /// Uploads the chunk into `pool` slots `first_slot..first_slot + 3` and binds it with
     /// `output`, where the kernel writes its samples (`sample_count` × 48 bytes: position,
     /// C′, C″ as vec4<f32> each).
@@ -143,7 +152,7 @@ impl CurveChunk {
 /// Groups consecutive curves of `plan` (made for `curves`) into chunks whose every buffer
 /// fits one binding of `limits`. Sizes are checked before anything is allocated for them: a
 /// curve that alone exceeds a binding is refused.
-fn pack_curves(
+pub(super) fn pack_curves(
     plan: &CurvePlan,
     curves: &[BSplineCurve],
     limits: &Limits,

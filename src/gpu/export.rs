@@ -1,13 +1,15 @@
-//! The surface kernels' inputs as plain bytes, so that tessellate.wgsl can run outside wgpu —
-//! in a browser's own WebGPU (tests/webgpu) — on exactly what the GPU executor dispatches.
+//! The surface and curve kernels' inputs as plain bytes, so that tessellate.wgsl and
+//! curves.wgsl can run outside wgpu — in a browser's own WebGPU (tests/webgpu) — on exactly
+//! what the GPU executor dispatches.
 
 use super::batch::chunk_uniforms;
 use super::context::{ENTRY_POINTS, UNIFORM_STRIDE};
+use super::curves::{self, pack_curves};
 use super::readback::Placement;
 use super::surfaces::{Limits, PASSES, Piece, Tile, VERTEX_BYTES, pack};
 use crate::error::Result;
-use crate::geom::BSplineSurface;
-use crate::plan::SurfacePlan;
+use crate::geom::{BSplineCurve, BSplineSurface};
+use crate::plan::{CurvePlan, SurfacePlan};
 use glam::DVec3;
 
 /// WebGPU's default limits (what every WebGPU implementation offers without asking).
@@ -87,6 +89,52 @@ impl KernelInputs {
             vertex_count: packed.vertex_count,
             index_count: packed.index_count,
             origins: packed.surfaces.iter().map(|slot| slot.origin).collect(),
+        })
+    }
+}
+
+/// One chunk of curves as curves.wgsl binds it: bindings 0..=2 whole (the kernel takes the
+/// curve count from the length of binding 0), binding 3 the output, 48 bytes per sample
+/// (position, C′, C″ as vec4<f32>, positions relative to each curve's origin).
+#[derive(Clone, Debug)]
+pub struct CurveChunkInputs {
+    pub jobs: Vec<u8>,
+    pub points: Vec<u8>,
+    pub tables: Vec<u8>,
+    pub samples: u64,
+}
+
+/// Curves packed for curves.wgsl within WebGPU's default limits; `origins[k]` is what
+/// readback adds to curve k's positions.
+#[derive(Clone, Debug)]
+pub struct CurveInputs {
+    pub chunks: Vec<CurveChunkInputs>,
+    pub origins: Vec<DVec3>,
+}
+
+impl CurveInputs {
+    /// The kernel's entry point.
+    pub const ENTRY_POINT: &'static str = curves::ENTRY_POINT;
+    /// Bytes per output sample.
+    pub const SAMPLE_BYTES: u64 = curves::SAMPLE_BYTES;
+
+    /// Packs `plan` (made for `curves`).
+    pub fn new(plan: &CurvePlan, curves: &[BSplineCurve]) -> Result<Self> {
+        let chunks = pack_curves(plan, curves, &WEBGPU_DEFAULT_LIMITS, Placement::Local)?
+            .iter()
+            .map(|chunk| {
+                let [jobs, points, tables] = chunk.inputs();
+                CurveChunkInputs {
+                    jobs: jobs.to_vec(),
+                    points: points.to_vec(),
+                    tables: tables.to_vec(),
+                    samples: chunk.sample_count,
+                }
+            })
+            .collect();
+        Ok(Self {
+            chunks,
+            origins: curves.iter().map(BSplineCurve::origin).collect(),
         })
     }
 }

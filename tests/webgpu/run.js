@@ -1,11 +1,12 @@
-// Runs knotwork's surface kernels (tessellate.wgsl) in Chromium's own WebGPU — Dawn with its
-// Tint compiler on SwiftShader, headless — on the inputs `knotwork conformance --export DIR`
-// wrote, reads the vertices back and holds them to the conformance suite's bars against the
-// f64 expectations written beside them. Prints a table and a verdict; exits 1 if a case fails.
+// Runs knotwork's surface and curve kernels (tessellate.wgsl, curves.wgsl) in Chromium's own
+// WebGPU — Dawn with its Tint compiler on SwiftShader, headless — on the inputs
+// `knotwork conformance --export DIR` wrote, reads the results back and holds them to the
+// conformance suite's bars against the f64 expectations written beside them. Prints a table
+// and a verdict; exits 1 if a case fails.
 //
 //   KNOTWORK_WEBGPU_HARNESS=<folder with node_modules/playwright-core> node tests/webgpu/run.js DIR [CASE...]
 //
-// CASE: run only the cases with these file prefixes (case0, case1, ...).
+// CASE: run only the cases with these file prefixes (case0, case1, ..., curves0, ...).
 // KNOTWORK_CHROMIUM names the browser (default /usr/bin/chromium, Debian's package).
 'use strict';
 const fs = require('fs');
@@ -23,16 +24,20 @@ const read = (name) => fs.readFileSync(path.join(dir, name));
 
 // In the page: a device, the module (compilation errors are fatal) and one pipeline per
 // entry point, on one bind group layout — the layout knotwork's GpuContext creates.
-async function setUp({ wgsl, entryPoints }) {
+async function setUp({ wgsl, entryPoints, curveWgsl, curveEntryPoint }) {
   const adapter = await navigator.gpu.requestAdapter();
   if (!adapter) throw new Error('no WebGPU adapter');
   const device = await adapter.requestDevice();
-  const module = device.createShaderModule({ code: wgsl });
-  const messages = (await module.getCompilationInfo()).messages;
-  const errors = messages.filter((m) => m.type === 'error');
-  if (errors.length) {
-    throw new Error(errors.map((m) => `${m.lineNum}:${m.linePos} ${m.message}`).join('\n'));
-  }
+  const compile = async (code) => {
+    const module = device.createShaderModule({ code });
+    const messages = (await module.getCompilationInfo()).messages;
+    const errors = messages.filter((m) => m.type === 'error');
+    if (errors.length) {
+      throw new Error(errors.map((m) => `${m.lineNum}:${m.linePos} ${m.message}`).join('\n'));
+    }
+    return module;
+  };
+  const module = await compile(wgsl);
   const storage = (binding, readOnly) => ({
     binding,
     visibility: GPUShaderStage.COMPUTE,
@@ -53,7 +58,14 @@ async function setUp({ wgsl, entryPoints }) {
       compute: { module, entryPoint },
     }));
   }
-  window.knotwork = { device, layout, pipelines };
+  const curveLayout = device.createBindGroupLayout({
+    entries: [storage(0, true), storage(1, true), storage(2, true), storage(3, false)],
+  });
+  const curvePipeline = await device.createComputePipelineAsync({
+    layout: device.createPipelineLayout({ bindGroupLayouts: [curveLayout] }),
+    compute: { module: await compile(curveWgsl), entryPoint: curveEntryPoint },
+  });
+  window.knotwork = { device, layout, pipelines, curveLayout, curvePipeline };
   const info = adapter.info || {};
   return `${info.vendor || '?'} ${info.architecture || ''} ${info.description || ''}`.trim();
 }
@@ -120,6 +132,84 @@ async function runCase({ c, files, stride }) {
   return out;
 }
 
+// In the page: one curve case, chunk by chunk as GpuTessellator's curve work does (bindings
+// 0..=2 exactly the chunk's bytes: the kernel counts curves by the length of binding 0); returns
+// every chunk's samples (base64).
+async function runCurves({ chunks, sampleBytes }) {
+  const { device, curveLayout, curvePipeline } = window.knotwork;
+  const decode = (b64) => Uint8Array.from(atob(b64), (ch) => ch.charCodeAt(0));
+  const encode = (bytes) => {
+    let s = '';
+    for (let i = 0; i < bytes.length; i += 0x8000) {
+      s += String.fromCharCode.apply(null, bytes.subarray(i, i + 0x8000));
+    }
+    return btoa(s);
+  };
+  const S = GPUBufferUsage;
+  const upload = (bytes) => {
+    const buffer = device.createBuffer({ size: bytes.length, usage: S.STORAGE, mappedAtCreation: true });
+    new Uint8Array(buffer.getMappedRange()).set(bytes);
+    buffer.unmap();
+    return buffer;
+  };
+  device.pushErrorScope('validation');
+  const encoder = device.createCommandEncoder();
+  const reads = [];
+  const buffers = [];
+  for (const chunk of chunks) {
+    const inputs = [chunk.jobs, chunk.points, chunk.tables].map((b64) => upload(decode(b64)));
+    const bytes = chunk.samples * sampleBytes;
+    const output = device.createBuffer({ size: bytes, usage: S.STORAGE | S.COPY_SRC });
+    const read = device.createBuffer({ size: bytes, usage: S.MAP_READ | S.COPY_DST });
+    const group = device.createBindGroup({
+      layout: curveLayout,
+      entries: [...inputs, output].map((buffer, binding) => ({ binding, resource: { buffer } })),
+    });
+    const pass = encoder.beginComputePass();
+    pass.setPipeline(curvePipeline);
+    pass.setBindGroup(0, group);
+    const groups = Math.ceil(chunk.samples / 64);
+    const x = Math.min(groups, 65535);
+    pass.dispatchWorkgroups(x, Math.ceil(groups / x), 1);
+    pass.end();
+    encoder.copyBufferToBuffer(output, 0, read, 0, bytes);
+    reads.push(read);
+    buffers.push(...inputs, output, read);
+  }
+  device.queue.submit([encoder.finish()]);
+  const error = await device.popErrorScope();
+  if (error) throw new Error(`validation: ${error.message}`);
+  await Promise.all(reads.map((read) => read.mapAsync(GPUMapMode.READ)));
+  const out = reads.map((read) => encode(new Uint8Array(read.getMappedRange())));
+  for (const buffer of buffers) buffer.destroy();
+  return out;
+}
+
+// The suite's curve comparison (knotwork::conformance::compare_curves) on the exported
+// expectations: per sample 8 f64 — position relative to the curve's origin, C′, the curve's
+// control extent, its scale of C′. `gpu` holds 12 f32 per sample: (position, 0), (C′, 0),
+// (C″, 0).
+function compareCurves(gpu, expected, bars) {
+  const f = new Float32Array(gpu.buffer, gpu.byteOffset, gpu.length / 4);
+  const e = new Float64Array(expected.buffer.slice(expected.byteOffset, expected.byteOffset + expected.length));
+  const samples = e.length / 8;
+  const report = { position: 0, tangent: 0, layout: f.length === 12 * samples };
+  if (!report.layout) return { ...report, pass: false };
+  const length = (v) => Math.hypot(v[0], v[1], v[2]);
+  for (let k = 0; k < samples; k++) {
+    const g = f.subarray(12 * k, 12 * k + 12);
+    const x = e.subarray(8 * k, 8 * k + 8);
+    const error = length([g[0] - x[0], g[1] - x[1], g[2] - x[2]]) - bars.f32_rounding * length(x);
+    let position = Math.max(error, 0) / x[6];
+    let tangent = length([g[4] - x[3], g[5] - x[4], g[6] - x[5]]) / x[7];
+    if (![g[0], g[1], g[2], g[4], g[5], g[6]].every(Number.isFinite)) position = tangent = Infinity;
+    report.position = Math.max(report.position, position);
+    report.tangent = Math.max(report.tangent, tangent);
+  }
+  report.pass = report.position <= bars.position_rel && report.tangent <= bars.tangent_rel;
+  return report;
+}
+
 // The suite's comparison (knotwork::conformance::compare_with_reference), on the exported
 // expectations: per vertex 10 f64 — position relative to the surface's origin, unit normal,
 // uv, regular (1/0), the surface's diagonal.
@@ -156,8 +246,12 @@ async function main() {
   try {
     const page = await browser.newPage();
     await page.goto('file://' + path.join(__dirname, 'page.html'));
-    const wgsl = read('tessellate.wgsl').toString('utf8');
-    const adapter = await page.evaluate(setUp, { wgsl, entryPoints: manifest.entry_points });
+    const adapter = await page.evaluate(setUp, {
+      wgsl: read('tessellate.wgsl').toString('utf8'),
+      entryPoints: manifest.entry_points,
+      curveWgsl: read('curves.wgsl').toString('utf8'),
+      curveEntryPoint: manifest.curve_entry_point,
+    });
     const bars = manifest.bars;
     console.log(`adapter: ${adapter} (Chromium WebGPU)`);
     console.log(`bars: position ${bars.position_rel} of the diagonal (+ f32 rounding), normal ${bars.normal} rad (${bars.degenerate_normal} near degenerate points)`);
@@ -174,7 +268,21 @@ async function main() {
       const cell = (v) => v.toExponential(3).padStart(11);
       console.log(`${c.name.padEnd(48)} ${cell(r.position)} ${cell(r.normal)} ${cell(r.degenerate)} ${cell(r.uv)}  ${r.topology ? '' : 'topology differs '}${r.pass ? 'pass' : 'FAIL'}`);
     }
-    console.log(`verdict: ${failures === 0 ? `all ${cases.length} cases conform` : `${failures} of ${cases.length} cases fail`}`);
+    const curveCases = manifest.curve_cases.filter((c) => only.length === 0 || only.includes(c.prefix));
+    for (const c of curveCases) {
+      const chunks = c.chunk_samples.map((samples, k) => {
+        const file = (what) => read(`${c.prefix}.${k}.${what}`).toString('base64');
+        return { samples, jobs: file('jobs'), points: file('points'), tables: file('tables') };
+      });
+      const out = await page.evaluate(runCurves, { chunks, sampleBytes: manifest.sample_bytes });
+      const gpu = Buffer.concat(out.map((b64) => Buffer.from(b64, 'base64')));
+      const r = compareCurves(gpu, read(`${c.prefix}.expected`), bars);
+      if (!r.pass) failures++;
+      const cell = (v) => v.toExponential(3).padStart(11);
+      console.log(`${('curves: ' + c.name).padEnd(48)} ${cell(r.position)} ${cell(r.tangent)}  ${r.layout ? '' : 'layout differs '}${r.pass ? 'pass' : 'FAIL'}`);
+    }
+    const total = cases.length + curveCases.length;
+    console.log(`verdict: ${failures === 0 ? `all ${total} cases conform` : `${failures} of ${total} cases fail`}`);
     process.exitCode = failures === 0 ? 0 : 1;
   } finally {
     await browser.close();
