@@ -8,7 +8,7 @@ use crate::geom::{
     BSplineCurve, BSplineSurface, Interval, KnotVector, bezier_curve, bezier_surface, curves,
     shapes,
 };
-use crate::gpu::{CurveInputs, GpuBatch, GpuContext, KernelInputs};
+use crate::gpu::{CoonsInputs, CurveInputs, GpuBatch, GpuContext, KernelInputs};
 use crate::mesh::{Mesh, Polyline, TessOptions};
 use crate::plan::SurfacePlan;
 use crate::{CpuTessellator, Tessellator};
@@ -207,9 +207,9 @@ fn compare_with_reference(
     report
 }
 
-/// Writes the surface and curve suites' kernel inputs and f64 expectations to `dir`, for
-/// running tessellate.wgsl and curves.wgsl on another WebGPU implementation (tests/webgpu
-/// runs them in Chromium's): the two WGSL files as the crate compiles them, `manifest.json`
+/// Writes the surface, curve and Coons suites' kernel inputs and f64 expectations to `dir`,
+/// for running tessellate.wgsl, curves.wgsl and coons.wgsl on another WebGPU implementation
+/// (tests/webgpu runs them in Chromium's): the three WGSL files as the crate compiles them, `manifest.json`
 /// (entry points, bars, and per case its name, counts, chunk bindings and file names), per
 /// surface case the binary inputs (`caseK.pieces`, `.tiles`, `.points`, `.tables`,
 /// `.uniforms`) and expectations — `caseK.expected` holds per vertex 10 little-endian f64:
@@ -217,7 +217,10 @@ fn compare_with_reference(
 /// 0, the surface's diagonal; `caseK.indices` the f64 path's triangles (u32) — and per curve
 /// case each chunk's inputs (`curvesK.C.jobs`, `.points`, `.tables`) and `curvesK.expected`:
 /// per sample 8 f64, position relative to its curve's origin (3), C′ (3), the curve's control
-/// extent and its scale of C′. Returns the number of cases.
+/// extent and its scale of C′ — and per Coons case each chunk's boundary-curve inputs
+/// (`coonsK.C.boundary_jobs`, `.boundary_points`, `.boundary_tables`) and patch inputs
+/// (`.jobs`, `.blends`), with `coonsK.expected` and `coonsK.indices` as for surfaces (the
+/// patch's size in place of the diagonal). Returns the number of cases.
 pub fn export_suite(dir: &Path) -> Result<usize> {
     let io = |path: &Path, source| Error::Io {
         path: path.to_path_buf(),
@@ -334,8 +337,67 @@ pub fn export_suite(dir: &Path) -> Result<usize> {
             chunks.join(", ")
         ));
     }
+    write("coons.wgsl", crate::gpu::COONS_WGSL.as_bytes())?;
+    let mut coons_cases_json = Vec::new();
+    let coons_cases = coons_suite();
+    for (index, case) in coons_cases.iter().enumerate() {
+        let options = vec![case.options; case.patches.len()];
+        let plan = crate::plan::CoonsPlan::new(&case.patches, &options)?;
+        let inputs = CoonsInputs::new(&plan, &case.patches)?;
+        let mut reference = Mesh::default();
+        CpuTessellator.tessellate_coons_into(&case.patches, &options, &mut reference)?;
+        let mut expected = Vec::with_capacity(reference.vertex_count() * 80);
+        for (part, patch) in reference.parts.iter().zip(&case.patches) {
+            let origin = patch.origin();
+            let first = part.first_vertex as usize;
+            for k in first..first + part.vertex_count as usize {
+                let uv = reference.uvs[k];
+                let sample = patch.evaluate(uv.x, uv.y);
+                let regular =
+                    sample.du.cross(sample.dv).length() >= REGULAR_REL * patch.cross_scale();
+                let values = (reference.positions[k] - origin)
+                    .to_array()
+                    .into_iter()
+                    .chain(reference.normals[k].to_array())
+                    .chain(uv.to_array())
+                    .chain([f64::from(u8::from(regular)), patch.size()]);
+                for value in values {
+                    expected.extend_from_slice(&value.to_le_bytes());
+                }
+            }
+        }
+        let prefix = format!("coons{index}");
+        write(&format!("{prefix}.expected"), &expected)?;
+        write(
+            &format!("{prefix}.indices"),
+            bytemuck::cast_slice(&reference.indices),
+        )?;
+        let mut chunks = Vec::new();
+        for (chunk_index, chunk) in inputs.chunks.iter().enumerate() {
+            let boundaries = &chunk.boundaries;
+            for (what, bytes) in [
+                ("boundary_jobs", &boundaries.jobs),
+                ("boundary_points", &boundaries.points),
+                ("boundary_tables", &boundaries.tables),
+                ("jobs", &chunk.jobs),
+                ("blends", &chunk.blends),
+            ] {
+                write(&format!("{prefix}.{chunk_index}.{what}"), bytes)?;
+            }
+            chunks.push(format!(
+                "{{\"boundary_samples\": {}, \"vertices\": {}, \"indices\": {}}}",
+                boundaries.samples, chunk.vertices, chunk.indices
+            ));
+        }
+        coons_cases_json.push(format!(
+            "{{\"name\": {:?}, \"prefix\": {:?}, \"chunks\": [{}]}}",
+            case.name,
+            prefix,
+            chunks.join(", ")
+        ));
+    }
     let manifest = format!(
-        "{{\"entry_points\": {:?}, \"uniform_stride\": {}, \"vertex_bytes\": {}, \"bars\": {{\"position_rel\": {:e}, \"f32_rounding\": {:e}, \"normal\": {:e}, \"degenerate_normal\": {:e}, \"uv\": {:e}, \"tangent_rel\": {:e}}}, \"cases\": [\n{}\n], \"curve_entry_point\": {:?}, \"sample_bytes\": {}, \"curve_cases\": [\n{}\n]}}\n",
+        "{{\"entry_points\": {:?}, \"uniform_stride\": {}, \"vertex_bytes\": {}, \"bars\": {{\"position_rel\": {:e}, \"f32_rounding\": {:e}, \"normal\": {:e}, \"degenerate_normal\": {:e}, \"uv\": {:e}, \"tangent_rel\": {:e}}}, \"cases\": [\n{}\n], \"curve_entry_point\": {:?}, \"sample_bytes\": {}, \"curve_cases\": [\n{}\n], \"coons_entry_point\": {:?}, \"coons_cases\": [\n{}\n]}}\n",
         KernelInputs::ENTRY_POINTS,
         KernelInputs::UNIFORM_STRIDE,
         KernelInputs::VERTEX_BYTES,
@@ -348,10 +410,12 @@ pub fn export_suite(dir: &Path) -> Result<usize> {
         cases_json.join(",\n"),
         CurveInputs::ENTRY_POINT,
         CurveInputs::SAMPLE_BYTES,
-        curve_cases_json.join(",\n")
+        curve_cases_json.join(",\n"),
+        CoonsInputs::ENTRY_POINT,
+        coons_cases_json.join(",\n")
     );
     write("manifest.json", manifest.as_bytes())?;
-    Ok(cases.len() + curve_cases.len())
+    Ok(cases.len() + curve_cases.len() + coons_cases.len())
 }
 
 /// One curve case: curves and the samples per curve.

@@ -512,7 +512,9 @@ fn cli_conformance_prints_a_table_and_a_verdict() {
         .arg(&dir)
         .output()
         .unwrap();
-    let cases = conformance::suite().len() + conformance::curve_suite().len();
+    let cases = conformance::suite().len()
+        + conformance::curve_suite().len()
+        + conformance::coons_suite().len();
     let text = String::from_utf8_lossy(&run.stdout);
     assert!(
         run.status.success() && text.contains(&format!("wrote {cases} cases")),
@@ -1615,9 +1617,9 @@ fn gpu_matches_the_exact_oracle_within_its_bounds() {
     );
 }
 
-/// The surface and curve kernels in a browser's own WebGPU: `knotwork conformance --export`
-/// writes the suites' kernel inputs and f64 expectations, tests/webgpu/run.js dispatches
-/// tessellate.wgsl and curves.wgsl in headless Chromium (Dawn and its Tint compiler on
+/// Every kernel in a browser's own WebGPU: `knotwork conformance --export` writes the
+/// suites' kernel inputs and f64 expectations, tests/webgpu/run.js dispatches
+/// tessellate.wgsl, curves.wgsl and coons.wgsl in headless Chromium (Dawn and its Tint compiler on
 /// SwiftShader, stricter WebGPU validation than wgpu's) and holds every case to the suites'
 /// bars. Negative controls: one uploaded weight 2 % off, in a surface case and in a curve
 /// case, must fail there. Runs where

@@ -43,12 +43,12 @@ pub(crate) struct CoonsJob {
 
 /// Patches dispatched with one set of buffers.
 #[derive(Debug, Default)]
-struct CoonsChunk {
-    curves: CurveChunk,
+pub(super) struct CoonsChunk {
+    pub curves: CurveChunk,
     jobs: Vec<CoonsJob>,
     blends: Vec<f32>,
-    vertex_count: u64,
-    index_count: u64,
+    pub vertex_count: u64,
+    pub index_count: u64,
     /// The chunk's parts: vertices numbered as in the whole plan, index ranges counted in
     /// the chunk's index buffer.
     parts: Vec<MeshPart>,
@@ -84,8 +84,18 @@ fn patch_bytes(patch: &CoonsPatch, nu: u32, nv: u32) -> [(&'static str, u64); 8]
     ]
 }
 
+impl CoonsChunk {
+    /// The patches' inputs as the kernel binds them: patch list and blend tables.
+    pub fn inputs(&self) -> [&[u8]; 2] {
+        [
+            bytemuck::cast_slice(&self.jobs),
+            bytemuck::cast_slice(&self.blends),
+        ]
+    }
+}
+
 /// Groups consecutive patches of `plan` (made for `patches`) into chunks within `limits`.
-fn pack_coons(
+pub(super) fn pack_coons(
     plan: &CoonsPlan,
     patches: &[CoonsPatch],
     limits: &Limits,

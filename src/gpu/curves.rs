@@ -98,7 +98,7 @@ impl CurveChunk {
     /// Uploads the chunk into `pool` slots `first_slot..first_slot + 3` and binds it with
     /// `output`, where the kernel writes its samples (`sample_count` × 48 bytes: position,
     /// C′, C″ as vec4<f32> each).
-    pub fn bind(
+    pub(super) fn bind(
         &self,
         context: &GpuContext,
         pool: &mut BufferPool,

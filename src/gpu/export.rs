@@ -1,15 +1,17 @@
-//! The surface and curve kernels' inputs as plain bytes, so that tessellate.wgsl and
-//! curves.wgsl can run outside wgpu — in a browser's own WebGPU (tests/webgpu) — on exactly
-//! what the GPU executor dispatches.
+//! The kernels' inputs as plain bytes, so that tessellate.wgsl, curves.wgsl and coons.wgsl
+//! can run outside wgpu — in a browser's own WebGPU (tests/webgpu) — on exactly what the GPU
+//! executor dispatches.
 
 use super::batch::chunk_uniforms;
 use super::context::{ENTRY_POINTS, UNIFORM_STRIDE};
-use super::curves::{self, pack_curves};
+use super::coons::{self, pack_coons};
+use super::curves::{self, CurveChunk, pack_curves};
 use super::readback::Placement;
 use super::surfaces::{Limits, PASSES, Piece, Tile, VERTEX_BYTES, pack};
 use crate::error::Result;
+use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
-use crate::plan::{CurvePlan, SurfacePlan};
+use crate::plan::{CoonsPlan, CurvePlan, SurfacePlan};
 use glam::DVec3;
 
 /// WebGPU's default limits (what every WebGPU implementation offers without asking).
@@ -104,6 +106,18 @@ pub struct CurveChunkInputs {
     pub samples: u64,
 }
 
+impl From<&CurveChunk> for CurveChunkInputs {
+    fn from(chunk: &CurveChunk) -> Self {
+        let [jobs, points, tables] = chunk.inputs();
+        Self {
+            jobs: jobs.to_vec(),
+            points: points.to_vec(),
+            tables: tables.to_vec(),
+            samples: chunk.sample_count,
+        }
+    }
+}
+
 /// Curves packed for curves.wgsl within WebGPU's default limits; `origins[k]` is what
 /// readback adds to curve k's positions.
 #[derive(Clone, Debug)]
@@ -122,19 +136,59 @@ impl CurveInputs {
     pub fn new(plan: &CurvePlan, curves: &[BSplineCurve]) -> Result<Self> {
         let chunks = pack_curves(plan, curves, &WEBGPU_DEFAULT_LIMITS, Placement::Local)?
             .iter()
+            .map(CurveChunkInputs::from)
+            .collect();
+        Ok(Self {
+            chunks,
+            origins: curves.iter().map(BSplineCurve::origin).collect(),
+        })
+    }
+}
+
+/// One chunk of Coons patches: its boundary curves (sampled first by curves.wgsl into a
+/// buffer of `boundaries.samples` × [`CurveInputs::SAMPLE_BYTES`]), then coons.wgsl with
+/// bindings jobs, those samples, blends (each whole), vertices and indices (`vertices` ×
+/// [`KernelInputs::VERTEX_BYTES`], `indices` × 4 bytes; indices count vertices from the
+/// first patch of all chunks).
+#[derive(Clone, Debug)]
+pub struct CoonsChunkInputs {
+    pub boundaries: CurveChunkInputs,
+    pub jobs: Vec<u8>,
+    pub blends: Vec<u8>,
+    pub vertices: u64,
+    pub indices: u64,
+}
+
+/// Coons patches packed for coons.wgsl within WebGPU's default limits, positions relative
+/// to each patch's origin (`origins[k]`).
+#[derive(Clone, Debug)]
+pub struct CoonsInputs {
+    pub chunks: Vec<CoonsChunkInputs>,
+    pub origins: Vec<DVec3>,
+}
+
+impl CoonsInputs {
+    /// The kernel's entry point.
+    pub const ENTRY_POINT: &'static str = coons::ENTRY_POINT;
+
+    /// Packs `plan` (made for `patches`).
+    pub fn new(plan: &CoonsPlan, patches: &[CoonsPatch]) -> Result<Self> {
+        let chunks = pack_coons(plan, patches, &WEBGPU_DEFAULT_LIMITS, Placement::Local)?
+            .iter()
             .map(|chunk| {
-                let [jobs, points, tables] = chunk.inputs();
-                CurveChunkInputs {
+                let [jobs, blends] = chunk.inputs();
+                CoonsChunkInputs {
+                    boundaries: CurveChunkInputs::from(&chunk.curves),
                     jobs: jobs.to_vec(),
-                    points: points.to_vec(),
-                    tables: tables.to_vec(),
-                    samples: chunk.sample_count,
+                    blends: blends.to_vec(),
+                    vertices: chunk.vertex_count,
+                    indices: chunk.index_count,
                 }
             })
             .collect();
         Ok(Self {
             chunks,
-            origins: curves.iter().map(BSplineCurve::origin).collect(),
+            origins: patches.iter().map(CoonsPatch::origin).collect(),
         })
     }
 }

@@ -40,7 +40,9 @@ pub mod tessellator;
 pub use batch::{BatchDescriptor, BufferSlice, GpuBatch, GpuMesh, OutputTargets};
 pub use context::{GpuContext, headless_instance};
 pub use curves::{GpuLines, sample_curves};
-pub use export::{ChunkBindings, CurveChunkInputs, CurveInputs, KernelInputs};
+pub use export::{
+    ChunkBindings, CoonsChunkInputs, CoonsInputs, CurveChunkInputs, CurveInputs, KernelInputs,
+};
 pub use surfaces::{Limits, VERTEX_BYTES};
 pub use tessellator::GpuTessellator;
 

@@ -1,4 +1,4 @@
-// Runs knotwork's surface and curve kernels (tessellate.wgsl, curves.wgsl) in Chromium's own
+// Runs knotwork's kernels (tessellate.wgsl, curves.wgsl, coons.wgsl) in Chromium's own
 // WebGPU — Dawn with its Tint compiler on SwiftShader, headless — on the inputs
 // `knotwork conformance --export DIR` wrote, reads the results back and holds them to the
 // conformance suite's bars against the f64 expectations written beside them. Prints a table
@@ -6,7 +6,7 @@
 //
 //   KNOTWORK_WEBGPU_HARNESS=<folder with node_modules/playwright-core> node tests/webgpu/run.js DIR [CASE...]
 //
-// CASE: run only the cases with these file prefixes (case0, case1, ..., curves0, ...).
+// CASE: run only the cases with these file prefixes (case0, ..., curves0, ..., coons0, ...).
 // KNOTWORK_CHROMIUM names the browser (default /usr/bin/chromium, Debian's package).
 'use strict';
 const fs = require('fs');
@@ -24,7 +24,7 @@ const read = (name) => fs.readFileSync(path.join(dir, name));
 
 // In the page: a device, the module (compilation errors are fatal) and one pipeline per
 // entry point, on one bind group layout — the layout knotwork's GpuContext creates.
-async function setUp({ wgsl, entryPoints, curveWgsl, curveEntryPoint }) {
+async function setUp({ wgsl, entryPoints, curveWgsl, curveEntryPoint, coonsWgsl, coonsEntryPoint }) {
   const adapter = await navigator.gpu.requestAdapter();
   if (!adapter) throw new Error('no WebGPU adapter');
   const device = await adapter.requestDevice();
@@ -65,7 +65,14 @@ async function setUp({ wgsl, entryPoints, curveWgsl, curveEntryPoint }) {
     layout: device.createPipelineLayout({ bindGroupLayouts: [curveLayout] }),
     compute: { module: await compile(curveWgsl), entryPoint: curveEntryPoint },
   });
-  window.knotwork = { device, layout, pipelines, curveLayout, curvePipeline };
+  const coonsLayout = device.createBindGroupLayout({
+    entries: [storage(0, true), storage(1, true), storage(2, true), storage(3, false), storage(4, false)],
+  });
+  const coonsPipeline = await device.createComputePipelineAsync({
+    layout: device.createPipelineLayout({ bindGroupLayouts: [coonsLayout] }),
+    compute: { module: await compile(coonsWgsl), entryPoint: coonsEntryPoint },
+  });
+  window.knotwork = { device, layout, pipelines, curveLayout, curvePipeline, coonsLayout, coonsPipeline };
   const info = adapter.info || {};
   return `${info.vendor || '?'} ${info.architecture || ''} ${info.description || ''}`.trim();
 }
@@ -185,6 +192,76 @@ async function runCurves({ chunks, sampleBytes }) {
   return out;
 }
 
+// In the page: one Coons case, chunk by chunk as the Coons executor does — the boundary
+// curves sampled by curves.wgsl, then coons.wgsl over them (every binding exactly its bytes:
+// the kernels count jobs by the length of binding 0) — returning the vertices and indices of
+// all chunks (base64).
+async function runCoons({ chunks, sampleBytes }) {
+  const { device, curveLayout, curvePipeline, coonsLayout, coonsPipeline } = window.knotwork;
+  const decode = (b64) => Uint8Array.from(atob(b64), (ch) => ch.charCodeAt(0));
+  const encode = (bytes) => {
+    let s = '';
+    for (let i = 0; i < bytes.length; i += 0x8000) {
+      s += String.fromCharCode.apply(null, bytes.subarray(i, i + 0x8000));
+    }
+    return btoa(s);
+  };
+  const S = GPUBufferUsage;
+  const upload = (bytes) => {
+    const buffer = device.createBuffer({ size: bytes.length, usage: S.STORAGE, mappedAtCreation: true });
+    new Uint8Array(buffer.getMappedRange()).set(bytes);
+    buffer.unmap();
+    return buffer;
+  };
+  const flat = (pass, items) => {
+    const groups = Math.ceil(items / 64);
+    const x = Math.min(groups, 65535);
+    pass.dispatchWorkgroups(x, Math.ceil(groups / x), 1);
+  };
+  device.pushErrorScope('validation');
+  const encoder = device.createCommandEncoder();
+  const reads = [];
+  const buffers = [];
+  for (const chunk of chunks) {
+    const curveInputs = [chunk.boundary_jobs, chunk.boundary_points, chunk.boundary_tables].map((b64) => upload(decode(b64)));
+    const samples = device.createBuffer({ size: chunk.boundary_samples * sampleBytes, usage: S.STORAGE });
+    const jobs = upload(decode(chunk.jobs));
+    const blends = upload(decode(chunk.blends));
+    const vertices = device.createBuffer({ size: chunk.vertices * 32, usage: S.STORAGE | S.COPY_SRC });
+    const indices = device.createBuffer({ size: chunk.indices * 4, usage: S.STORAGE | S.COPY_SRC });
+    const bind = (layout, list) => device.createBindGroup({
+      layout,
+      entries: list.map((buffer, binding) => ({ binding, resource: { buffer } })),
+    });
+    let pass = encoder.beginComputePass();
+    pass.setPipeline(curvePipeline);
+    pass.setBindGroup(0, bind(curveLayout, [...curveInputs, samples]));
+    flat(pass, chunk.boundary_samples);
+    pass.end();
+    pass = encoder.beginComputePass();
+    pass.setPipeline(coonsPipeline);
+    pass.setBindGroup(0, bind(coonsLayout, [jobs, samples, blends, vertices, indices]));
+    flat(pass, chunk.vertices);
+    pass.end();
+    const readVertices = device.createBuffer({ size: chunk.vertices * 32, usage: S.MAP_READ | S.COPY_DST });
+    const readIndices = device.createBuffer({ size: chunk.indices * 4, usage: S.MAP_READ | S.COPY_DST });
+    encoder.copyBufferToBuffer(vertices, 0, readVertices, 0, chunk.vertices * 32);
+    encoder.copyBufferToBuffer(indices, 0, readIndices, 0, chunk.indices * 4);
+    reads.push([readVertices, readIndices]);
+    buffers.push(...curveInputs, samples, jobs, blends, vertices, indices, readVertices, readIndices);
+  }
+  device.queue.submit([encoder.finish()]);
+  const error = await device.popErrorScope();
+  if (error) throw new Error(`validation: ${error.message}`);
+  await Promise.all(reads.flat().map((read) => read.mapAsync(GPUMapMode.READ)));
+  const out = reads.map(([v, i]) => ({
+    vertices: encode(new Uint8Array(v.getMappedRange())),
+    indices: encode(new Uint8Array(i.getMappedRange())),
+  }));
+  for (const buffer of buffers) buffer.destroy();
+  return out;
+}
+
 // The suite's curve comparison (knotwork::conformance::compare_curves) on the exported
 // expectations: per sample 8 f64 — position relative to the curve's origin, C′, the curve's
 // control extent, its scale of C′. `gpu` holds 12 f32 per sample: (position, 0), (C′, 0),
@@ -251,6 +328,8 @@ async function main() {
       entryPoints: manifest.entry_points,
       curveWgsl: read('curves.wgsl').toString('utf8'),
       curveEntryPoint: manifest.curve_entry_point,
+      coonsWgsl: read('coons.wgsl').toString('utf8'),
+      coonsEntryPoint: manifest.coons_entry_point,
     });
     const bars = manifest.bars;
     console.log(`adapter: ${adapter} (Chromium WebGPU)`);
@@ -281,7 +360,23 @@ async function main() {
       const cell = (v) => v.toExponential(3).padStart(11);
       console.log(`${('curves: ' + c.name).padEnd(48)} ${cell(r.position)} ${cell(r.tangent)}  ${r.layout ? '' : 'layout differs '}${r.pass ? 'pass' : 'FAIL'}`);
     }
-    const total = cases.length + curveCases.length;
+    const coonsCases = manifest.coons_cases.filter((c) => only.length === 0 || only.includes(c.prefix));
+    for (const c of coonsCases) {
+      const chunks = c.chunks.map((chunk, k) => {
+        const file = (what) => read(`${c.prefix}.${k}.${what}`).toString('base64');
+        const names = ['boundary_jobs', 'boundary_points', 'boundary_tables', 'jobs', 'blends'];
+        return { ...chunk, ...Object.fromEntries(names.map((name) => [name, file(name)])) };
+      });
+      const out = await page.evaluate(runCoons, { chunks, sampleBytes: manifest.sample_bytes });
+      const vertices = Buffer.concat(out.map((o) => Buffer.from(o.vertices, 'base64')));
+      const indices = Buffer.concat(out.map((o) => Buffer.from(o.indices, 'base64')));
+      const count = c.chunks.reduce((n, chunk) => n + chunk.vertices, 0);
+      const r = compare({ vertices: count }, vertices, indices, read(`${c.prefix}.expected`), read(`${c.prefix}.indices`), bars);
+      if (!r.pass) failures++;
+      const cell = (v) => v.toExponential(3).padStart(11);
+      console.log(`${c.name.padEnd(48)} ${cell(r.position)} ${cell(r.normal)} ${cell(r.degenerate)} ${cell(r.uv)}  ${r.topology ? '' : 'topology differs '}${r.pass ? 'pass' : 'FAIL'}`);
+    }
+    const total = cases.length + curveCases.length + coonsCases.length;
     console.log(`verdict: ${failures === 0 ? `all ${total} cases conform` : `${failures} of ${total} cases fail`}`);
     process.exitCode = failures === 0 ? 0 : 1;
   } finally {
