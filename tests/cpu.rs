@@ -1551,8 +1551,8 @@ fn rational_bezier_with_oracle(
 /// 1e5 from the origin, a far corner making the control box 100× the pinned region): S_u
 /// and S_v are small there while the quotient rule cancels terms as large as the box, so
 /// the row kernel's own normals measured 1.7e-9 rad off. Point evaluation (summing relative
-/// to the dominant control point: 4e-16 measured) and the grid (which hands such vertices to
-/// it) hold 1e-9 rad against the exact oracle.
+/// to the dominant control point) and the grid (which hands such vertices to it) hold
+/// 1e-13 rad against the exact oracle.
 #[test]
 fn one_dominant_weight_keeps_normals_exact_on_both_paths() {
     let offset = DVec3::new(1e5, -3e4, 2e5);
@@ -1582,8 +1582,11 @@ fn one_dominant_weight_keeps_normals_exact_on_both_paths() {
             worst_grid = worst_grid.max(angle(normals[(j * n + i) as usize], exact));
         }
     }
-    assert!(worst_point <= 1e-9, "point evaluation: {worst_point:e} rad");
-    assert!(worst_grid <= 1e-9, "grid: {worst_grid:e} rad");
+    // The bar is 1e-9; measured 4.4e-16 (point) and 1.4e-14 (grid), held to 1e-13 —
+    // a reference other than the dominant point (e.g. chosen by basis value / weight)
+    // measured 2.5e-11, the row kernel alone 1.7e-9.
+    assert!(worst_point <= 1e-13, "point evaluation: {worst_point:e} rad");
+    assert!(worst_grid <= 1e-13, "grid: {worst_grid:e} rad");
 }
 
 /// A collapsed edge whose next control row collapses to the same point (a bicubic patch
