@@ -127,7 +127,13 @@ pub fn compare_executors(
 
 /// Compares `mesh` with the f64 `reference` of `surfaces`.
 fn compare_surfaces(surfaces: &[BSplineSurface], reference: &Mesh, mesh: &Mesh) -> Report {
-    compare_with_reference(reference, mesh, |part, uv| {
+    compare_with_reference(reference, mesh, surface_measure(surfaces))
+}
+
+/// For vertex uv of part k: the size of surface k (its control box diagonal) and whether the
+/// point is regular (|S_u × S_v| ≥ [`REGULAR_REL`] × its cross scale).
+fn surface_measure(surfaces: &[BSplineSurface]) -> impl Fn(usize, DVec2) -> (f64, bool) + '_ {
+    |part, uv| {
         let surface = &surfaces[part];
         let sample = surface.evaluate(surface.range_u().lerp(uv.x), surface.range_v().lerp(uv.y));
         let cross = sample.du.cross(sample.dv).length();
@@ -135,7 +141,19 @@ fn compare_surfaces(surfaces: &[BSplineSurface], reference: &Mesh, mesh: &Mesh) 
             surface.control_box_diagonal(),
             cross >= REGULAR_REL * surface.cross_scale(),
         )
-    })
+    }
+}
+
+/// As [`surface_measure`] for directly evaluated Coons patches (size: [`CoonsPatch::size`]).
+fn coons_measure(patches: &[CoonsPatch]) -> impl Fn(usize, DVec2) -> (f64, bool) + '_ {
+    |part, uv| {
+        let sample = patches[part].evaluate(uv.x, uv.y);
+        let cross = sample.du.cross(sample.dv).length();
+        (
+            patches[part].size(),
+            cross >= REGULAR_REL * patches[part].cross_scale(),
+        )
+    }
 }
 
 /// Compares `mesh` (from any backend) with the f64 reference for directly evaluated Coons
@@ -147,14 +165,11 @@ pub fn compare_coons(
 ) -> Result<Report> {
     let mut reference = Mesh::default();
     CpuTessellator.tessellate_coons_into(patches, options, &mut reference)?;
-    Ok(compare_with_reference(&reference, mesh, |part, uv| {
-        let sample = patches[part].evaluate(uv.x, uv.y);
-        let cross = sample.du.cross(sample.dv).length();
-        (
-            patches[part].size(),
-            cross >= REGULAR_REL * patches[part].cross_scale(),
-        )
-    }))
+    Ok(compare_with_reference(
+        &reference,
+        mesh,
+        coons_measure(patches),
+    ))
 }
 
 /// Compares `mesh` with `reference` vertex by vertex; `measure(part, uv)` gives the size of
@@ -240,28 +255,8 @@ pub fn export_suite(dir: &Path) -> Result<usize> {
         let inputs = KernelInputs::new(&plan, &case.surfaces)?;
         let mut reference = Mesh::default();
         crate::cpu::execute_surfaces(&plan, &case.surfaces, &mut reference)?;
-        let mut expected = Vec::with_capacity(reference.vertex_count() * 80);
-        for (part, item) in reference.parts.iter().zip(0..) {
-            let surface: &BSplineSurface = &case.surfaces[item];
-            let origin = inputs.origins[item];
-            let first = part.first_vertex as usize;
-            for k in first..first + part.vertex_count as usize {
-                let uv = reference.uvs[k];
-                let sample =
-                    surface.evaluate(surface.range_u().lerp(uv.x), surface.range_v().lerp(uv.y));
-                let regular =
-                    sample.du.cross(sample.dv).length() >= REGULAR_REL * surface.cross_scale();
-                let values = (reference.positions[k] - origin)
-                    .to_array()
-                    .into_iter()
-                    .chain(reference.normals[k].to_array())
-                    .chain(uv.to_array())
-                    .chain([f64::from(u8::from(regular)), surface.control_box_diagonal()]);
-                for value in values {
-                    expected.extend_from_slice(&value.to_le_bytes());
-                }
-            }
-        }
+        let expected =
+            expected_vertices(&reference, &inputs.origins, surface_measure(&case.surfaces));
         let file = |what: &str| format!("case{index}.{what}");
         write(&file("pieces"), &inputs.pieces)?;
         write(&file("tiles"), &inputs.tiles)?;
@@ -346,26 +341,7 @@ pub fn export_suite(dir: &Path) -> Result<usize> {
         let inputs = CoonsInputs::new(&plan, &case.patches)?;
         let mut reference = Mesh::default();
         CpuTessellator.tessellate_coons_into(&case.patches, &options, &mut reference)?;
-        let mut expected = Vec::with_capacity(reference.vertex_count() * 80);
-        for (part, patch) in reference.parts.iter().zip(&case.patches) {
-            let origin = patch.origin();
-            let first = part.first_vertex as usize;
-            for k in first..first + part.vertex_count as usize {
-                let uv = reference.uvs[k];
-                let sample = patch.evaluate(uv.x, uv.y);
-                let regular =
-                    sample.du.cross(sample.dv).length() >= REGULAR_REL * patch.cross_scale();
-                let values = (reference.positions[k] - origin)
-                    .to_array()
-                    .into_iter()
-                    .chain(reference.normals[k].to_array())
-                    .chain(uv.to_array())
-                    .chain([f64::from(u8::from(regular)), patch.size()]);
-                for value in values {
-                    expected.extend_from_slice(&value.to_le_bytes());
-                }
-            }
-        }
+        let expected = expected_vertices(&reference, &inputs.origins, coons_measure(&case.patches));
         let prefix = format!("coons{index}");
         write(&format!("{prefix}.expected"), &expected)?;
         write(
@@ -416,6 +392,33 @@ pub fn export_suite(dir: &Path) -> Result<usize> {
     );
     write("manifest.json", manifest.as_bytes())?;
     Ok(cases.len() + curve_cases.len() + coons_cases.len())
+}
+
+/// The exported expectations of a mesh (see [`export_suite`]): per vertex 10 little-endian
+/// f64 — position relative to its part's origin in `origins`, unit normal, uv, 1 if regular
+/// else 0, the part's size — with `measure` as in [`compare_with_reference`].
+fn expected_vertices(
+    reference: &Mesh,
+    origins: &[DVec3],
+    measure: impl Fn(usize, DVec2) -> (f64, bool),
+) -> Vec<u8> {
+    let mut expected = Vec::with_capacity(reference.vertex_count() * 80);
+    for (item, part) in reference.parts.iter().enumerate() {
+        let first = part.first_vertex as usize;
+        for k in first..first + part.vertex_count as usize {
+            let (size, regular) = measure(item, reference.uvs[k]);
+            let values = (reference.positions[k] - origins[item])
+                .to_array()
+                .into_iter()
+                .chain(reference.normals[k].to_array())
+                .chain(reference.uvs[k].to_array())
+                .chain([f64::from(u8::from(regular)), size]);
+            for value in values {
+                expected.extend_from_slice(&value.to_le_bytes());
+            }
+        }
+    }
+    expected
 }
 
 /// One curve case: curves and the samples per curve.

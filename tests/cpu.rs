@@ -1585,7 +1585,10 @@ fn one_dominant_weight_keeps_normals_exact_on_both_paths() {
     // The bar is 1e-9; measured 4.4e-16 (point) and 1.4e-14 (grid), held to 1e-13 —
     // a reference other than the dominant point (e.g. chosen by basis value / weight)
     // measured 2.5e-11, the row kernel alone 1.7e-9.
-    assert!(worst_point <= 1e-13, "point evaluation: {worst_point:e} rad");
+    assert!(
+        worst_point <= 1e-13,
+        "point evaluation: {worst_point:e} rad"
+    );
     assert!(worst_grid <= 1e-13, "grid: {worst_grid:e} rad");
 }
 

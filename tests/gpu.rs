@@ -1652,37 +1652,33 @@ fn chromium_webgpu_runs_the_kernels_within_the_bars() {
         passed && report.contains(&format!("verdict: all {cases} cases conform")),
         "Chromium's WebGPU does not conform"
     );
-    // The bicubic case with weights 0.01..100: one uploaded weight 2 % off.
-    let index = conformance::suite()
+    // One uploaded weight 2 % off (the w of control point `point` in `file`) must fail.
+    let perturb_and_fail = |prefix: String, file: String, point: usize| {
+        let path = dir.join(file);
+        let mut bytes = std::fs::read(&path).unwrap();
+        let weight = point * 16 + 12;
+        let perturbed = f32::from_le_bytes(bytes[weight..weight + 4].try_into().unwrap()) * 1.02;
+        bytes[weight..weight + 4].copy_from_slice(&perturbed.to_le_bytes());
+        std::fs::write(&path, bytes).unwrap();
+        let (passed, report) = run(&[&prefix]);
+        assert!(
+            !passed && report.contains("FAIL"),
+            "{prefix}: a perturbed weight passed"
+        );
+    };
+    let surface = conformance::suite()
         .iter()
         .position(|case| case.name == "bicubic, weights 0.01..100")
         .unwrap();
-    let points = dir.join(format!("case{index}.points"));
-    let mut bytes = std::fs::read(&points).unwrap();
-    let weight = 5 * 16 + 12;
-    let perturbed = f32::from_le_bytes(bytes[weight..weight + 4].try_into().unwrap()) * 1.02;
-    bytes[weight..weight + 4].copy_from_slice(&perturbed.to_le_bytes());
-    std::fs::write(&points, bytes).unwrap();
-    let (passed, report) = run(&[&format!("case{index}")]);
-    assert!(
-        !passed && report.contains("FAIL"),
-        "a perturbed weight passed"
-    );
-    // The same for a curve: one weight of the NURBS case 2 % off.
-    let index = conformance::curve_suite()
+    perturb_and_fail(format!("case{surface}"), format!("case{surface}.points"), 5);
+    let curve = conformance::curve_suite()
         .iter()
         .position(|case| case.name.starts_with("NURBS"))
         .unwrap();
-    let points = dir.join(format!("curves{index}.0.points"));
-    let mut bytes = std::fs::read(&points).unwrap();
-    let weight = 3 * 16 + 12;
-    let perturbed = f32::from_le_bytes(bytes[weight..weight + 4].try_into().unwrap()) * 1.02;
-    bytes[weight..weight + 4].copy_from_slice(&perturbed.to_le_bytes());
-    std::fs::write(&points, bytes).unwrap();
-    let (passed, report) = run(&[&format!("curves{index}")]);
-    assert!(
-        !passed && report.contains("FAIL"),
-        "a perturbed curve weight passed"
+    perturb_and_fail(
+        format!("curves{curve}"),
+        format!("curves{curve}.0.points"),
+        3,
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -72,15 +72,7 @@ async function setUp({ wgsl, entryPoints, curveWgsl, curveEntryPoint, coonsWgsl,
     layout: device.createPipelineLayout({ bindGroupLayouts: [coonsLayout] }),
     compute: { module: await compile(coonsWgsl), entryPoint: coonsEntryPoint },
   });
-  window.knotwork = { device, layout, pipelines, curveLayout, curvePipeline, coonsLayout, coonsPipeline };
-  const info = adapter.info || {};
-  return `${info.vendor || '?'} ${info.architecture || ''} ${info.description || ''}`.trim();
-}
-
-// In the page: uploads one case, dispatches every chunk's passes as GpuBatch does, and
-// returns the vertex and index buffers (base64).
-async function runCase({ c, files, stride }) {
-  const { device, layout, pipelines } = window.knotwork;
+  // Helpers the runners share (each runner is sent to the page on its own).
   const decode = (b64) => Uint8Array.from(atob(b64), (ch) => ch.charCodeAt(0));
   const encode = (bytes) => {
     let s = '';
@@ -89,12 +81,31 @@ async function runCase({ c, files, stride }) {
     }
     return btoa(s);
   };
+  // A buffer of exactly `bytes` (the kernels count jobs by binding length).
   const upload = (bytes, usage) => {
-    const buffer = device.createBuffer({ size: Math.max(16, Math.ceil(bytes.length / 4) * 4), usage, mappedAtCreation: true });
+    const buffer = device.createBuffer({ size: bytes.length, usage, mappedAtCreation: true });
     new Uint8Array(buffer.getMappedRange()).set(bytes);
     buffer.unmap();
     return buffer;
   };
+  // One invocation per item, 64 per workgroup, as knotwork's dispatch_flat.
+  const flat = (pass, items) => {
+    const groups = Math.ceil(items / 64);
+    const x = Math.min(groups, 65535);
+    pass.dispatchWorkgroups(x, Math.ceil(groups / x), 1);
+  };
+  window.knotwork = {
+    device, layout, pipelines, curveLayout, curvePipeline, coonsLayout, coonsPipeline,
+    decode, encode, upload, flat,
+  };
+  const info = adapter.info || {};
+  return `${info.vendor || '?'} ${info.architecture || ''} ${info.description || ''}`.trim();
+}
+
+// In the page: uploads one case, dispatches every chunk's passes as GpuBatch does, and
+// returns the vertex and index buffers (base64).
+async function runCase({ c, files, stride }) {
+  const { device, layout, pipelines, decode, encode, upload } = window.knotwork;
   const S = GPUBufferUsage;
   device.pushErrorScope('validation');
   const uniform = upload(decode(files.uniforms), S.UNIFORM);
@@ -143,28 +154,14 @@ async function runCase({ c, files, stride }) {
 // 0..=2 exactly the chunk's bytes: the kernel counts curves by the length of binding 0); returns
 // every chunk's samples (base64).
 async function runCurves({ chunks, sampleBytes }) {
-  const { device, curveLayout, curvePipeline } = window.knotwork;
-  const decode = (b64) => Uint8Array.from(atob(b64), (ch) => ch.charCodeAt(0));
-  const encode = (bytes) => {
-    let s = '';
-    for (let i = 0; i < bytes.length; i += 0x8000) {
-      s += String.fromCharCode.apply(null, bytes.subarray(i, i + 0x8000));
-    }
-    return btoa(s);
-  };
+  const { device, curveLayout, curvePipeline, decode, encode, upload, flat } = window.knotwork;
   const S = GPUBufferUsage;
-  const upload = (bytes) => {
-    const buffer = device.createBuffer({ size: bytes.length, usage: S.STORAGE, mappedAtCreation: true });
-    new Uint8Array(buffer.getMappedRange()).set(bytes);
-    buffer.unmap();
-    return buffer;
-  };
   device.pushErrorScope('validation');
   const encoder = device.createCommandEncoder();
   const reads = [];
   const buffers = [];
   for (const chunk of chunks) {
-    const inputs = [chunk.jobs, chunk.points, chunk.tables].map((b64) => upload(decode(b64)));
+    const inputs = [chunk.jobs, chunk.points, chunk.tables].map((b64) => upload(decode(b64), S.STORAGE));
     const bytes = chunk.samples * sampleBytes;
     const output = device.createBuffer({ size: bytes, usage: S.STORAGE | S.COPY_SRC });
     const read = device.createBuffer({ size: bytes, usage: S.MAP_READ | S.COPY_DST });
@@ -175,9 +172,7 @@ async function runCurves({ chunks, sampleBytes }) {
     const pass = encoder.beginComputePass();
     pass.setPipeline(curvePipeline);
     pass.setBindGroup(0, group);
-    const groups = Math.ceil(chunk.samples / 64);
-    const x = Math.min(groups, 65535);
-    pass.dispatchWorkgroups(x, Math.ceil(groups / x), 1);
+    flat(pass, chunk.samples);
     pass.end();
     encoder.copyBufferToBuffer(output, 0, read, 0, bytes);
     reads.push(read);
@@ -197,36 +192,17 @@ async function runCurves({ chunks, sampleBytes }) {
 // the kernels count jobs by the length of binding 0) — returning the vertices and indices of
 // all chunks (base64).
 async function runCoons({ chunks, sampleBytes }) {
-  const { device, curveLayout, curvePipeline, coonsLayout, coonsPipeline } = window.knotwork;
-  const decode = (b64) => Uint8Array.from(atob(b64), (ch) => ch.charCodeAt(0));
-  const encode = (bytes) => {
-    let s = '';
-    for (let i = 0; i < bytes.length; i += 0x8000) {
-      s += String.fromCharCode.apply(null, bytes.subarray(i, i + 0x8000));
-    }
-    return btoa(s);
-  };
+  const { device, curveLayout, curvePipeline, coonsLayout, coonsPipeline, decode, encode, upload, flat } = window.knotwork;
   const S = GPUBufferUsage;
-  const upload = (bytes) => {
-    const buffer = device.createBuffer({ size: bytes.length, usage: S.STORAGE, mappedAtCreation: true });
-    new Uint8Array(buffer.getMappedRange()).set(bytes);
-    buffer.unmap();
-    return buffer;
-  };
-  const flat = (pass, items) => {
-    const groups = Math.ceil(items / 64);
-    const x = Math.min(groups, 65535);
-    pass.dispatchWorkgroups(x, Math.ceil(groups / x), 1);
-  };
   device.pushErrorScope('validation');
   const encoder = device.createCommandEncoder();
   const reads = [];
   const buffers = [];
   for (const chunk of chunks) {
-    const curveInputs = [chunk.boundary_jobs, chunk.boundary_points, chunk.boundary_tables].map((b64) => upload(decode(b64)));
+    const curveInputs = [chunk.boundary_jobs, chunk.boundary_points, chunk.boundary_tables].map((b64) => upload(decode(b64), S.STORAGE));
     const samples = device.createBuffer({ size: chunk.boundary_samples * sampleBytes, usage: S.STORAGE });
-    const jobs = upload(decode(chunk.jobs));
-    const blends = upload(decode(chunk.blends));
+    const jobs = upload(decode(chunk.jobs), S.STORAGE);
+    const blends = upload(decode(chunk.blends), S.STORAGE);
     const vertices = device.createBuffer({ size: chunk.vertices * 32, usage: S.STORAGE | S.COPY_SRC });
     const indices = device.createBuffer({ size: chunk.indices * 4, usage: S.STORAGE | S.COPY_SRC });
     const bind = (layout, list) => device.createBindGroup({
@@ -335,6 +311,7 @@ async function main() {
     console.log(`adapter: ${adapter} (Chromium WebGPU)`);
     console.log(`bars: position ${bars.position_rel} of the diagonal (+ f32 rounding), normal ${bars.normal} rad (${bars.degenerate_normal} near degenerate points)`);
     let failures = 0;
+    const cell = (v) => v.toExponential(3).padStart(11);
     const only = process.argv.slice(3);
     const cases = manifest.cases.filter((c) => only.length === 0 || only.includes(c.prefix));
     for (const c of cases) {
@@ -344,7 +321,6 @@ async function main() {
       const r = compare(c, Buffer.from(out.vertices, 'base64'), Buffer.from(out.indices, 'base64'),
         read(`${c.prefix}.expected`), read(`${c.prefix}.indices`), bars);
       if (!r.pass) failures++;
-      const cell = (v) => v.toExponential(3).padStart(11);
       console.log(`${c.name.padEnd(48)} ${cell(r.position)} ${cell(r.normal)} ${cell(r.degenerate)} ${cell(r.uv)}  ${r.topology ? '' : 'topology differs '}${r.pass ? 'pass' : 'FAIL'}`);
     }
     const curveCases = manifest.curve_cases.filter((c) => only.length === 0 || only.includes(c.prefix));
@@ -357,7 +333,6 @@ async function main() {
       const gpu = Buffer.concat(out.map((b64) => Buffer.from(b64, 'base64')));
       const r = compareCurves(gpu, read(`${c.prefix}.expected`), bars);
       if (!r.pass) failures++;
-      const cell = (v) => v.toExponential(3).padStart(11);
       console.log(`${('curves: ' + c.name).padEnd(48)} ${cell(r.position)} ${cell(r.tangent)}  ${r.layout ? '' : 'layout differs '}${r.pass ? 'pass' : 'FAIL'}`);
     }
     const coonsCases = manifest.coons_cases.filter((c) => only.length === 0 || only.includes(c.prefix));
@@ -373,7 +348,6 @@ async function main() {
       const count = c.chunks.reduce((n, chunk) => n + chunk.vertices, 0);
       const r = compare({ vertices: count }, vertices, indices, read(`${c.prefix}.expected`), read(`${c.prefix}.indices`), bars);
       if (!r.pass) failures++;
-      const cell = (v) => v.toExponential(3).padStart(11);
       console.log(`${c.name.padEnd(48)} ${cell(r.position)} ${cell(r.normal)} ${cell(r.degenerate)} ${cell(r.uv)}  ${r.topology ? '' : 'topology differs '}${r.pass ? 'pass' : 'FAIL'}`);
     }
     const total = cases.length + curveCases.length + coonsCases.length;
