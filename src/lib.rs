@@ -35,7 +35,7 @@
 //! - Triangles are counter-clockwise seen from the side the normal points to
 //!   ([`plan::cell_triangles`]); the normal is unit(S_u × S_v), and its limit where
 //!   S_u × S_v vanishes — below the rounding of its evaluation (see
-//!   [`BSplineSurface::evaluate`], [`geom::degenerate_cross_sq`], [`geom::quotient_noise_sq`]).
+//!   [`BSplineSurface::evaluate`], [`geom::degenerate_cross_sq`]).
 //! - `uv` is the surface parameter mapped to [0, 1]² over the evaluation range.
 //!
 //! # Precision

@@ -1300,12 +1300,23 @@ fn oracle_case() -> impl Strategy<Value = OracleCase> {
         )
 }
 
+/// A number from the environment variable `name`, else `default` (a malformed value is a
+/// mistake in the command line, not something to test with).
+fn oracle_setting(name: &str, default: u64) -> u64 {
+    std::env::var(name).map_or(default, |value| {
+        value
+            .parse()
+            .unwrap_or_else(|_| panic!("{name}={value} is not a number"))
+    })
+}
+
 proptest! {
-    // A fixed seed: the same cases on every run (CI stays reproducible); new seeds are tried
-    // by changing it, and failures found are kept in cpu.proptest-regressions.
+    // A fixed seed: the same cases on every run (CI stays reproducible); other seeds and
+    // longer runs with KNOTWORK_ORACLE_SEED and KNOTWORK_ORACLE_CASES, and failures found
+    // are kept in cpu.proptest-regressions.
     #![proptest_config(ProptestConfig {
-        rng_seed: proptest::test_runner::RngSeed::Fixed(20261201),
-        ..ProptestConfig::with_cases(32)
+        rng_seed: proptest::test_runner::RngSeed::Fixed(oracle_setting("KNOTWORK_ORACLE_SEED", 20261201)),
+        ..ProptestConfig::with_cases(oracle_setting("KNOTWORK_ORACLE_CASES", 32) as u32)
     })]
 
     /// The f64 path against exact rational evaluation of the same inputs: degrees 1..=7 each

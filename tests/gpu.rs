@@ -1501,10 +1501,17 @@ fn curve_second_derivatives_conform() {
 /// suite's bounds and its notion of regular). Measured on lavapipe: 6.0e-8 of the diagonal,
 /// 1.4e-5 rad and 1.5e-5 rad over degrees ≤ 5 (2.4e-4 rad and 0.67 rad before the kernels
 /// summed relative to the dominant control point and checked flagged vertices against
-/// their rounding).
+/// their rounding). On Mesa's drivers, where CI runs, positions and normals near degenerate
+/// points are held to about ten times those figures (1e-6 and 2e-4 rad); regular normals
+/// to the documented 1e-4 rad, already within ten times.
 #[test]
 fn gpu_matches_the_exact_oracle_within_its_bounds() {
     let Some(context) = gpu() else { return };
+    let (position_bar, degenerate_bar) = if context.adapter_summary().contains("llvmpipe") {
+        (1e-6, 2e-4)
+    } else {
+        (POSITION_REL_BAR, conformance::DEGENERATE_NORMAL_BAR)
+    };
     let tessellator = tessellator_on(context);
     let mut seed = 0x9e3779b97f4a7c15u64;
     let mut next = move || {
@@ -1585,18 +1592,14 @@ fn gpu_matches_the_exact_oracle_within_its_bounds() {
                 let exact = reference(u, v);
                 let off = (mesh.positions[k] - exact.position).length() / diagonal;
                 assert!(
-                    off <= POSITION_REL_BAR,
-                    "case {case} ({u}, {v}): position {off:e} of the diagonal"
+                    off <= position_bar,
+                    "case {case} ({u}, {v}): position {off:e} of the diagonal (bar {position_bar:e})"
                 );
                 // Regular as the documented bound counts it: |S_u × S_v| at least 1e-3 of the
                 // surface's cross scale; nearer a degenerate point the bound is 1e-2 rad.
                 let regular = exact.du.cross(exact.dv).length()
                     >= conformance::REGULAR_REL * surface.cross_scale();
-                let bar = if regular {
-                    NORMAL_BAR
-                } else {
-                    conformance::DEGENERATE_NORMAL_BAR
-                };
+                let bar = if regular { NORMAL_BAR } else { degenerate_bar };
                 let turned = common::angle(mesh.normals[k], exact.normal);
                 assert!(
                     turned <= bar,

@@ -403,7 +403,7 @@ impl Row<'_> {
                 let limit = w_sq.mul(w_sq).mul(V::splat(threshold)).to_array();
                 // The rounding of the quotient rule: it cancels terms as large as
                 // m_u = |A_u| + |w_u|·|S| (m_v likewise), turning S_u × S_v by about
-                // ε·(m_u·|S_v| + |S_u|·m_v)/|S_u × S_v| (geom::quotient_noise_sq; all of it
+                // ε·(m_u·|S_v| + |S_u|·m_v)/|S_u × S_v| (all of it
                 // scaled by w⁴ as the cross product is, and (a + b)² ≤ 2(a² + b²)).
                 let s_sq = x.mul_add(x, y.mul_add(y, z.mul(z)));
                 let hu_sq = acc[4].mul_add(acc[4], acc[5].mul_add(acc[5], acc[6].mul(acc[6])));

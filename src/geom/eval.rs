@@ -27,49 +27,32 @@ pub fn degenerate_cross_sq(scale: f64, epsilon: f64) -> f64 {
     t * t
 }
 
-/// The squared rounding noise of S_u × S_v as the quotient rule forms it from the homogeneous
-/// point `h` (relative to the origin) and its derivatives `hu`, `hv`: S_u = (A_u − w_u·S)/w
-/// cancels terms as large as m_u = (|A_u| + |w_u|·|S|)/w (S_v likewise), which extreme weights
-/// make far larger than the model's size over its parameter width — then the cross product
-/// carries [`DEGENERATE_EPSILONS`]·ε·(m_u·|S_v| + |S_u|·m_v) of noise, more than
-/// [`degenerate_cross_sq`] allows for. Where S_u × S_v is below both, it counts as zero.
-pub fn quotient_noise_sq(h: DVec4, hu: DVec4, hv: DVec4, du: DVec3, dv: DVec3) -> f64 {
-    let s = (h.truncate() / h.w).length();
-    let m_u = (hu.truncate().length() + hu.w.abs() * s) / h.w;
-    let m_v = (hv.truncate().length() + hv.w.abs() * s) / h.w;
-    let t = DEGENERATE_EPSILONS * f64::EPSILON * (m_u * dv.length() + du.length() * m_v);
-    t * t
-}
-
 /// A₁ of [`limit_normal`] for a rational surface, (a·S_uu + b·S_uv) × S_v + S_u × (a·S_uv +
-/// b·S_vv), with the rounding bound of its terms, from the homogeneous point and derivatives
-/// `h` = [A, A_u, A_v, A_uu, A_uv, A_vv], (S_u, S_v) and S (the same frame as `h`). The
-/// quotient rule's terms along S_u in S_uv (−w_v·S_u/w) and along S_v (−w_u·S_v/w) drop out
-/// of the cross products they would enter exactly, instead of cancelling there in rounding:
-/// with a weight ratio r in the support they are r times larger than what remains.
+/// b·S_vv), times w, with the rounding bound of its terms, from the homogeneous point and
+/// derivatives `h` = [A, A_u, A_v, A_uu, A_uv, A_vv], (S_u, S_v) and S (the same frame as
+/// `h`). The quotient rule's terms along S_u in S_uv (−w_v·S_u/w) and along S_v (−w_u·S_v/w)
+/// drop out of the cross products they would enter exactly, instead of cancelling there in
+/// rounding: with a weight ratio r in the support they are r times larger than what remains.
+/// So do its terms along S_u × S_v (−2a·w_u, −b·w_v, … times S_u × S_v): A₁ is wanted only
+/// where S_u × S_v is rounding noise, which those coefficients would only amplify.
 fn first_order_term(
-    [h, hu, hv, huu, huv, hvv]: [DVec4; 6],
+    [h, huu, huv, hvv]: [DVec4; 4],
     (su, sv): (DVec3, DVec3),
     s: DVec3,
     (a, b): (f64, f64),
 ) -> (DVec3, f64) {
-    let n = su.cross(sv);
     let terms = [
         // w·S_uu × S_v
         (a, huu.truncate().cross(sv)),
-        (-2.0 * a * hu.w, n),
         (-a * huu.w, s.cross(sv)),
         // w·S_uv × S_v, without −w_u·S_v × S_v
         (b, huv.truncate().cross(sv)),
-        (-b * hv.w, n),
         (-b * huv.w, s.cross(sv)),
         // w·S_u × S_uv, without −w_v·S_u × S_u
         (a, su.cross(huv.truncate())),
-        (-a * hu.w, n),
         (-a * huv.w, su.cross(s)),
         // w·S_u × S_vv
         (b, su.cross(hvv.truncate())),
-        (-2.0 * b * hv.w, n),
         (-b * hvv.w, su.cross(s)),
     ];
     let value: DVec3 = terms.iter().map(|(c, x)| *c * *x).sum();
@@ -78,10 +61,6 @@ fn first_order_term(
         (b.abs(), huv.truncate().length() * sv.length()),
         (a.abs(), su.length() * huv.truncate().length()),
         (b.abs(), su.length() * hvv.truncate().length()),
-        (
-            (2.0 * a * hu.w).abs() + (b * hv.w).abs() + (a * hu.w).abs() + (2.0 * b * hv.w).abs(),
-            su.length() * sv.length(),
-        ),
         (
             (a * huu.w).abs() + (b * huv.w).abs(),
             s.length() * sv.length(),
@@ -222,15 +201,13 @@ impl BSplineSurface {
             dvv,
             normal: DVec3::ZERO,
         };
-        let noise = quotient_noise_sq(h, hu, hv, du, dv);
-        let first_order = |a: f64, b: f64| {
-            first_order_term([h, hu, hv, huu, huv, hvv], (du, dv), position, (a, b))
-        };
+        let first_order =
+            |a: f64, b: f64| first_order_term([h, huu, huv, hvv], (du, dv), position, (a, b));
         sample.normal = limit_normal(
             &sample,
             (u, v),
             (self.range_u(), self.range_v()),
-            degenerate_cross_sq(self.cross_scale(), f64::EPSILON).max(noise),
+            degenerate_cross_sq(self.cross_scale(), f64::EPSILON),
             Some(&first_order),
             Some(&|| self.third_derivatives(u, v)),
             |u, v| self.rational_first_derivatives(u, v),

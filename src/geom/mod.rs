@@ -22,9 +22,7 @@ pub use bezier::{
 };
 pub use curve::BSplineCurve;
 pub(crate) use eval::Rail;
-pub use eval::{
-    DEGENERATE_EPSILONS, SurfaceSample, cross_scale, degenerate_cross_sq, quotient_noise_sq,
-};
+pub use eval::{DEGENERATE_EPSILONS, SurfaceSample, cross_scale, degenerate_cross_sq};
 pub(crate) use knots::check_degree;
 pub use knots::{KnotVector, MAX_DEGREE};
 pub(crate) use surface::cartesian_box;
