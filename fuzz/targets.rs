@@ -99,6 +99,8 @@ pub fn cli_args(data: &[u8]) {
                     inputs,
                     output,
                     grid,
+                    tolerance,
+                    tolerance_rel,
                     format,
                     input_format,
                     weld,
@@ -108,7 +110,7 @@ pub fn cli_args(data: &[u8]) {
                 },
         }) => {
             let job = Job::new(
-                grid,
+                knotwork::cli::tess_options(grid, tolerance, tolerance_rel),
                 format,
                 input_format,
                 weld,

@@ -74,8 +74,9 @@ const MAX_ORDER: u32 = 21u;
 // the forward difference b_{j−3} − b_{j−4} (j ≥ 4).
 const SEGMENT_STRIDE: u32 = 30u;
 // Per run: [first grid column, column count, segment (bits each), span-local parameter of the
-// first column, local parameter step]; the general path uses the first two.
-const RUN_STRIDE: u32 = 5u;
+// first column, local parameter step, u fraction (uv) of the first column, u fraction step];
+// the general path uses the first two.
+const RUN_STRIDE: u32 = 7u;
 
 @group(0) @binding(0) var<uniform> chunk: ChunkParams;
 @group(0) @binding(1) var<storage, read> pieces: array<Piece>;
@@ -355,6 +356,8 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
     let segment = piece.segment_table + bitcast<u32>(tables[run + 2u]) * SEGMENT_STRIDE - chunk.table_origin;
     let t0 = tables[run + 3u];
     let dt = tables[run + 4u];
+    let u_first = tables[run + 5u];
+    let u_step = tables[run + 6u];
     let inv_width = tables[segment + 1u];
     let m0 = matrix_row(segment, 0u);
     let m1 = matrix_row(segment, 1u);
@@ -405,13 +408,12 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
     let origin = vec3<f32>(piece.origin_x, piece.origin_y, piece.origin_z);
     let row_out = piece.first_vertex + row * piece.grid_u - chunk.vertex_origin;
     let v_fraction = tables[entry];
-    let u_scale = 1.0 / f32(piece.grid_u - 1u);
     var degenerate = false;
     for (var step = 0u; step < count; step++) {
         let frame = bezier_frame(b, f, d, inv_width, t0 + f32(step) * dt);
         let normal = cross(frame.su, frame.sv);
         degenerate = degenerate | is_degenerate(piece, normal);
-        let uv = vec2<f32>(f32(first + step) * u_scale, v_fraction);
+        let uv = vec2<f32>(u_first + f32(step) * u_step, v_fraction);
         store_vertex(2u * (row_out + first + step), origin + (reference + frame.s), normalize(normal), uv);
     }
     // The run's vertices at degenerate points, again, with the limit normal (a second loop:
@@ -455,7 +457,7 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
                 let wt = bernstein3_derivative(t);
                 let auv = d * vec4<f32>(-wt.x, wt.x - wt.y, wt.y - wt.z, wt.z) * inv_width;
                 let avv = e * bt;
-                let uv = vec2<f32>(f32(first + step) * u_scale, v_fraction);
+                let uv = vec2<f32>(u_first + f32(step) * u_step, v_fraction);
                 let normal = limit_normal_from(piece, frame, auu, auv, avv, uv);
                 store_vertex(2u * (row_out + first + step), origin + (reference + frame.s), normalize(normal), uv);
             }

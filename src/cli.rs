@@ -4,6 +4,7 @@
 //! target and the tests reach all of it.
 
 use crate::io::{MeshFormat, SceneFormat};
+use crate::mesh::Tolerance;
 use crate::{Error, TessOptions};
 use clap::{Parser, Subcommand, ValueEnum};
 use std::collections::HashMap;
@@ -52,6 +53,14 @@ pub enum Command {
         /// Vertices per surface, NUxNV (u along the first number); a JSON surface's own `grid` wins.
         #[arg(long, default_value = "33x33", value_parser = parse_grid)]
         grid: (u32, u32),
+        /// Instead of a grid, sample every surface so that the mesh stays within this
+        /// distance of it (model units): rates from a proven bound, per knot span and within it.
+        #[arg(long, value_parser = parse_tolerance, conflicts_with_all = ["grid", "tolerance_rel"])]
+        tolerance: Option<f64>,
+        /// As --tolerance, as a fraction of the diagonal of the file's control-point box
+        /// (e.g. 1e-3).
+        #[arg(long, value_parser = parse_tolerance, conflicts_with = "grid")]
+        tolerance_rel: Option<f64>,
         /// Which tessellator runs.
         #[arg(long, value_enum, default_value_t = Backend::Auto)]
         backend: Backend,
@@ -222,11 +231,37 @@ pub struct Job {
     pub memory_budget: u64,
 }
 
+/// The options of `--grid`, `--tolerance` and `--tolerance-rel` (at most one tolerance: clap
+/// refuses both).
+pub fn tess_options(
+    grid: (u32, u32),
+    tolerance: Option<f64>,
+    tolerance_rel: Option<f64>,
+) -> TessOptions {
+    let options = TessOptions::DEFAULT.with_grid(grid.0, grid.1);
+    match (tolerance, tolerance_rel) {
+        (Some(t), _) => options.with_tolerance(Tolerance::Absolute(t)),
+        (None, Some(r)) => options.with_tolerance(Tolerance::Relative(r)),
+        (None, None) => options,
+    }
+}
+
+/// Parses a tolerance: a finite number greater than 0.
+pub fn parse_tolerance(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(value) if value.is_finite() && value > 0.0 => Ok(value),
+        Ok(value) => Err(format!(
+            "{value} is not a tolerance: it must be greater than 0"
+        )),
+        Err(_) => Err(format!("`{text}` is not a number")),
+    }
+}
+
 impl Job {
     /// The job a `tessellate` command's options describe; `memory_budget` is `--max-memory`
     /// or the caller's default.
     pub fn new(
-        grid: (u32, u32),
+        options: TessOptions,
         format: Option<OutputFormat>,
         input_format: Option<InputFormat>,
         weld: bool,
@@ -234,7 +269,7 @@ impl Job {
         memory_budget: u64,
     ) -> Self {
         Job {
-            options: TessOptions::DEFAULT.with_grid(grid.0, grid.1),
+            options,
             format: format.map(OutputFormat::mesh_format),
             input_format: input_format.map(InputFormat::scene_format),
             weld,

@@ -93,6 +93,16 @@ pub enum Error {
     PolylinesUnsupported { format: &'static str },
     #[error("grid {nu}x{nv} is invalid: each side needs at least 2 samples")]
     GridTooSmall { nu: u32, nv: u32 },
+    #[error("tolerance {value} is invalid: it must be a finite number greater than 0")]
+    InvalidTolerance { value: f64 },
+    #[error(
+        "tolerance {tolerance} needs more than {segments} segments across one knot span: ask for a larger tolerance"
+    )]
+    ToleranceTooFine { tolerance: f64, segments: u32 },
+    #[error(
+        "{what} cannot be sampled to a tolerance yet: give them a grid (JSON \"grid\" or --grid)"
+    )]
+    NoToleranceFor { what: &'static str },
     #[error("{found} sets of tessellation options for {expected} surfaces")]
     OptionsCount { expected: usize, found: usize },
     #[error("{found} sample counts for {expected} curves")]

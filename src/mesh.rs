@@ -6,13 +6,31 @@ use bytemuck::{Pod, Zeroable};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
-/// Tessellation options, built from [`TessOptions::DEFAULT`] with `with_*` methods.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// Tessellation options, built from [`TessOptions::DEFAULT`] with `with_*` methods (new
+/// options arrive as new methods; the struct cannot be written out field by field outside
+/// knotwork).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct TessOptions {
-    /// Vertices per surface along u (≥ 2).
+    /// Vertices per surface along u (≥ 2), where no tolerance is set.
     pub grid_u: u32,
-    /// Vertices per surface along v (≥ 2).
+    /// Vertices per surface along v (≥ 2), where no tolerance is set.
     pub grid_v: u32,
+    /// Sample to a deviation instead of a grid: see [`Tolerance`].
+    pub tolerance: Option<Tolerance>,
+}
+
+/// The largest distance allowed between a mesh and its surface, which an adaptive plan
+/// guarantees from bounds on the surface's second derivatives (see
+/// [`crate::geom::SecondDerivativeBound`]): every triangle within it of the surface over
+/// its parameter triangle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Tolerance {
+    /// In model units (> 0).
+    Absolute(f64),
+    /// As a fraction (> 0) of the diagonal of the bounding box of all control points
+    /// tessellated together: one setting for models of any size.
+    Relative(f64),
 }
 
 impl TessOptions {
@@ -20,11 +38,26 @@ impl TessOptions {
     pub const DEFAULT: TessOptions = TessOptions {
         grid_u: 33,
         grid_v: 33,
+        tolerance: None,
     };
 
-    /// Sets the number of vertices per surface along u and v.
+    /// Sets the number of vertices per surface along u and v (and samples on that grid, not
+    /// to a tolerance).
     pub const fn with_grid(self, grid_u: u32, grid_v: u32) -> Self {
-        Self { grid_u, grid_v }
+        Self {
+            grid_u,
+            grid_v,
+            tolerance: None,
+        }
+    }
+
+    /// Samples every surface to `tolerance` instead of a fixed grid: per knot span and
+    /// within it, as finely as its curvature bound needs.
+    pub const fn with_tolerance(self, tolerance: Tolerance) -> Self {
+        Self {
+            tolerance: Some(tolerance),
+            ..self
+        }
     }
 }
 

@@ -69,9 +69,9 @@ pub struct ItemGroup {
 }
 
 /// Defaults for the items of a scene that ask for nothing themselves.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SceneOptions {
-    /// Grid of surfaces and Coons patches.
+    /// Grid (or tolerance) of surfaces and Coons patches.
     pub grid: TessOptions,
     /// Samples per curve (≥ 2).
     pub samples: u32,
@@ -278,9 +278,16 @@ const F64_VERTEX_BYTES: u64 = 64;
 /// Bytes the mesh of `scene` takes at `vertex_bytes` per vertex (with its u32 indices and its
 /// f64 polylines), from the layout alone.
 pub fn scene_mesh_bytes(scene: &Scene, defaults: &SceneOptions, vertex_bytes: u64) -> Result<u64> {
-    let mut grids = scene.surface_grids(defaults.grid);
-    grids.extend(scene.coons_grids(defaults.grid));
-    let layout = crate::plan::GridLayout::new(grids.len(), &grids)?;
+    let mut sizes = crate::plan::SurfacePlan::grid_sizes(
+        &scene.surface_list(),
+        &scene.surface_grids(defaults.grid),
+    )?;
+    let coons = crate::plan::GridLayout::new(
+        scene.coons_patches().count(),
+        &scene.coons_grids(defaults.grid),
+    )?;
+    sizes.extend(coons.parts.iter().map(|part| (part.grid_u, part.grid_v)));
+    let layout = crate::plan::GridLayout::of_sizes(&sizes)?;
     let samples: u64 = scene
         .curve_samples(defaults.samples)
         .iter()

@@ -9,7 +9,7 @@ use glam::{DMat3, DVec3};
 use knotwork::geom::{bezier_curve, bezier_surface, piecewise_bezier_surface};
 use knotwork::{
     BSplineCurve, BSplineSurface, CpuTessellator, Error, Interval, KnotVector, Mesh, TessOptions,
-    Tessellator,
+    Tessellator, Tolerance,
 };
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
@@ -1638,4 +1638,147 @@ fn third_order_degeneracy_takes_the_sampled_limit() {
             "u = {u}: {ours} is {turned:e} rad from the exact normal next to the edge {near}"
         );
     }
+}
+
+// ---------------------------------------------------------------- adaptive tessellation
+
+/// A random rational surface for the adaptive tests: degrees 1..=4, knots with
+/// multiplicities and 1e-6 spans (clamped or not), weights 0.1..10 or none, with a
+/// tolerance 3e-4..1e-1 of its control box's diagonal.
+fn adaptive_case() -> impl Strategy<Value = (BSplineSurface, f64)> {
+    (1usize..=4, 1usize..=4, 0usize..4, 0usize..4)
+        .prop_flat_map(|(p, q, extra_u, extra_v)| {
+            let (nu, nv) = (p + 1 + extra_u, q + 1 + extra_v);
+            (
+                oracle_knots(p, nu),
+                oracle_knots(q, nv),
+                prop::collection::vec(prop::array::uniform3(-1.0f64..1.0), nu * nv),
+                prop::option::of(prop::collection::vec(-1.0f64..1.0, nu * nv)),
+                -3.5f64..-1.0,
+                Just((p, q)),
+            )
+        })
+        .prop_map(|(knots_u, knots_v, raw, exponents, tolerance, (p, q))| {
+            let nu = knots_u.len() - p - 1;
+            let points: Vec<DVec3> = raw
+                .iter()
+                .enumerate()
+                .map(|(k, r)| {
+                    DVec3::new((k % nu) as f64, (k / nu) as f64, 0.0) + DVec3::from_array(*r)
+                })
+                .collect();
+            let weights: Option<Vec<f64>> =
+                exponents.map(|e| e.iter().map(|x| 10f64.powf(*x)).collect());
+            let surface = BSplineSurface::try_new(
+                KnotVector::try_new(p, knots_u).unwrap(),
+                KnotVector::try_new(q, knots_v).unwrap(),
+                &points,
+                weights.as_deref(),
+            )
+            .unwrap();
+            let diagonal = surface.control_box_diagonal();
+            (surface, 10f64.powf(tolerance) * diagonal)
+        })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        rng_seed: proptest::test_runner::RngSeed::Fixed(20261201),
+        ..ProptestConfig::with_cases(48)
+    })]
+
+    /// The second-derivative bound of each Bezier patch of a surface holds wherever the
+    /// patch is sampled, rational ones included (weights 0.1..10).
+    #[test]
+    fn second_derivative_bounds_hold((surface, _) in adaptive_case()) {
+        for patch in surface.bezier_patches() {
+            let bound = patch.second_derivative_bound();
+            // Inside the patch: on a knot, evaluation takes the derivatives of the next span.
+            for k in 0..25 {
+                let (s, t) = (((k % 5) as f64 + 0.5) / 5.0, ((k / 5) as f64 + 0.5) / 5.0);
+                let sample = surface.evaluate(patch.range_u.lerp(s), patch.range_v.lerp(t));
+                let slack = 1.0 + 1e-9;
+                prop_assert!(sample.duu.length() <= bound.uu * slack + 1e-9, "S_uu {} > {}", sample.duu.length(), bound.uu);
+                prop_assert!(sample.duv.length() <= bound.uv * slack + 1e-9, "S_uv {} > {}", sample.duv.length(), bound.uv);
+                prop_assert!(sample.dvv.length() <= bound.vv * slack + 1e-9, "S_vv {} > {}", sample.dvv.length(), bound.vv);
+            }
+        }
+    }
+
+    /// A surface tessellated to a tolerance stays within it: at every triangle's centroid
+    /// and edge midpoints, against the f64 surface at the same parameter.
+    #[test]
+    fn adaptive_meshes_stay_within_their_tolerance((surface, tolerance) in adaptive_case()) {
+        let options = TessOptions::DEFAULT.with_tolerance(Tolerance::Absolute(tolerance));
+        let mesh = CpuTessellator.tessellate(std::slice::from_ref(&surface), &options).unwrap();
+        let worst = worst_deviation(std::slice::from_ref(&surface), &mesh);
+        // Rounding of the f64 evaluation, far below any tolerance tested.
+        let rounding = 1e-12 * surface.control_box_diagonal();
+        prop_assert!(worst <= tolerance + rounding, "deviation {worst:e} over tolerance {tolerance:e}");
+    }
+}
+
+/// The teapot at tolerances 1e-2, 1e-3 and 1e-4 (model units; the teapot is about 7 across):
+/// within each, the measured deviation a fair share of it (the bound is not loose by
+/// orders), and triangles growing about tenfold per tenfold (the bound is second order:
+/// segments grow as 1/√tolerance in each direction).
+#[test]
+fn the_teapot_meets_each_tolerance_with_second_order_growth() {
+    let scene = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt")).unwrap();
+    let surfaces = scene.surface_list();
+    let mut triangles = Vec::new();
+    for tolerance in [1e-2, 1e-3, 1e-4] {
+        let options = TessOptions::DEFAULT.with_tolerance(Tolerance::Absolute(tolerance));
+        let mesh = CpuTessellator.tessellate(&surfaces, &options).unwrap();
+        let worst = worst_deviation(&surfaces, &mesh);
+        println!(
+            "teapot at {tolerance:e}: {} triangles, deviation {worst:e} ({:.2} of the tolerance)",
+            mesh.indices.len() / 3,
+            worst / tolerance
+        );
+        assert!(worst <= tolerance, "{worst:e} > {tolerance:e}");
+        assert!(
+            worst >= 0.2 * tolerance,
+            "bound loose: {worst:e} for {tolerance:e}"
+        );
+        triangles.push(mesh.indices.len() as f64 / 3.0);
+    }
+    for pair in triangles.windows(2) {
+        let growth = pair[1] / pair[0];
+        assert!(
+            (6.0..=12.0).contains(&growth),
+            "triangles grew {growth}× per tenfold"
+        );
+    }
+}
+
+/// A tolerance that is not a finite positive number is refused with the surface it came
+/// with, one too fine to reach within the segment cap is refused as such, and directly
+/// evaluated Coons patches (no control net to bound) ask for a grid instead.
+#[test]
+fn invalid_tolerances_are_refused_by_name() {
+    let surfaces = vec![common::sphere(1.0); 2];
+    for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        for tolerance in [Tolerance::Absolute(bad), Tolerance::Relative(bad)] {
+            let options = [
+                TessOptions::DEFAULT,
+                TessOptions::DEFAULT.with_tolerance(tolerance),
+            ];
+            let err = CpuTessellator
+                .tessellate_each_into(&surfaces, &options, &mut Mesh::default())
+                .unwrap_err();
+            assert!(
+                matches!(&err, Error::InSurface { index: 1, source } if matches!(**source, Error::InvalidTolerance { .. })),
+                "{err}"
+            );
+        }
+    }
+    let too_fine = TessOptions::DEFAULT.with_tolerance(Tolerance::Relative(1e-15));
+    let err = CpuTessellator.tessellate(&surfaces, &too_fine).unwrap_err();
+    assert!(
+        matches!(err.root(), Error::ToleranceTooFine { .. }),
+        "{err}"
+    );
+    let coons = knotwork::plan::GridLayout::new(1, &[too_fine]).unwrap_err();
+    assert!(matches!(coons, Error::NoToleranceFor { .. }), "{coons}");
 }

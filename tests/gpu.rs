@@ -12,7 +12,7 @@ use knotwork::conformance::{self, NORMAL_BAR, POSITION_REL_BAR};
 use knotwork::gpu::Limits;
 use knotwork::{
     BSplineCurve, BSplineSurface, BatchDescriptor, CpuTessellator, Error, GpuBatch, GpuContext,
-    GpuTessellator, KnotVector, TessOptions, Tessellator,
+    GpuTessellator, KnotVector, TessOptions, Tessellator, Tolerance,
 };
 use std::sync::OnceLock;
 
@@ -1684,4 +1684,81 @@ fn chromium_webgpu_runs_the_kernels_within_the_bars() {
         3,
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// An adaptive plan runs on the GPU as on the CPU: the teapot at tolerance 1e-3 and rational
+/// B-splines of degree 3×2 (cubic Bezier path) and 5×4 (general path) with uneven knots,
+/// weights 0.2..5 and a tolerance of 1e-3 of their size — the same vertices and triangles,
+/// within the conformance bars of the f64 executor, and within the tolerance of the
+/// surfaces (plus the f32 rounding of positions and uv: 1e-5 of the size).
+#[test]
+fn adaptive_plans_run_alike_on_both_executors() {
+    let Some(context) = gpu() else { return };
+    let teapot = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt"))
+        .unwrap()
+        .surface_list();
+    let mut seed = 0x2545f4914f6cdd1du64;
+    let mut next = move || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut random = |(p, q): (usize, usize), (nu, nv): (usize, usize)| {
+        let mut knots = |degree: usize, count: usize| {
+            let mut k = vec![0.0; degree + 1];
+            let mut x = 0.0;
+            for _ in 0..count - degree - 1 {
+                x += 0.2 + next();
+                k.push(x);
+            }
+            x += 0.2 + next();
+            k.extend(std::iter::repeat_n(x, degree + 1));
+            KnotVector::try_new(degree, k).unwrap()
+        };
+        let (knots_u, knots_v) = (knots(p, nu), knots(q, nv));
+        let points: Vec<DVec3> = (0..nu * nv)
+            .map(|k| DVec3::new((k % nu) as f64, (k / nu) as f64, 2.0 * next()))
+            .collect();
+        let weights: Vec<f64> = (0..nu * nv)
+            .map(|_| 5f64.powf(2.0 * next() - 1.0))
+            .collect();
+        BSplineSurface::try_new(knots_u, knots_v, &points, Some(&weights)).unwrap()
+    };
+    let cases = [
+        ("teapot", teapot, Tolerance::Absolute(1e-3)),
+        (
+            "3x2",
+            vec![random((3, 2), (7, 6))],
+            Tolerance::Relative(1e-3),
+        ),
+        (
+            "5x4",
+            vec![random((5, 4), (8, 7))],
+            Tolerance::Relative(1e-3),
+        ),
+    ];
+    let tessellator = tessellator_on(context);
+    for (name, surfaces, tolerance) in cases {
+        let options = vec![TessOptions::DEFAULT.with_tolerance(tolerance); surfaces.len()];
+        let report = conformance::compare_executors(context, &surfaces, &options).unwrap();
+        assert!(report.passes(), "{name}: {report:#?}");
+        let mut mesh = knotwork::Mesh::default();
+        tessellator
+            .tessellate_each_into(&surfaces, &options, &mut mesh)
+            .unwrap();
+        let size = surfaces
+            .iter()
+            .map(BSplineSurface::control_box_diagonal)
+            .fold(0.0, f64::max);
+        let limit = match tolerance {
+            Tolerance::Absolute(t) => t,
+            Tolerance::Relative(r) => r * size,
+        };
+        let worst = common::worst_deviation(&surfaces, &mesh);
+        assert!(
+            worst <= limit + 1e-5 * size,
+            "{name}: deviation {worst:e} over {limit:e}"
+        );
+    }
 }

@@ -83,6 +83,8 @@ fn main() -> ExitCode {
             inputs,
             output,
             grid,
+            tolerance,
+            tolerance_rel,
             backend,
             format,
             input_format,
@@ -91,7 +93,7 @@ fn main() -> ExitCode {
             max_memory,
         } => {
             let job = Job::new(
-                grid,
+                knotwork::cli::tess_options(grid, tolerance, tolerance_rel),
                 format,
                 input_format,
                 weld,

@@ -8,6 +8,7 @@ mod basis;
 mod bezier;
 mod curve;
 pub mod curves;
+mod deviation;
 mod eval;
 mod knots;
 pub mod patches;
@@ -21,6 +22,7 @@ pub use bezier::{
     piecewise_bezier_surface,
 };
 pub use curve::BSplineCurve;
+pub use deviation::SecondDerivativeBound;
 pub(crate) use eval::Rail;
 pub use eval::{DEGENERATE_EPSILONS, SurfaceSample, cross_scale, degenerate_cross_sq};
 pub(crate) use knots::check_degree;

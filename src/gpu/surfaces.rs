@@ -37,8 +37,9 @@ const SHORT_RUN_WEIGHT_RATIO: f64 = 16.0;
 /// cubic Bezier coefficients and their three forward differences.
 const SEGMENT_STRIDE: usize = 30;
 /// f32 per run entry (`RUN_STRIDE` in the shader): first grid column, column count, segment
-/// (bits each), local parameter of the first column, local parameter step.
-const RUN_STRIDE: usize = 5;
+/// (bits each), local parameter of the first column, local parameter step, u fraction (uv)
+/// of the first column, u fraction step.
+const RUN_STRIDE: usize = 7;
 
 /// One band of grid rows of one surface, as the shader reads it (`Piece` in tessellate.wgsl).
 #[repr(C)]
@@ -216,8 +217,8 @@ fn run_caps(surface: &BSplineSurface, samples: &AxisSamples, long: usize) -> Vec
         .collect()
 }
 
-/// Writes the run table (see tessellate.wgsl) of `samples`: every knot span's samples split
-/// into runs of nearly equal length, at most `caps[k]` in span k (neighbouring runs run side
+/// Writes the run table (see tessellate.wgsl) of `samples`: every run of evenly spaced samples
+/// in one knot span split into runs of nearly equal length, at most `caps[k]` in span k (neighbouring runs run side
 /// by side in SIMD lanes, and a group takes as long as its longest run); with `segments`
 /// (the Bezier-run path) each run's segment and span-local parameters. Returns the run count
 /// and the table's offset in `out`.
@@ -228,11 +229,15 @@ fn push_runs(
     out: &mut Vec<f32>,
 ) -> (u32, u32) {
     let run_table = out.len() as u32;
-    let params = samples.params();
-    let step = (params[params.len() - 1] - params[0]) / (params.len() - 1) as f64;
+    let (params, fractions) = (samples.params(), samples.fractions());
     let mut runs = 0;
     for (index, (span, &cap)) in samples.runs().iter().zip(caps).enumerate() {
         let samples_in_span = span.end - span.start;
+        // The run's spacing, in parameter and in uv (it is evenly spaced; one sample: none).
+        let spacing = |values: &[f64]| {
+            (values[span.end - 1] - values[span.start]) / (samples_in_span.max(2) - 1) as f64
+        };
+        let (step, fraction_step) = (spacing(params), spacing(fractions));
         let parts = samples_in_span.div_ceil(cap);
         let mut first = span.start;
         for part in 0..parts {
@@ -249,6 +254,8 @@ fn push_runs(
             });
             out.push(t0 as f32);
             out.push(dt as f32);
+            out.push(fractions[first] as f32);
+            out.push(fraction_step as f32);
             runs += 1;
             first += count;
         }

@@ -4,8 +4,10 @@
 //! tables the executors consume. [`crate::cpu`] and [`crate::gpu`] both execute these plans;
 //! neither decides a sample position or a layout of its own.
 
+mod adaptive;
 mod tables;
 
+pub use adaptive::{MAX_PIECE_SEGMENTS, Pieces, surface_pieces};
 pub use tables::{AxisSamples, BEZIER_DEGREE, BezierSegment, ROW_PADDING, SpanRun};
 
 use tables::AxisCache;
@@ -13,7 +15,7 @@ use tables::AxisCache;
 use crate::error::{Error, Result};
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
-use crate::mesh::{MeshPart, TessOptions};
+use crate::mesh::{MeshPart, TessOptions, Tolerance};
 use std::sync::Arc;
 
 /// Where every grid item's vertices and indices go in the output.
@@ -30,7 +32,8 @@ pub struct GridLayout {
 impl GridLayout {
     /// Lays out one grid per entry of `options` for `count` items: grid_u × grid_v vertices
     /// and 6·(grid_u − 1)·(grid_v − 1) indices each, in order. Fails before anything is
-    /// allocated if the counts differ, a grid has fewer than 2 × 2 vertices, or a vertex or
+    /// allocated if the counts differ, an entry asks for a tolerance (its grid comes from a
+    /// plan: see [`SurfacePlan::new`]), a grid has fewer than 2 × 2 vertices, or a vertex or
     /// an index would not fit u32.
     pub fn new(count: usize, options: &[TessOptions]) -> Result<Self> {
         if options.len() != count {
@@ -39,10 +42,21 @@ impl GridLayout {
                 found: options.len(),
             });
         }
+        if options.iter().any(|o| o.tolerance.is_some()) {
+            return Err(Error::NoToleranceFor {
+                what: "directly evaluated Coons patches",
+            });
+        }
+        let sizes: Vec<(u32, u32)> = options.iter().map(|o| (o.grid_u, o.grid_v)).collect();
+        Self::of_sizes(&sizes)
+    }
+
+    /// Lays out one grid of `sizes[k]` = (grid_u, grid_v) vertices per item, in order; the
+    /// checks of [`GridLayout::new`].
+    pub fn of_sizes(sizes: &[(u32, u32)]) -> Result<Self> {
         // The whole job's counts first, so an error gives them exactly.
         let (mut vertices, mut indices) = (0u64, 0u64);
-        for o in options {
-            let (nu, nv) = (o.grid_u, o.grid_v);
+        for &(nu, nv) in sizes {
             if nu < 2 || nv < 2 {
                 return Err(Error::GridTooSmall { nu, nv });
             }
@@ -53,9 +67,8 @@ impl GridLayout {
             return Err(Error::MeshTooLarge { vertices, indices });
         }
         let (mut first_vertex, mut first_index) = (0u32, 0u32);
-        let mut parts = Vec::with_capacity(options.len());
-        for (item, o) in options.iter().enumerate() {
-            let (nu, nv) = (o.grid_u, o.grid_v);
+        let mut parts = Vec::with_capacity(sizes.len());
+        for (item, &(nu, nv)) in sizes.iter().enumerate() {
             let (vertex_count, index_count) = (nu * nv, 6 * (nu - 1) * (nv - 1));
             parts.push(MeshPart {
                 item: item as u32,
@@ -114,21 +127,131 @@ pub struct SurfacePlan {
 }
 
 impl SurfacePlan {
-    /// Plans surface k on the grid of `options[k]`.
+    /// Plans surface k on the grid of `options[k]`, or where it sets a tolerance, on the
+    /// adaptive grid of [`surface_pieces`] (a relative tolerance taken of the diagonal of
+    /// the control points' box of all `surfaces`). Errors name the surface.
     pub fn new(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Self> {
-        let layout = GridLayout::new(surfaces.len(), options)?;
+        let axes = surface_axes(surfaces, options)?;
+        let sizes: Vec<(u32, u32)> = axes.iter().map(Axes::size).collect();
+        let layout = GridLayout::of_sizes(&sizes)?;
         let mut cache = AxisCache::default();
         let items = surfaces
             .iter()
             .zip(&layout.parts)
-            .map(|(surface, &part)| SurfaceSamples {
-                part,
-                columns: cache.uniform(surface.knots_u(), surface.range_u(), part.grid_u as usize),
-                rows: cache.uniform(surface.knots_v(), surface.range_v(), part.grid_v as usize),
+            .zip(axes)
+            .map(|((surface, &part), axes)| {
+                let (columns, rows) = match axes {
+                    Axes::Uniform(nu, nv) => (
+                        cache.uniform(surface.knots_u(), surface.range_u(), nu as usize),
+                        cache.uniform(surface.knots_v(), surface.range_v(), nv as usize),
+                    ),
+                    Axes::Pieces([u, v]) => (
+                        Arc::new(AxisSamples::piecewise_uniform(
+                            surface.knots_u(),
+                            surface.range_u(),
+                            &u,
+                        )),
+                        Arc::new(AxisSamples::piecewise_uniform(
+                            surface.knots_v(),
+                            surface.range_v(),
+                            &v,
+                        )),
+                    ),
+                };
+                SurfaceSamples {
+                    part,
+                    columns,
+                    rows,
+                }
             })
             .collect();
         Ok(SurfacePlan { layout, items })
     }
+
+    /// The (grid_u, grid_v) each surface gets from [`SurfacePlan::new`], without its tables:
+    /// what a memory check needs.
+    pub fn grid_sizes(
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+    ) -> Result<Vec<(u32, u32)>> {
+        Ok(surface_axes(surfaces, options)?
+            .iter()
+            .map(Axes::size)
+            .collect())
+    }
+}
+
+/// How one surface is sampled along u and v.
+enum Axes {
+    /// Vertices per direction, evenly spaced.
+    Uniform(u32, u32),
+    /// Adaptive: evenly spaced piece by piece.
+    Pieces([Pieces; 2]),
+}
+
+impl Axes {
+    fn size(&self) -> (u32, u32) {
+        match self {
+            Axes::Uniform(nu, nv) => (*nu, *nv),
+            Axes::Pieces([u, v]) => {
+                let vertices = |pieces: &Pieces| pieces.iter().map(|&(_, n)| n).sum::<u32>() + 1;
+                (vertices(u), vertices(v))
+            }
+        }
+    }
+}
+
+/// The sampling of every surface under its options; errors name the surface.
+fn surface_axes(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Vec<Axes>> {
+    if options.len() != surfaces.len() {
+        return Err(Error::OptionsCount {
+            expected: surfaces.len(),
+            found: options.len(),
+        });
+    }
+    let relative_to = options
+        .iter()
+        .any(|o| matches!(o.tolerance, Some(Tolerance::Relative(_))))
+        .then(|| model_diagonal(surfaces));
+    surfaces
+        .iter()
+        .zip(options)
+        .enumerate()
+        .map(|(index, (surface, o))| {
+            let in_surface = |source| Error::InSurface {
+                index,
+                source: Box::new(source),
+            };
+            let tolerance = match o.tolerance {
+                None => return Ok(Axes::Uniform(o.grid_u, o.grid_v)),
+                Some(Tolerance::Absolute(t)) => t,
+                Some(Tolerance::Relative(r)) => {
+                    if !(r.is_finite() && r > 0.0) {
+                        return Err(in_surface(Error::InvalidTolerance { value: r }));
+                    }
+                    r * relative_to.expect("computed when any tolerance is relative")
+                }
+            };
+            if !(tolerance.is_finite() && tolerance > 0.0) {
+                return Err(in_surface(Error::InvalidTolerance { value: tolerance }));
+            }
+            surface_pieces(surface, tolerance)
+                .map(Axes::Pieces)
+                .map_err(in_surface)
+        })
+        .collect()
+}
+
+/// The diagonal of the box around the control points of all `surfaces` (model units).
+fn model_diagonal(surfaces: &[BSplineSurface]) -> f64 {
+    let (low, high) = surfaces.iter().map(BSplineSurface::control_box).fold(
+        (
+            glam::DVec3::splat(f64::INFINITY),
+            glam::DVec3::splat(f64::NEG_INFINITY),
+        ),
+        |(low, high), (a, b)| (low.min(a), high.max(b)),
+    );
+    (high - low).length()
 }
 
 /// One directly evaluated Coons patch's samples over (u, v) ∈ [0, 1]²: its four boundary

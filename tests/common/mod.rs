@@ -85,3 +85,34 @@ pub fn naive_point(s: &BSplineSurface, u: f64, v: f64) -> DVec3 {
 pub fn angle(a: DVec3, b: DVec3) -> f64 {
     a.cross(b).length().atan2(a.dot(b))
 }
+
+/// The largest distance, over every triangle of `mesh` (part k from `surfaces[k]`), between a
+/// point of the triangle and the surface at the same parameter — at its centroid and its edge
+/// midpoints, the parameter interpolated from the vertices' uv like the position. What an
+/// adaptive plan's tolerance bounds (distance to the surface itself is never larger).
+pub fn worst_deviation(surfaces: &[BSplineSurface], mesh: &knotwork::Mesh) -> f64 {
+    const AT: [[f64; 3]; 4] = [
+        [1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0],
+        [0.5, 0.5, 0.0],
+        [0.0, 0.5, 0.5],
+        [0.5, 0.0, 0.5],
+    ];
+    let mut worst = 0.0f64;
+    for part in &mesh.parts {
+        let surface = &surfaces[part.item as usize];
+        let (ru, rv) = (surface.range_u(), surface.range_v());
+        let first = part.first_index as usize;
+        for t in mesh.indices[first..first + part.index_count as usize].chunks(3) {
+            for l in AT {
+                let (mut p, mut uv) = (DVec3::ZERO, glam::DVec2::ZERO);
+                for (k, &weight) in l.iter().enumerate() {
+                    p += weight * mesh.positions[t[k] as usize];
+                    uv += weight * mesh.uvs[t[k] as usize];
+                }
+                let on_surface = surface.point(ru.lerp(uv.x), rv.lerp(uv.y));
+                worst = worst.max((on_surface - p).length());
+            }
+        }
+    }
+    worst
+}

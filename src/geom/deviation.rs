@@ -1,0 +1,227 @@
+//! Proven bounds on how far a sampled mesh strays from its surface, and the sampling rates
+//! they imply: what adaptive tessellation plans with (no trial meshing).
+//!
+//! The rule: a triangle whose vertices lie on S and whose parameter extents are (h, k) —
+//! the widths of the smallest (u, v) rectangle holding it — stays within
+//! ⅛·(h²·M_uu + 2·h·k·M_uv + k²·M_vv) of S over its parameter triangle, where M bounds
+//! |S_uu|, |S_uv|, |S_vv| there. (For the linear interpolant L with barycentric weights λᵢ,
+//! S(x) − L(x) = −Σ λᵢ·R(xᵢ − x) with R the Taylor remainder, |R(d)| ≤ ½·(d_u²·M_uu +
+//! 2|d_u d_v|·M_uv + d_v²·M_vv); Σ λᵢ·(uᵢ − u)² is a variance of values spread over h, at most
+//! h²/4 (Popoviciu), likewise k²/4, and Cauchy–Schwarz bounds the mixed sum by h·k/4.)
+
+use super::BezierPatch;
+use super::piecewise::split_bezier;
+use glam::{DVec3, DVec4};
+
+/// Upper bounds of |S_uu|, |S_uv| and |S_vv| over a parameter rectangle, in model units per
+/// parameter unit squared.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SecondDerivativeBound {
+    pub uu: f64,
+    pub uv: f64,
+    pub vv: f64,
+}
+
+impl SecondDerivativeBound {
+    /// The deviation bound (model units) of a triangle of parameter extents (h, k) inside
+    /// the rectangle: ⅛·(h²·M_uu + 2·h·k·M_uv + k²·M_vv).
+    pub fn deviation(&self, h: f64, k: f64) -> f64 {
+        0.125 * (h * h * self.uu + 2.0 * h * k * self.uv + k * k * self.vv)
+    }
+
+    /// The fewest grid cells (n_u · n_v, each ≥ 1) over a `width_u` × `width_v` rectangle
+    /// whose [`deviation`](Self::deviation) at the cell size (width_u / n_u, width_v / n_v)
+    /// is at most `tolerance` (> 0, model units). Counts are capped at `max_segments` per
+    /// direction; at the cap the deviation may exceed the tolerance, which the caller
+    /// reports.
+    pub fn segments(
+        &self,
+        (width_u, width_v): (f64, f64),
+        tolerance: f64,
+        max_segments: u32,
+    ) -> (u32, u32) {
+        let budget = 8.0 * tolerance;
+        // The fewest v-segments for a u-spacing h: the largest k with
+        // M_vv·k² + 2·M_uv·h·k ≤ 8·tol − M_uu·h².
+        let rows_for = |h: f64| -> Option<u32> {
+            let rest = budget - self.uu * h * h;
+            if rest <= 0.0 {
+                return None;
+            }
+            let b = self.uv * h;
+            let k = if self.vv > 0.0 {
+                rest / (b + (b * b + self.vv * rest).sqrt())
+            } else if b > 0.0 {
+                rest / (2.0 * b)
+            } else {
+                f64::INFINITY
+            };
+            let mut n = (width_v / k).ceil().max(1.0);
+            // ceil of a rounded quotient: step past a count that still misses by rounding.
+            while n < f64::from(max_segments) && self.deviation(h, width_v / n) > tolerance {
+                n += 1.0;
+            }
+            Some(n.min(f64::from(max_segments)) as u32)
+        };
+        // The fewest u-segments that leave room for any v-spacing at all, then a search
+        // over the trade between the two directions (the product is minimised over whole
+        // numbers: the continuous optimum would round up in both).
+        let least_u = if self.uu > 0.0 {
+            ((width_u * (self.uu / budget).sqrt()).floor() + 1.0).min(f64::from(max_segments))
+                as u32
+        } else {
+            1
+        };
+        let mut best = (max_segments, max_segments);
+        let mut best_cells = u64::from(max_segments) * u64::from(max_segments);
+        let last_u = least_u
+            .saturating_mul(4)
+            .saturating_add(16)
+            .min(max_segments);
+        for n_u in least_u..=last_u {
+            if u64::from(n_u) >= best_cells {
+                break;
+            }
+            if let Some(n_v) = rows_for(width_u / f64::from(n_u)) {
+                let cells = u64::from(n_u) * u64::from(n_v);
+                if cells < best_cells {
+                    (best, best_cells) = ((n_u, n_v), cells);
+                }
+            }
+        }
+        best
+    }
+}
+
+impl BezierPatch {
+    /// Bounds of the second derivatives of the patch over its parameter ranges, from its
+    /// control net (convex-hull property of Bezier derivatives). Polynomial: M_uu =
+    /// p(p−1)/Δu² · max|Δ²_u P| (M_uv, M_vv likewise). Rational, in homogeneous coordinates
+    /// relative to the centre C of the control points' box, with R = max|P − C|, w_min the
+    /// least weight and D, W the same difference bounds of w·(P − C) and of w: |S_u| ≤ G_u =
+    /// (D_u + W_u·R)/w_min and, from the quotient rule, M_uu ≤ (D_uu + 2·W_u·G_u + W_uu·R)
+    /// / w_min, M_uv ≤ (D_uv + W_u·G_v + W_v·G_u + W_uv·R) / w_min. With equal weights W = 0
+    /// and this is the polynomial bound. Needs positive weights.
+    pub fn second_derivative_bound(&self) -> SecondDerivativeBound {
+        let (p, q) = (self.degree_u, self.degree_v);
+        let row = p + 1;
+        let cartesian: Vec<DVec3> = self.points.iter().map(|h| h.truncate() / h.w).collect();
+        let (low, high) = cartesian.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(low, high), &x| (low.min(x), high.max(x)),
+        );
+        let centre = 0.5 * (low + high);
+        let radius = cartesian
+            .iter()
+            .map(|&x| (x - centre).length())
+            .fold(0.0, f64::max);
+        // (w·(P − C), w) for every control point.
+        let net: Vec<DVec4> = self
+            .points
+            .iter()
+            .map(|h| (h.truncate() - h.w * centre).extend(h.w))
+            .collect();
+        let at = |i: usize, j: usize| net[j * row + i];
+        // The largest |vector part| and |weight| of a difference stencil over the net.
+        let largest = |di: usize, dj: usize, stencil: &dyn Fn(usize, usize) -> DVec4| {
+            let mut most = (0.0f64, 0.0f64);
+            for j in 0..=q - dj {
+                for i in 0..=p - di {
+                    let d = stencil(i, j);
+                    most = (most.0.max(d.truncate().length()), most.1.max(d.w.abs()));
+                }
+            }
+            most
+        };
+        let first_u = largest(1, 0, &|i, j| at(i + 1, j) - at(i, j));
+        let first_v = largest(0, 1, &|i, j| at(i, j + 1) - at(i, j));
+        let (zero, pf, qf) = ((0.0, 0.0), p as f64, q as f64);
+        let second_uu = if p >= 2 {
+            largest(2, 0, &|i, j| at(i + 2, j) - 2.0 * at(i + 1, j) + at(i, j))
+        } else {
+            zero
+        };
+        let second_vv = if q >= 2 {
+            largest(0, 2, &|i, j| at(i, j + 2) - 2.0 * at(i, j + 1) + at(i, j))
+        } else {
+            zero
+        };
+        let second_uv = if p >= 1 && q >= 1 {
+            largest(1, 1, &|i, j| {
+                at(i + 1, j + 1) - at(i + 1, j) - at(i, j + 1) + at(i, j)
+            })
+        } else {
+            zero
+        };
+        let (wu, wv) = (self.range_u.width(), self.range_v.width());
+        let scale_u = pf / wu;
+        let scale_v = qf / wv;
+        let scale_uu = pf * (pf - 1.0) / (wu * wu);
+        let scale_vv = qf * (qf - 1.0) / (wv * wv);
+        let scale_uv = pf * qf / (wu * wv);
+        let least_weight = net.iter().map(|h| h.w).fold(f64::INFINITY, f64::min);
+        let (d_u, w_u) = (scale_u * first_u.0, scale_u * first_u.1);
+        let (d_v, w_v) = (scale_v * first_v.0, scale_v * first_v.1);
+        let g_u = (d_u + w_u * radius) / least_weight;
+        let g_v = (d_v + w_v * radius) / least_weight;
+        SecondDerivativeBound {
+            uu: (scale_uu * second_uu.0 + 2.0 * w_u * g_u + scale_uu * second_uu.1 * radius)
+                / least_weight,
+            uv: (scale_uv * second_uv.0 + w_u * g_v + w_v * g_u + scale_uv * second_uv.1 * radius)
+                / least_weight,
+            vv: (scale_vv * second_vv.0 + 2.0 * w_v * g_v + scale_vv * second_vv.1 * radius)
+                / least_weight,
+        }
+    }
+
+    /// The patch restricted to the parameters between fractions `from` and `to` (0 ≤ from <
+    /// to ≤ 1) of its u range: de Casteljau subdivision of each row, exact up to rounding.
+    pub fn restricted_u(&self, from: f64, to: f64) -> BezierPatch {
+        let row = self.degree_u + 1;
+        let mut points = Vec::with_capacity(self.points.len());
+        for polygon in self.points.chunks_exact(row) {
+            points.extend(restrict(polygon, from, to));
+        }
+        let r = self.range_u;
+        BezierPatch {
+            points,
+            range_u: super::Interval::new(r.lerp(from), r.lerp(to)),
+            ..self.clone()
+        }
+    }
+
+    /// [`restricted_u`](Self::restricted_u) along v.
+    pub fn restricted_v(&self, from: f64, to: f64) -> BezierPatch {
+        let row = self.degree_u + 1;
+        let columns: Vec<Vec<DVec4>> = (0..row)
+            .map(|i| {
+                let polygon: Vec<DVec4> =
+                    self.points.iter().skip(i).step_by(row).copied().collect();
+                restrict(&polygon, from, to)
+            })
+            .collect();
+        let points = (0..=self.degree_v)
+            .flat_map(|j| columns.iter().map(move |c| c[j]))
+            .collect();
+        let r = self.range_v;
+        BezierPatch {
+            points,
+            range_v: super::Interval::new(r.lerp(from), r.lerp(to)),
+            ..self.clone()
+        }
+    }
+}
+
+/// The Bezier polygon of `points` over local parameters [from, to] ⊆ [0, 1].
+fn restrict(points: &[DVec4], from: f64, to: f64) -> Vec<DVec4> {
+    let tail = if from > 0.0 {
+        split_bezier(points, from).1
+    } else {
+        points.to_vec()
+    };
+    if to < 1.0 {
+        split_bezier(&tail, (to - from) / (1.0 - from)).0
+    } else {
+        tail
+    }
+}
