@@ -55,11 +55,11 @@ pub enum Command {
         grid: (u32, u32),
         /// Instead of a grid, sample every surface so that the mesh stays within this
         /// distance of it (model units): rates from a proven bound, per knot span and within it.
-        #[arg(long, value_parser = parse_tolerance, conflicts_with_all = ["grid", "tolerance_rel"])]
+        #[arg(long, value_parser = parse_tolerance, allow_hyphen_values = true, conflicts_with_all = ["grid", "tolerance_rel"])]
         tolerance: Option<f64>,
         /// As --tolerance, as a fraction of the diagonal of the file's control-point box
         /// (e.g. 1e-3).
-        #[arg(long, value_parser = parse_tolerance, conflicts_with = "grid")]
+        #[arg(long, value_parser = parse_tolerance, allow_hyphen_values = true, conflicts_with = "grid")]
         tolerance_rel: Option<f64>,
         /// Which tessellator runs.
         #[arg(long, value_enum, default_value_t = Backend::Auto)]

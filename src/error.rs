@@ -93,10 +93,10 @@ pub enum Error {
     PolylinesUnsupported { format: &'static str },
     #[error("grid {nu}x{nv} is invalid: each side needs at least 2 samples")]
     GridTooSmall { nu: u32, nv: u32 },
-    #[error("tolerance {value} is invalid: it must be a finite number greater than 0")]
+    #[error("tolerance {value:e} is invalid: it must be a finite number greater than 0")]
     InvalidTolerance { value: f64 },
     #[error(
-        "tolerance {tolerance} needs more than {segments} segments across one knot span: ask for a larger tolerance"
+        "tolerance {tolerance:e} needs more than {segments} segments across one knot span: ask for a larger tolerance"
     )]
     ToleranceTooFine { tolerance: f64, segments: u32 },
     #[error(

@@ -1519,6 +1519,116 @@ fn json_errors_name_the_item_and_the_field() {
     );
 }
 
+/// Tolerances from the command line and from JSON: `--tolerance` gives the library's mesh
+/// at the same options (the teapot at 1e-3), `--tolerance-rel` is taken of the file's
+/// control-point box; a zero, negative or non-numeric tolerance and a tolerance beside
+/// `--grid` are refused before anything is written. A JSON surface's own `tolerance` or
+/// `tolerance_rel` wins over the command line; two of `grid`, `tolerance`, `tolerance_rel`
+/// on one item, or a zero one, are errors naming the item.
+#[test]
+fn tolerances_reach_the_plan_from_the_cli_and_json() {
+    let dir = std::env::temp_dir().join(format!("knotwork-tolerance-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("teapot.obj");
+    let out = out.to_str().unwrap();
+    let run = succeeds(&[
+        "tessellate",
+        "data/teapot.bpt",
+        "-o",
+        out,
+        "--tolerance",
+        "1e-3",
+        "--backend",
+        "cpu",
+    ]);
+    let scene = knotwork::io::read_scene(Path::new("data/teapot.bpt")).unwrap();
+    let options = TessOptions::DEFAULT.with_tolerance(knotwork::Tolerance::Absolute(1e-3));
+    let library = CpuTessellator
+        .tessellate(&scene.surface_list(), &options)
+        .unwrap();
+    let written = std::fs::read_to_string(out).unwrap();
+    assert_eq!(
+        written.lines().filter(|l| l.starts_with("f ")).count(),
+        library.indices.len() / 3,
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    // The teapot's control box is about 6.4 across: 1e-3 of it is about 6.4e-3.
+    let relative = dir.join("relative.obj");
+    succeeds(&[
+        "tessellate",
+        "data/teapot.bpt",
+        "-o",
+        relative.to_str().unwrap(),
+        "--tolerance-rel",
+        "1e-3",
+        "--backend",
+        "cpu",
+    ]);
+    let faces = std::fs::read_to_string(&relative)
+        .unwrap()
+        .lines()
+        .filter(|l| l.starts_with("f "))
+        .count();
+    assert!(
+        faces < library.indices.len() / 3 / 3,
+        "{faces} triangles at 1e-3 of the diagonal"
+    );
+    for bad in [
+        vec!["--tolerance", "0"],
+        vec!["--tolerance", "-1"],
+        vec!["--tolerance-rel", "abc"],
+        vec!["--tolerance", "1e-3", "--grid", "9x9"],
+        vec!["--tolerance", "1e-3", "--tolerance-rel", "1e-3"],
+    ] {
+        let refused = dir.join("refused.obj");
+        let mut args = vec![
+            "tessellate",
+            "data/teapot.bpt",
+            "-o",
+            refused.to_str().unwrap(),
+        ];
+        args.extend(&bad);
+        let run = knotwork(&args);
+        let message = String::from_utf8_lossy(&run.stderr);
+        assert!(
+            !run.status.success() && !refused.exists(),
+            "{bad:?}: {message}"
+        );
+        assert!(message.contains("--tolerance"), "{bad:?}: {message}");
+    }
+    let sphere = |own: &str| {
+        format!(
+            "{{ \"surfaces\": [ {{ \"kind\": \"sphere\", \"centre\": [0, 0, 0], \"radius\": 1 {own} }} ] }}"
+        )
+    };
+    let scene = knotwork::io::read_json_scene(&sphere(", \"tolerance\": 1e-4")).unwrap();
+    let fine = CpuTessellator
+        .tessellate_scene(&scene, &Default::default())
+        .unwrap();
+    let scene = knotwork::io::read_json_scene(&sphere(", \"tolerance_rel\": 1e-2")).unwrap();
+    let coarse = CpuTessellator
+        .tessellate_scene(&scene, &Default::default())
+        .unwrap();
+    assert!(fine.indices.len() > 10 * coarse.indices.len());
+    let error = |own: &str| {
+        knotwork::io::read_json_scene(&sphere(own))
+            .unwrap_err()
+            .to_string()
+    };
+    let both = error(", \"grid\": [9, 9], \"tolerance\": 1e-3");
+    assert!(
+        both.contains("surface 0 (sphere): give one of `grid`, `tolerance` and `tolerance_rel`"),
+        "{both}"
+    );
+    let zero = error(", \"tolerance\": 0");
+    assert!(
+        zero.contains("surface 0: tolerance 0e0 is invalid"),
+        "{zero}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// A memory budget before allocation: the teapot at 4000x4000 (5.1e8 vertices, 45 GB as
 /// f64) is refused at once with the figure under a 16 GiB budget (the default is half the
 /// machine's memory), as is a small job under a tiny --max-memory; nothing is written. The library

@@ -17,7 +17,9 @@
 //!
 //! Points are Cartesian and listed u fastest; `weights` (optional) makes a net rational;
 //! `range_u`/`range_v` (optional) restrict evaluation to part of the knot domain; `grid`
-//! (optional) overrides the tessellation grid for that surface, `samples` the polyline length
+//! (optional) overrides the tessellation grid for that surface, or `tolerance` (model units)
+//! or `tolerance_rel` (of the scene's control-point box diagonal) samples it to a deviation
+//! instead (one of the three), `samples` the polyline length
 //! of a curve; `name` (optional) names its mesh in glTF output. Angles are in degrees. Bezier
 //! breakpoints default to [0, 1].
 
@@ -26,7 +28,7 @@ use crate::geom::patches::{self, Blend, CoonsBoundaries, CoonsPatch, HermiteCorn
 use crate::geom::{
     BSplineCurve, BSplineSurface, Interval, KnotVector, bezier_curve, curves, shapes,
 };
-use crate::mesh::TessOptions;
+use crate::mesh::{TessOptions, Tolerance};
 use crate::scene::{Geometry, Item, Scene};
 use glam::DVec3;
 use serde::Deserialize;
@@ -699,23 +701,43 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
     // Items in file order: the surfaces, then the curves.
     for (index, value) in surfaces.into_iter().enumerate() {
         let line = surface_lines.get(index).copied().unwrap_or(1);
-        let mut item = ItemFields::take(value, "surface", index, line, &["grid", "name"])?;
+        let mut item = ItemFields::take(
+            value,
+            "surface",
+            index,
+            line,
+            &["grid", "tolerance", "tolerance_rel", "name"],
+        )?;
         let grid: Option<[u32; 2]> = item.field("grid")?;
+        let tolerance: Option<f64> = item.field("tolerance")?;
+        let tolerance_rel: Option<f64> = item.field("tolerance_rel")?;
         let name: Option<String> = item.field("name")?;
+        let asked = [grid.is_some(), tolerance.is_some(), tolerance_rel.is_some()];
+        if asked.iter().filter(|&&a| a).count() > 1 {
+            return Err(item.error("give one of `grid`, `tolerance` and `tolerance_rel`"));
+        }
         let shape: Shape = item.geometry()?;
         let in_surface = |e: Error| Error::InSurface {
             index,
             source: Box::new(e),
         };
-        let grid = grid
-            .map(|[nu, nv]| {
-                if nu < 2 || nv < 2 {
-                    Err(in_surface(Error::GridTooSmall { nu, nv }))
-                } else {
-                    Ok(TessOptions::DEFAULT.with_grid(nu, nv))
-                }
-            })
-            .transpose()?;
+        let sampled_to = |tolerance: Tolerance| match tolerance {
+            Tolerance::Absolute(value) | Tolerance::Relative(value)
+                if !(value.is_finite() && value > 0.0) =>
+            {
+                Err(in_surface(Error::InvalidTolerance { value }).at_line(line))
+            }
+            _ => Ok(TessOptions::DEFAULT.with_tolerance(tolerance)),
+        };
+        let grid = match (grid, tolerance, tolerance_rel) {
+            (Some([nu, nv]), ..) if nu < 2 || nv < 2 => {
+                return Err(in_surface(Error::GridTooSmall { nu, nv }));
+            }
+            (Some([nu, nv]), ..) => Some(TessOptions::DEFAULT.with_grid(nu, nv)),
+            (_, Some(t), _) => Some(sampled_to(Tolerance::Absolute(t))?),
+            (.., Some(r)) => Some(sampled_to(Tolerance::Relative(r))?),
+            _ => None,
+        };
         let geometries = match shape.build().map_err(in_surface)? {
             Built::Surfaces(built) => built.into_iter().map(Geometry::Surface).collect(),
             Built::Coons(patch) => vec![Geometry::Coons(patch)],
