@@ -71,7 +71,8 @@ impl Default for TessOptions {
 ///
 /// For a tessellated grid the part owns vertices `first_vertex .. first_vertex +
 /// vertex_count` (grid_u × grid_v of them) and indices `first_index .. first_index +
-/// index_count`. After [`Mesh::weld`] its triangles may use vertices shared with other parts;
+/// index_count`. A surface sampled to a tolerance is no single grid: grid_u = grid_v = 0,
+/// and its vertices are its cells' (see [`crate::plan::surface_cells`]). After [`Mesh::weld`] its triangles may use vertices shared with other parts;
 /// the vertex range is then the span of the vertices its triangles use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct MeshPart {
@@ -256,6 +257,49 @@ pub(crate) trait GridMesh {
     /// Rearranges whole parts — each's vertices and triangles — into the order `order` (a
     /// permutation of the part indices); every part's triangles must use its own vertices.
     fn reorder_parts(&mut self, order: &[usize]);
+    /// Drops the vertices no triangle uses, keeping the others in order (and every part's
+    /// vertices contiguous): the copies an adaptive plan's cell grids evaluate where cells
+    /// meet, whose triangles all use one of them.
+    fn drop_unused_vertices(&mut self);
+}
+
+/// Renumbers `indices` and `parts` over the used vertices of `vertex_count`, in order;
+/// returns the old index of each kept vertex (ascending, so a kept vertex moves down or
+/// stays: copies in increasing order are safe in place).
+fn used_vertices(vertex_count: usize, indices: &mut [u32], parts: &mut [MeshPart]) -> Vec<u32> {
+    let mut new_index = vec![u32::MAX; vertex_count];
+    for &v in indices.iter() {
+        new_index[v as usize] = 0;
+    }
+    let mut kept = Vec::with_capacity(vertex_count);
+    for (old, slot) in new_index.iter_mut().enumerate() {
+        if *slot == 0 {
+            *slot = kept.len() as u32;
+            kept.push(old as u32);
+        }
+    }
+    for v in indices.iter_mut() {
+        *v = new_index[*v as usize];
+    }
+    for part in parts {
+        let (first, end) = (
+            part.first_vertex as usize,
+            (part.first_vertex + part.vertex_count) as usize,
+        );
+        let first_kept = kept.partition_point(|&old| (old as usize) < first);
+        let end_kept = kept.partition_point(|&old| (old as usize) < end);
+        part.first_vertex = first_kept as u32;
+        part.vertex_count = (end_kept - first_kept) as u32;
+    }
+    kept
+}
+
+/// `values` reduced to the elements at `kept` (ascending), in place.
+fn keep<T: Copy>(values: &mut Vec<T>, kept: &[u32]) {
+    for (new, &old) in kept.iter().enumerate() {
+        values[new] = values[old as usize];
+    }
+    values.truncate(kept.len());
 }
 
 /// The new parts and indices of [`GridMesh::reorder_parts`], and for each new part the old
@@ -303,6 +347,12 @@ impl GridMesh for Mesh {
         self.uvs = gather(&self.uvs, &ranges);
         (self.parts, self.indices) = (parts, indices);
     }
+    fn drop_unused_vertices(&mut self) {
+        let kept = used_vertices(self.positions.len(), &mut self.indices, &mut self.parts);
+        keep(&mut self.positions, &kept);
+        keep(&mut self.normals, &kept);
+        keep(&mut self.uvs, &kept);
+    }
 }
 
 impl GridMesh for Mesh32 {
@@ -313,6 +363,10 @@ impl GridMesh for Mesh32 {
         let (parts, indices, ranges) = reordered(&self.parts, &self.indices, order);
         self.vertices = gather(&self.vertices, &ranges);
         (self.parts, self.indices) = (parts, indices);
+    }
+    fn drop_unused_vertices(&mut self) {
+        let kept = used_vertices(self.vertices.len(), &mut self.indices, &mut self.parts);
+        keep(&mut self.vertices, &kept);
     }
 }
 

@@ -278,7 +278,7 @@ const F64_VERTEX_BYTES: u64 = 64;
 /// Bytes the mesh of `scene` takes at `vertex_bytes` per vertex (with its u32 indices and its
 /// f64 polylines), from the layout alone.
 pub fn scene_mesh_bytes(scene: &Scene, defaults: &SceneOptions, vertex_bytes: u64) -> Result<u64> {
-    let mut sizes = crate::plan::SurfacePlan::grid_sizes(
+    let surfaces = crate::plan::SurfacePlan::layout_only(
         &scene.surface_list(),
         &scene.surface_grids(defaults.grid),
     )?;
@@ -286,14 +286,17 @@ pub fn scene_mesh_bytes(scene: &Scene, defaults: &SceneOptions, vertex_bytes: u6
         scene.coons_patches().count(),
         &scene.coons_grids(defaults.grid),
     )?;
-    sizes.extend(coons.parts.iter().map(|part| (part.grid_u, part.grid_v)));
-    let layout = crate::plan::GridLayout::of_sizes(&sizes)?;
+    let vertices = surfaces.vertex_count + coons.vertex_count;
+    let indices = surfaces.index_count + coons.index_count;
+    if vertices > u64::from(u32::MAX) || indices > u64::from(u32::MAX) {
+        return Err(crate::Error::MeshTooLarge { vertices, indices });
+    }
     let samples: u64 = scene
         .curve_samples(defaults.samples)
         .iter()
         .map(|&n| u64::from(n))
         .sum();
-    Ok(layout.vertex_count * vertex_bytes + layout.index_count * 4 + samples * 48)
+    Ok(vertices * vertex_bytes + indices * 4 + samples * 48)
 }
 
 /// Refuses a scene whose mesh would take more than the budget of `defaults`.

@@ -1705,8 +1705,12 @@ proptest! {
         }
     }
 
-    /// A surface tessellated to a tolerance stays within it: at every triangle's centroid
-    /// and edge midpoints, against the f64 surface at the same parameter.
+    /// A surface tessellated to a tolerance stays within it — at every triangle's centroid
+    /// and edge midpoints, against the f64 surface at the same parameter — and its cells
+    /// meet without a crack: every edge inside the surface is used once in each direction
+    /// (no T-junction, one orientation), the edges used once lie on the boundary of its
+    /// parameter range, every triangle turns counter-clockwise in uv, and every vertex is
+    /// used.
     #[test]
     fn adaptive_meshes_stay_within_their_tolerance((surface, tolerance) in adaptive_case()) {
         let options = TessOptions::DEFAULT.with_tolerance(Tolerance::Absolute(tolerance));
@@ -1715,6 +1719,24 @@ proptest! {
         // Rounding of the f64 evaluation, far below any tolerance tested.
         let rounding = 1e-12 * surface.control_box_diagonal();
         prop_assert!(worst <= tolerance + rounding, "deviation {worst:e} over tolerance {tolerance:e}");
+        let mut directed = std::collections::HashSet::new();
+        let mut used = vec![false; mesh.positions.len()];
+        for t in mesh.indices.chunks(3) {
+            let [a, b, c] = [0, 1, 2].map(|k| mesh.uvs[t[k] as usize]);
+            prop_assert!((b - a).perp_dot(c - a) > 0.0, "triangle {t:?} not counter-clockwise in uv");
+            for k in 0..3 {
+                used[t[k] as usize] = true;
+                prop_assert!(directed.insert((t[k], t[(k + 1) % 3])), "edge {:?} used twice one way", (t[k], t[(k + 1) % 3]));
+            }
+        }
+        prop_assert!(used.iter().all(|&u| u), "unused vertices");
+        for &(a, b) in &directed {
+            if !directed.contains(&(b, a)) {
+                let (p, q) = (mesh.uvs[a as usize], mesh.uvs[b as usize]);
+                let on_side = (p.x == q.x && (p.x == 0.0 || p.x == 1.0)) || (p.y == q.y && (p.y == 0.0 || p.y == 1.0));
+                prop_assert!(on_side, "open edge {p} – {q} inside the range");
+            }
+        }
     }
 }
 

@@ -27,6 +27,8 @@ pub fn execute_coons(plan: &CoonsPlan, patches: &[CoonsPatch], mesh: &mut Mesh) 
     let jobs: Vec<_> = patches.iter().zip(&plan.items).collect();
     fill_grids(
         &plan.layout,
+        &plan.layout.parts,
+        None,
         &jobs,
         mesh,
         |&(patch, samples), positions, normals, uvs| {

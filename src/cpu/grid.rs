@@ -11,7 +11,7 @@ use super::lanes::Avx2;
 use super::lanes::{F64x4, Portable};
 use crate::error::{Error, Result};
 use crate::geom::{BSplineSurface, degenerate_cross_sq};
-use crate::mesh::{Mesh, Mesh32, MeshPart, TessOptions, Vertex};
+use crate::mesh::{GridMesh, Mesh, Mesh32, MeshPart, TessOptions, Vertex};
 use crate::plan::{AxisSamples, GridLayout, SurfacePlan, cell_triangles, check_item_count};
 use glam::{DVec2, DVec3, DVec4};
 use rayon::prelude::*;
@@ -27,16 +27,24 @@ pub fn tessellate_grid_into(
 }
 
 /// Executes `plan` (made for `surfaces`) into `mesh`, replacing its contents but reusing its
-/// buffers.
+/// buffers. Where the plan joins cells itself, the cell grids' copies of the vertices they
+/// share are dropped (the triangles use one of each).
 pub fn execute_surfaces(
     plan: &SurfacePlan,
     surfaces: &[BSplineSurface],
     mesh: &mut Mesh,
 ) -> Result<()> {
-    check_item_count(plan.items.len(), surfaces.len())?;
-    let jobs: Vec<_> = surfaces.iter().zip(&plan.items).collect();
+    check_item_count(plan.surface_count(), surfaces.len())?;
+    let jobs: Vec<_> = plan
+        .items
+        .iter()
+        .map(|item| (&surfaces[item.surface], item))
+        .collect();
+    let grids: Vec<MeshPart> = plan.items.iter().map(|item| item.part).collect();
     fill_grids(
         &plan.layout,
+        &grids,
+        plan.triangles.as_deref(),
         &jobs,
         mesh,
         |(surface, samples), positions, normals, uvs| {
@@ -44,6 +52,9 @@ pub fn execute_surfaces(
             fill_uvs(&samples.columns, &samples.rows, uvs);
         },
     );
+    if plan.triangles.is_some() {
+        mesh.drop_unused_vertices();
+    }
     Ok(())
 }
 
@@ -54,28 +65,36 @@ pub fn execute_surfaces_f32(
     surfaces: &[BSplineSurface],
     mesh: &mut Mesh32,
 ) -> Result<()> {
-    check_item_count(plan.items.len(), surfaces.len())?;
+    check_item_count(plan.surface_count(), surfaces.len())?;
     let layout = &plan.layout;
     mesh.vertices
         .resize(layout.vertex_count as usize, Vertex::default());
     mesh.indices.resize(layout.index_count as usize, 0);
     mesh.parts.clone_from(&layout.parts);
-    let parts = split_parts(&mut mesh.vertices, &layout.parts);
-    parts
+    let grids: Vec<MeshPart> = plan.items.iter().map(|item| item.part).collect();
+    let vertices = split_parts(&mut mesh.vertices, &grids);
+    vertices
         .into_par_iter()
-        .zip(surfaces.par_iter().zip(&plan.items))
-        .for_each(|(vertices, (surface, samples))| {
+        .zip(&plan.items)
+        .for_each(|(vertices, samples)| {
+            let surface = &surfaces[samples.surface];
             evaluate_tables_f32(surface, &samples.columns, &samples.rows, vertices);
         });
-    fill_grid_indices(&layout.parts, &mut mesh.indices);
+    write_indices(&grids, plan.triangles.as_deref(), &mut mesh.indices);
+    if plan.triangles.is_some() {
+        mesh.drop_unused_vertices();
+    }
     Ok(())
 }
 
-/// Lays out `mesh` by `layout`, fills the vertices of item k's grid with `fill(&items[k],
-/// positions, normals, uvs)`, in parallel, and writes the triangles. The mesh's buffers are
-/// reused; its polylines are left alone.
+/// Lays out `mesh` by `layout` (its parts), fills the vertices of `grids[k]` (consecutive
+/// vertex ranges from 0) with `fill(&items[k], positions, normals, uvs)`, in parallel, and
+/// writes the triangles: `triangles` where the plan has them, else each grid's by the cell
+/// rule. The mesh's buffers are reused; its polylines are left alone.
 pub(crate) fn fill_grids<T: Sync>(
     layout: &GridLayout,
+    grids: &[MeshPart],
+    triangles: Option<&[u32]>,
     items: &[T],
     mesh: &mut Mesh,
     fill: impl Fn(&T, &mut [DVec3], &mut [DVec3], &mut [DVec2]) + Sync,
@@ -87,16 +106,25 @@ pub(crate) fn fill_grids<T: Sync>(
     mesh.uvs.resize(total_vertices, DVec2::ZERO);
     mesh.indices.resize(layout.index_count as usize, 0);
     mesh.parts.clone_from(&layout.parts);
-    let positions = split_parts(&mut mesh.positions, &layout.parts);
-    let normals = split_parts(&mut mesh.normals, &layout.parts);
-    let uvs = split_parts(&mut mesh.uvs, &layout.parts);
+    let positions = split_parts(&mut mesh.positions, grids);
+    let normals = split_parts(&mut mesh.normals, grids);
+    let uvs = split_parts(&mut mesh.uvs, grids);
     positions
         .into_par_iter()
         .zip(normals)
         .zip(uvs)
         .zip(items)
         .for_each(|(((positions, normals), uvs), item)| fill(item, positions, normals, uvs));
-    fill_grid_indices(&layout.parts, &mut mesh.indices);
+    write_indices(grids, triangles, &mut mesh.indices);
+}
+
+/// The plan's `triangles` into `indices`, or where it has none, every grid's by the cell
+/// rule.
+fn write_indices(grids: &[MeshPart], triangles: Option<&[u32]>, indices: &mut [u32]) {
+    match triangles {
+        Some(triangles) => indices.copy_from_slice(triangles),
+        None => fill_grid_indices(grids, indices),
+    }
 }
 
 /// `values` cut into one slice per part (its vertex range), in order.

@@ -14,6 +14,7 @@ use super::surfaces::{
 use crate::error::{Error, Result};
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
+use crate::mesh::GridMesh;
 use crate::mesh::{Mesh, Mesh32, MeshPart, Polyline, TessOptions};
 use crate::plan::SurfacePlan;
 use crate::scene::{Scene, SceneOptions};
@@ -320,12 +321,8 @@ impl GpuBatch {
         plan: &SurfacePlan,
         surfaces: &[BSplineSurface],
     ) -> Result<Self> {
-        let options: Vec<TessOptions> = plan
-            .items
-            .iter()
-            .map(|item| TessOptions::DEFAULT.with_grid(item.part.grid_u, item.part.grid_v))
-            .collect();
-        let descriptor = BatchDescriptor::each(surfaces, &options).for_readback();
+        // The plan decides the sampling; the descriptor's options are not read.
+        let descriptor = BatchDescriptor::new(surfaces, &TessOptions::DEFAULT).for_readback();
         Self::with_plan(context, &descriptor, plan)
     }
 
@@ -589,7 +586,9 @@ impl GpuBatch {
             )?;
         }
         let owns_outputs = self.owns_outputs;
-        let same_layout = packed.parts == self.mesh.parts;
+        // Triangles are the grids' (fixed by the parts) or the plan's own.
+        let same_layout =
+            packed.parts == self.mesh.parts && packed.triangles == self.packed.triangles;
         self.bind_groups.clear();
         self.packed = Packed::default();
         self.mesh.vertex_count = 0;
@@ -691,16 +690,40 @@ impl GpuBatch {
         self.mesh.parts.clone_from(&packed.parts);
         self.packed = packed;
         self.shapes = surfaces.to_vec();
-        // The triangles depend on the grids only: written now, when the layout is new, so
-        // dispatches evaluate vertices and leave the indices alone.
+        // The triangles depend on the plan only: written now, when the layout is new, so
+        // dispatches evaluate vertices and leave the indices alone — uploaded where the plan
+        // has them, else connected by the kernels.
         if new_indices || !same_layout {
-            scoped(device, || {
-                let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("knotwork triangles"),
-                });
-                self.encode_passes(&mut encoder, |pass| pass == CONNECT_PASS);
-                context.queue.submit([encoder.finish()]);
-            })?;
+            match &self.packed.triangles {
+                Some(triangles) => {
+                    if !self
+                        .mesh
+                        .indices
+                        .usage()
+                        .contains(wgpu::BufferUsages::COPY_DST)
+                    {
+                        return Err(Error::OutputTarget {
+                            what: "the caller's index buffer",
+                            problem: "it lacks COPY_DST usage, which a plan sampled to a \
+                                      tolerance needs (its triangles are uploaded)"
+                                .to_string(),
+                        });
+                    }
+                    context.queue.write_buffer(
+                        &self.mesh.indices,
+                        self.mesh.index_offset,
+                        bytemuck::cast_slice(triangles),
+                    );
+                }
+                None => scoped(device, || {
+                    let mut encoder =
+                        device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                            label: Some("knotwork triangles"),
+                        });
+                    self.encode_passes(&mut encoder, |pass| pass == CONNECT_PASS);
+                    context.queue.submit([encoder.finish()]);
+                })?,
+            }
         }
         Ok(())
     }
@@ -871,7 +894,7 @@ impl GpuBatch {
             let result = copy(vertices, indices);
             vertices.unmap();
             indices.unmap();
-            result
+            result?;
         } else {
             let sources = [
                 (&self.mesh.vertices, self.mesh.vertex_offset, vertex_bytes),
@@ -879,8 +902,13 @@ impl GpuBatch {
             ];
             self.staging.read(&self.context, &sources, |staged| {
                 copy(&staged[0], &staged[1])
-            })
+            })?;
         }
+        // As the CPU executor does: without the cell grids' copies of shared vertices.
+        if self.packed.triangles.is_some() {
+            mesh.drop_unused_vertices();
+        }
+        Ok(())
     }
 }
 
@@ -890,7 +918,8 @@ fn output_usage(mappable: bool) -> wgpu::BufferUsages {
     } else {
         wgpu::BufferUsages::empty()
     };
-    wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | map
+    // COPY_DST: an adaptive plan's triangles are uploaded into the index buffer.
+    wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST | map
 }
 
 fn uniform_usage() -> wgpu::BufferUsages {

@@ -147,6 +147,11 @@ pub(crate) struct Packed {
     pub surfaces: Vec<SurfaceSlot>,
     /// Index of the surface each piece belongs to.
     pub piece_surfaces: Vec<usize>,
+    /// Element range in `tables` of the column and row tables of each piece's grid.
+    pub piece_tables: Vec<(usize, usize)>,
+    /// The plan's triangles, uploaded as they are, where it has them (the kernels then
+    /// connect no cells).
+    pub triangles: Option<Vec<u32>>,
     pub vertex_count: u64,
     pub index_count: u64,
     /// Largest `contracted_len` of any chunk.
@@ -158,8 +163,6 @@ pub(crate) struct SurfaceSlot {
     pub origin: DVec3,
     pub first_point: usize,
     pub point_count: usize,
-    /// Element range of the surface's column and row tables in `tables`.
-    pub tables: (usize, usize),
 }
 
 /// Local homogeneous control points (relative to their item's origin) moved by `shift` (the
@@ -314,7 +317,7 @@ pub(crate) fn pack(
     limits: &Limits,
     placement: Placement,
 ) -> Result<Packed> {
-    check_item_count(plan.items.len(), surfaces.len())?;
+    check_item_count(plan.surface_count(), surfaces.len())?;
     let parts = plan.layout.parts.clone();
     let (vertex_count, index_count) = (plan.layout.vertex_count, plan.layout.index_count);
     for (what, bytes) in [
@@ -336,11 +339,17 @@ pub(crate) fn pack(
         tables: Vec::new(),
         surfaces: Vec::with_capacity(surfaces.len()),
         piece_surfaces: Vec::new(),
+        piece_tables: Vec::new(),
+        triangles: plan.triangles.clone(),
         vertex_count,
         index_count,
         contracted_len: 0,
     };
-    for (surface_index, (surface, item)) in surfaces.iter().zip(&plan.items).enumerate() {
+    // Where the plan joins the grids itself, the kernels connect no cells.
+    let connects = plan.triangles.is_none();
+    for item in &plan.items {
+        let surface_index = item.surface;
+        let surface = &surfaces[surface_index];
         let part = &item.part;
         let (nu, nv) = (part.grid_u, part.grid_v);
         let columns = packed.tables.len() as u32;
@@ -367,16 +376,25 @@ pub(crate) fn pack(
         }
         let rows_per_piece = (budget / widest).min(u64::from(nv)) as u32;
         let origin = surface.origin();
-        let first_point = packed.points.len();
-        surface_points(surface, DVec3::ZERO, &mut packed.points);
-        let point_bytes = (packed.points.len() - first_point) as u64 * 16;
-        if point_bytes > budget {
-            return Err(too_large(
-                "the control points of one surface",
-                point_bytes,
-                budget,
-            ));
+        // The control points once per surface (its grids follow each other).
+        if packed.surfaces.len() == surface_index {
+            let first_point = packed.points.len();
+            surface_points(surface, DVec3::ZERO, &mut packed.points);
+            let point_bytes = (packed.points.len() - first_point) as u64 * 16;
+            if point_bytes > budget {
+                return Err(too_large(
+                    "the control points of one surface",
+                    point_bytes,
+                    budget,
+                ));
+            }
+            packed.surfaces.push(SurfaceSlot {
+                origin,
+                first_point,
+                point_count: packed.points.len() - first_point,
+            });
         }
+        let first_point = packed.surfaces[surface_index].first_point;
         let rows_table = packed.tables.len() as u32;
         push_table(&item.rows, &mut packed.tables);
         let tables = (columns as usize, packed.tables.len());
@@ -387,18 +405,16 @@ pub(crate) fn pack(
                 budget,
             ));
         }
-        packed.surfaces.push(SurfaceSlot {
-            origin,
-            first_point,
-            point_count: packed.points.len() - first_point,
-            tables,
-        });
         let row_stride = 2 + 3 * (surface.degree_v() as u32 + 1);
         let degenerate_sq = degenerate_cross_sq(surface.cross_scale(), f64::from(f32::EPSILON));
         let mut first_row = 0;
         while first_row < nv {
             let rows = rows_per_piece.min(nv - first_row);
-            let cell_rows = rows.min(nv - 1 - first_row);
+            let cell_rows = if connects {
+                rows.min(nv - 1 - first_row)
+            } else {
+                0
+            };
             packed.pieces.push(Piece {
                 origin: placement.kernel_origin(origin).as_vec3().to_array(),
                 degenerate_sq: degenerate_sq as f32,
@@ -413,7 +429,11 @@ pub(crate) fn pack(
                 rows,
                 cell_rows,
                 first_vertex: part.first_vertex + first_row * nu,
-                first_index: part.first_index + first_row * 6 * (nu - 1),
+                first_index: if connects {
+                    part.first_index + first_row * 6 * (nu - 1)
+                } else {
+                    0
+                },
                 points: first_point as u32,
                 columns,
                 row_table: rows_table + first_row * row_stride,
@@ -424,6 +444,7 @@ pub(crate) fn pack(
                 run_table,
             });
             packed.piece_surfaces.push(surface_index);
+            packed.piece_tables.push(tables);
             first_row += rows;
         }
     }
@@ -486,6 +507,7 @@ fn plan_chunks(packed: &mut Packed, limits: &Limits, budget: u64) {
             packed.surfaces[packed.piece_surfaces[first]],
             packed.surfaces[packed.piece_surfaces[last]],
         );
+        let (first_tables, last_tables) = (packed.piece_tables[first], packed.piece_tables[last]);
         [
             (u64::from(b.first_vertex + b.rows * b.grid_u) - u64::from(a.first_vertex))
                 * VERTEX_BYTES,
@@ -493,7 +515,7 @@ fn plan_chunks(packed: &mut Packed, limits: &Limits, budget: u64) {
                 - u64::from(a.first_index))
                 * 4,
             (last_slot.first_point + last_slot.point_count - first_slot.first_point) as u64 * 16,
-            (last_slot.tables.1 - first_slot.tables.0) as u64 * 4,
+            (last_tables.1 - first_tables.0) as u64 * 4,
             (last + 1 - first) as u64 * size_of::<Piece>() as u64,
             (tiles_before[last + 1] - tiles_before[first]) * size_of::<Tile>() as u64,
             (contracted_before[last + 1] - contracted_before[first]) * 16,
@@ -548,8 +570,8 @@ fn plan_chunks(packed: &mut Packed, limits: &Limits, budget: u64) {
                 end: (last_slot.first_point + last_slot.point_count) as u64,
             },
             tables: Range {
-                origin: align(first_slot.tables.0 as u64, 4),
-                end: last_slot.tables.1 as u64,
+                origin: align(packed.piece_tables[start].0 as u64, 4),
+                end: packed.piece_tables[end - 1].1 as u64,
             },
             contracted_len: contracted,
         });

@@ -1,30 +1,58 @@
-//! Sampling rates from a tolerance: per knot span and within it, from the proven deviation
-//! bound of [`crate::geom::SecondDerivativeBound`] — never by meshing and measuring.
+//! Sampling to a tolerance: rates from the proven deviation bound of
+//! [`crate::geom::SecondDerivativeBound`] — never by meshing and measuring — and the triangles
+//! that join cells sampled at different rates without a crack.
+//!
+//! A surface's evaluation range is cut at its knots, and each knot span into up to
+//! [`CELLS_PER_SPAN`]² cells; each cell is a small grid at the fewest segments its own
+//! bound allows. Where two cells meet, the samples of both sides along their common edge are
+//! the edge's vertices, shared by index: each cell's grid cells along that edge become
+//! polygons holding the other side's samples too, triangulated inside the grid cell's
+//! rectangle, so the bound of the grid cell still holds for every triangle and no vertex
+//! of one side lies on an edge of the other (no T-junction).
 
+use super::cell_triangles;
 use crate::error::{Error, Result};
 use crate::geom::{BSplineSurface, BezierPatch, Interval};
+use std::collections::HashMap;
 
-/// One direction of an adaptive grid: consecutive pieces of the evaluation range, each
-/// sampled evenly with its number of segments (see [`super::AxisSamples::piecewise_uniform`]).
-pub type Pieces = Vec<(Interval, u32)>;
+/// Most segments one cell may take in one direction: a tolerance that needs more is refused
+/// (it would ask for about 10⁸ vertices per cell).
+pub const MAX_CELL_SEGMENTS: u32 = 1 << 14;
 
-/// Most segments one piece may take in one direction: a tolerance that needs more is refused
-/// (it would ask for about 10⁸ vertices per knot span).
-pub const MAX_PIECE_SEGMENTS: u32 = 1 << 14;
+/// Most cells a knot span is cut into along each direction: the bound of a smaller cell
+/// follows the curvature where it is, not its largest value over the span, so the flat
+/// parts of a span are not sampled at the rate of its bends.
+pub const CELLS_PER_SPAN: usize = 8;
 
-/// Most cells a knot span is cut into along each direction before its bound is taken: the
-/// bound of a smaller cell follows the curvature where it is, not its largest value over
-/// the span, so flat parts of a span are not sampled at the rate of its bends.
-const CELLS_PER_SPAN: usize = 4;
+/// One cell of a surface's adaptive sampling: a rectangle of its parameters and the grid
+/// segments along each direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cell {
+    pub range_u: Interval,
+    pub range_v: Interval,
+    /// Segments along u and v (≥ 1 each): (n_u + 1) × (n_v + 1) vertices.
+    pub segments: (u32, u32),
+}
 
-/// The grid of `surface` over its evaluation range whose every triangle lies within
-/// `tolerance` (model units, > 0) of the surface: the range is cut at the knots, each knot
-/// span into up to [`CELLS_PER_SPAN`]² cells, and each cell gets the fewest segments its
-/// [`BezierPatch::second_derivative_bound`] allows; then every column of cells takes the
-/// finest u-spacing of its cells and every row the finest v-spacing (finer spacing never
-/// raises the bound), which keeps the grid a tensor product both executors sample alike.
-/// Returns the pieces along u and along v.
-pub fn surface_pieces(surface: &BSplineSurface, tolerance: f64) -> Result<[Pieces; 2]> {
+impl Cell {
+    /// Vertices of the cell's grid.
+    pub fn vertex_count(&self) -> u64 {
+        u64::from(self.segments.0 + 1) * u64::from(self.segments.1 + 1)
+    }
+}
+
+/// The cells of one surface: a tensor of `columns` × `rows` cells (u fastest) over its
+/// evaluation range, each with its own rates.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CellGrid {
+    pub columns: usize,
+    pub rows: usize,
+    pub cells: Vec<Cell>,
+}
+
+/// The cells of `surface` for `tolerance` (model units, > 0): every triangle made from them
+/// lies within the tolerance of the surface over its parameter triangle.
+pub fn surface_cells(surface: &BSplineSurface, tolerance: f64) -> Result<CellGrid> {
     let (range_u, range_v) = (surface.range_u(), surface.range_v());
     let patches: Vec<BezierPatch> = surface
         .bezier_patches()
@@ -32,95 +60,384 @@ pub fn surface_pieces(surface: &BSplineSurface, tolerance: f64) -> Result<[Piece
         .filter(|patch| overlap(patch.range_u, range_u).is_some())
         .filter(|patch| overlap(patch.range_v, range_v).is_some())
         .collect();
-    let columns = distinct(patches.iter().map(|patch| patch.range_u));
-    let rows = distinct(patches.iter().map(|patch| patch.range_v));
-    // The cells of each span: (the span's fractions from, to) along each direction, and the
-    // clipped parameter interval they cover.
-    let cells_of = |span: Interval, range: Interval, count: usize| -> Vec<(f64, f64, Interval)> {
-        let clipped = overlap(span, range).expect("only overlapping spans are kept");
-        (0..count)
-            .map(|k| {
-                let piece = Interval::new(
-                    clipped.lerp(k as f64 / count as f64),
-                    clipped.lerp((k + 1) as f64 / count as f64),
-                );
-                let fraction = |t: f64| (t - span.start) / span.width();
-                (fraction(piece.start), fraction(piece.end), piece)
-            })
-            .collect()
-    };
-    // First each span's own rate, which decides how many cells it is worth cutting into.
-    let mut span_segments = vec![(1u32, 1u32); patches.len()];
-    for (k, patch) in patches.iter().enumerate() {
-        let (u, v) = (
-            overlap(patch.range_u, range_u).unwrap(),
-            overlap(patch.range_v, range_v).unwrap(),
-        );
-        span_segments[k] = patch.second_derivative_bound().segments(
+    let span_columns = distinct(patches.iter().map(|patch| patch.range_u));
+    let span_rows = distinct(patches.iter().map(|patch| patch.range_v));
+    let segments_of = |patch: &BezierPatch, u: Interval, v: Interval| {
+        patch.second_derivative_bound().segments(
             (u.width(), v.width()),
             tolerance,
-            MAX_PIECE_SEGMENTS,
-        );
-    }
-    let cells_along = |n: u32| (n as usize).clamp(1, CELLS_PER_SPAN);
-    let column_of = |patch: &BezierPatch| columns.iter().position(|&c| c == patch.range_u).unwrap();
-    let row_of = |patch: &BezierPatch| rows.iter().position(|&r| r == patch.range_v).unwrap();
-    let mut column_cells = vec![1usize; columns.len()];
-    let mut row_cells = vec![1usize; rows.len()];
-    for (patch, &(n_u, n_v)) in patches.iter().zip(&span_segments) {
-        let (c, r) = (column_of(patch), row_of(patch));
-        column_cells[c] = column_cells[c].max(cells_along(n_u));
-        row_cells[r] = row_cells[r].max(cells_along(n_v));
-    }
-    let column_pieces: Vec<Vec<(f64, f64, Interval)>> = columns
+            MAX_CELL_SEGMENTS,
+        )
+    };
+    // Each span's own rate decides how many cells it is worth cutting into: a span that
+    // needs n segments along u gets min(n, CELLS_PER_SPAN) cells along u (likewise v), the
+    // most any span of its column (row) asks for.
+    let mut cells_u = vec![1usize; span_columns.len()];
+    let mut cells_v = vec![1usize; span_rows.len()];
+    let column_of = |patch: &BezierPatch| span_columns.iter().position(|&c| c == patch.range_u);
+    let row_of = |patch: &BezierPatch| span_rows.iter().position(|&r| r == patch.range_v);
+    let placed: Vec<(usize, usize)> = patches
         .iter()
-        .zip(&column_cells)
-        .map(|(&span, &count)| cells_of(span, range_u, count))
+        .map(|patch| (column_of(patch).unwrap(), row_of(patch).unwrap()))
         .collect();
-    let row_pieces: Vec<Vec<(f64, f64, Interval)>> = rows
-        .iter()
-        .zip(&row_cells)
-        .map(|(&span, &count)| cells_of(span, range_v, count))
-        .collect();
-    // Segments of every cell; each column (row) of cells takes the most any of its cells
-    // needs — cells of one column share their width, so most segments is finest spacing.
-    let mut u_segments: Vec<Vec<u32>> = column_pieces.iter().map(|c| vec![1; c.len()]).collect();
-    let mut v_segments: Vec<Vec<u32>> = row_pieces.iter().map(|r| vec![1; r.len()]).collect();
-    for patch in &patches {
-        let (c, r) = (column_of(patch), row_of(patch));
-        for (a, &(u0, u1, u)) in column_pieces[c].iter().enumerate() {
-            let strip = patch.restricted_u(u0, u1);
-            for (b, &(v0, v1, v)) in row_pieces[r].iter().enumerate() {
-                let cell = strip.restricted_v(v0, v1);
-                let (n_u, n_v) = cell.second_derivative_bound().segments(
-                    (u.width(), v.width()),
-                    tolerance,
-                    MAX_PIECE_SEGMENTS,
-                );
-                u_segments[c][a] = u_segments[c][a].max(n_u);
-                v_segments[r][b] = v_segments[r][b].max(n_v);
-            }
+    for (patch, &(c, r)) in patches.iter().zip(&placed) {
+        let clipped_u = overlap(patch.range_u, range_u).unwrap();
+        let clipped_v = overlap(patch.range_v, range_v).unwrap();
+        let (n_u, n_v) = segments_of(patch, clipped_u, clipped_v);
+        cells_u[c] = cells_u[c].max((n_u as usize).clamp(1, CELLS_PER_SPAN));
+        cells_v[r] = cells_v[r].max((n_v as usize).clamp(1, CELLS_PER_SPAN));
+    }
+    // Every cell along each direction: (the span's fractions it covers, its interval).
+    let cut = |spans: &[Interval], counts: &[usize], range: Interval| {
+        let mut cells: Vec<Vec<(f64, f64, Interval)>> = Vec::with_capacity(spans.len());
+        for (&span, &count) in spans.iter().zip(counts) {
+            let clipped = overlap(span, range).expect("only overlapping spans are kept");
+            let fraction = |t: f64| (t - span.start) / span.width();
+            cells.push(
+                (0..count)
+                    .map(|k| {
+                        let piece = Interval::new(
+                            clipped.lerp(k as f64 / count as f64),
+                            clipped.lerp((k + 1) as f64 / count as f64),
+                        );
+                        (fraction(piece.start), fraction(piece.end), piece)
+                    })
+                    .collect(),
+            );
         }
-    }
-    let pieces = |cells: &[Vec<(f64, f64, Interval)>], segments: &[Vec<u32>]| -> Result<Pieces> {
-        let mut pieces = Pieces::new();
-        for (cells, segments) in cells.iter().zip(segments) {
-            for (&(_, _, interval), &n) in cells.iter().zip(segments) {
-                if n >= MAX_PIECE_SEGMENTS {
+        cells
+    };
+    let along_u = cut(&span_columns, &cells_u, range_u);
+    let along_v = cut(&span_rows, &cells_v, range_v);
+    let columns: usize = cells_u.iter().sum();
+    let rows: usize = cells_v.iter().sum();
+    let first_column: Vec<usize> = prefix_sums(&cells_u);
+    let first_row: Vec<usize> = prefix_sums(&cells_v);
+    let unset = Cell {
+        range_u,
+        range_v,
+        segments: (0, 0),
+    };
+    let mut cells = vec![unset; columns * rows];
+    for (patch, &(c, r)) in patches.iter().zip(&placed) {
+        for (a, &(u0, u1, u)) in along_u[c].iter().enumerate() {
+            let strip = patch.restricted_u(u0, u1);
+            for (b, &(v0, v1, v)) in along_v[r].iter().enumerate() {
+                let segments = segments_of(&strip.restricted_v(v0, v1), u, v);
+                if segments.0.max(segments.1) >= MAX_CELL_SEGMENTS {
                     return Err(Error::ToleranceTooFine {
                         tolerance,
-                        segments: MAX_PIECE_SEGMENTS,
+                        segments: MAX_CELL_SEGMENTS,
                     });
                 }
-                pieces.push((interval, n));
+                cells[(first_row[r] + b) * columns + first_column[c] + a] = Cell {
+                    range_u: u,
+                    range_v: v,
+                    segments,
+                };
             }
         }
-        Ok(pieces)
-    };
-    Ok([
-        pieces(&column_pieces, &u_segments)?,
-        pieces(&row_pieces, &v_segments)?,
-    ])
+    }
+    Ok(CellGrid {
+        columns,
+        rows,
+        cells,
+    })
+}
+
+impl CellGrid {
+    /// Vertices of all cells' grids.
+    pub fn vertex_count(&self) -> u64 {
+        self.cells.iter().map(Cell::vertex_count).sum()
+    }
+
+    /// Triangles that join the cells: two per grid cell, and one more per sample a
+    /// neighbouring cell adds to a cell's edge (n_other − gcd(n, n_other) along an edge
+    /// where this cell has n segments and its neighbour n_other).
+    pub fn triangle_count(&self) -> u64 {
+        let mut count = 0u64;
+        for b in 0..self.rows {
+            for a in 0..self.columns {
+                let (n_u, n_v) = self.cells[b * self.columns + a].segments;
+                count += 2 * u64::from(n_u) * u64::from(n_v);
+                for (side, n) in [
+                    (Side::Bottom, n_u),
+                    (Side::Top, n_u),
+                    (Side::Left, n_v),
+                    (Side::Right, n_v),
+                ] {
+                    if let Some(m) = self.neighbour_segments(a, b, side) {
+                        count += u64::from(m - gcd(m, n));
+                    }
+                }
+            }
+        }
+        count
+    }
+
+    /// Segments of the neighbour across `side` of cell (a, b) along that side, if any.
+    fn neighbour_segments(&self, a: usize, b: usize, side: Side) -> Option<u32> {
+        let at = |a: usize, b: usize| self.cells[b * self.columns + a].segments;
+        match side {
+            Side::Bottom => (b > 0).then(|| at(a, b - 1).0),
+            Side::Top => (b + 1 < self.rows).then(|| at(a, b + 1).0),
+            Side::Left => (a > 0).then(|| at(a - 1, b).1),
+            Side::Right => (a + 1 < self.columns).then(|| at(a + 1, b).1),
+        }
+    }
+
+    /// The triangles of the cells whose grids start at vertex `first_vertex` (cell k's grid
+    /// after cell k − 1's, (i, j) of a grid at j·(n_u + 1) + i), appended to `out`:
+    /// counter-clockwise in the parameter plane like [`cell_triangles`], every vertex on a
+    /// shared edge used by index by both cells.
+    pub fn push_triangles(&self, first_vertex: u32, out: &mut Vec<u32>) {
+        let mut bases = Vec::with_capacity(self.cells.len());
+        let mut next = first_vertex;
+        for cell in &self.cells {
+            bases.push(next);
+            next += cell.vertex_count() as u32;
+        }
+        // The one index of every vertex on a cell edge, by its exact place on the lattice of
+        // cell edges: the first cell to hold it owns it.
+        let mut owners: HashMap<Place, u32> = HashMap::new();
+        for (k, cell) in self.cells.iter().enumerate() {
+            let (a, b) = (k % self.columns, k / self.columns);
+            let (n_u, n_v) = cell.segments;
+            let row = n_u + 1;
+            for j in 0..=n_v {
+                for i in 0..=n_u {
+                    if let Some(place) = Place::of((a, b), (i, j), (n_u, n_v)) {
+                        owners.entry(place).or_insert(bases[k] + j * row + i);
+                    }
+                }
+            }
+        }
+        for (k, cell) in self.cells.iter().enumerate() {
+            let (a, b) = (k % self.columns, k / self.columns);
+            let (n_u, n_v) = cell.segments;
+            let row = n_u + 1;
+            let index = |i: u32, j: u32| {
+                Place::of((a, b), (i, j), (n_u, n_v))
+                    .map_or(bases[k] + j * row + i, |place| owners[&place])
+            };
+            // The neighbours' samples strictly inside each of this cell's edges, by their
+            // fraction along the edge (increasing u or v).
+            let extras = |side: Side| -> Vec<(f64, u32)> {
+                let Some(m) = self.neighbour_segments(a, b, side) else {
+                    return Vec::new();
+                };
+                let n = if matches!(side, Side::Bottom | Side::Top) {
+                    n_u
+                } else {
+                    n_v
+                };
+                (1..m)
+                    .filter(|&s| (u64::from(s) * u64::from(n)) % u64::from(m) != 0)
+                    .map(|s| {
+                        let place = Place::on_side((a, b), side, s, m);
+                        (f64::from(s) / f64::from(m), owners[&place])
+                    })
+                    .collect()
+            };
+            let sides = [Side::Bottom, Side::Right, Side::Top, Side::Left].map(extras);
+            let [bottom, right, top, left] = &sides;
+            for j in 0..n_v {
+                for i in 0..n_u {
+                    let within = |list: &[(f64, u32)], from: u32, to: u32, n: u32| -> Vec<u32> {
+                        let (low, high) =
+                            (f64::from(from) / f64::from(n), f64::from(to) / f64::from(n));
+                        list.iter()
+                            .filter(|(f, _)| *f > low && *f < high)
+                            .map(|&(_, v)| v)
+                            .collect()
+                    };
+                    let on_bottom = if j == 0 {
+                        within(bottom, i, i + 1, n_u)
+                    } else {
+                        Vec::new()
+                    };
+                    let on_top = if j + 1 == n_v {
+                        within(top, i, i + 1, n_u)
+                    } else {
+                        Vec::new()
+                    };
+                    let on_left = if i == 0 {
+                        within(left, j, j + 1, n_v)
+                    } else {
+                        Vec::new()
+                    };
+                    let on_right = if i + 1 == n_u {
+                        within(right, j, j + 1, n_v)
+                    } else {
+                        Vec::new()
+                    };
+                    let corners = [
+                        index(i, j),
+                        index(i + 1, j),
+                        index(i + 1, j + 1),
+                        index(i, j + 1),
+                    ];
+                    if on_bottom.is_empty()
+                        && on_top.is_empty()
+                        && on_left.is_empty()
+                        && on_right.is_empty()
+                    {
+                        // The grid rule, on the canonical indices of the corners.
+                        let local = cell_triangles(0, 2).map(|v| match v {
+                            0 => corners[0],
+                            1 => corners[1],
+                            3 => corners[2],
+                            _ => corners[3],
+                        });
+                        out.extend_from_slice(&local);
+                    } else {
+                        // c00 → bottom → c10 → right → c11, and c00 → left → c01 → top → c11.
+                        let mut chain_a = vec![corners[0]];
+                        chain_a.extend(&on_bottom);
+                        chain_a.push(corners[1]);
+                        chain_a.extend(&on_right);
+                        chain_a.push(corners[2]);
+                        let mut chain_b = vec![corners[0]];
+                        chain_b.extend(&on_left);
+                        chain_b.push(corners[3]);
+                        chain_b.extend(&on_top);
+                        chain_b.push(corners[2]);
+                        zip_chains(&chain_a, &chain_b, out);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Triangulates the convex polygon bounded by two chains from its corner c00 to its corner
+/// c11 (`a` along the bottom and right sides, `b` along the left and top sides; the
+/// polygon's vertices lie on the sides of a rectangle): one triangle at c00, then advancing
+/// the chain that is behind, then one at c11 — counter-clockwise, none with three vertices
+/// on one side of the rectangle, so none degenerate.
+fn zip_chains(a: &[u32], b: &[u32], out: &mut Vec<u32>) {
+    let (last_a, last_b) = (a.len() - 1, b.len() - 1);
+    out.extend_from_slice(&[a[0], a[1], b[1]]);
+    let (mut i, mut j) = (1, 1);
+    // Progress of a chain position toward c11, 0..=1, by position in the chain.
+    let progress = |k: usize, last: usize| k as f64 / last as f64;
+    while i + 1 < last_a || j + 1 < last_b {
+        let advance_a = j + 1 == last_b
+            || (i + 1 < last_a && progress(i + 1, last_a) <= progress(j + 1, last_b));
+        if advance_a {
+            out.extend_from_slice(&[a[i], a[i + 1], b[j]]);
+            i += 1;
+        } else {
+            out.extend_from_slice(&[b[j + 1], b[j], a[i]]);
+            j += 1;
+        }
+    }
+    out.extend_from_slice(&[a[last_a - 1], a[last_a], b[last_b - 1]]);
+}
+
+/// A side of a cell.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Side {
+    Bottom,
+    Right,
+    Top,
+    Left,
+}
+
+/// The exact place of a vertex on the edges between cells: a corner of the cell lattice, or
+/// a reduced fraction along one cell's edge (vertical edges by the lattice column and the
+/// cell row, horizontal ones by the lattice row and the cell column).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum Place {
+    Corner(usize, usize),
+    Vertical {
+        line: usize,
+        cell: usize,
+        at: (u32, u32),
+    },
+    Horizontal {
+        line: usize,
+        cell: usize,
+        at: (u32, u32),
+    },
+}
+
+impl Place {
+    /// The place of grid vertex (i, j) of cell (a, b) with `segments`, if it lies on the
+    /// cell's edge.
+    fn of((a, b): (usize, usize), (i, j): (u32, u32), (n_u, n_v): (u32, u32)) -> Option<Place> {
+        let column = [(0, a), (n_u, a + 1)]
+            .into_iter()
+            .find(|&(at, _)| at == i)
+            .map(|(_, l)| l);
+        let row = [(0, b), (n_v, b + 1)]
+            .into_iter()
+            .find(|&(at, _)| at == j)
+            .map(|(_, l)| l);
+        match (column, row) {
+            (Some(line_u), Some(line_v)) => Some(Place::Corner(line_u, line_v)),
+            (Some(line), None) => Some(Place::Vertical {
+                line,
+                cell: b,
+                at: reduced(j, n_v),
+            }),
+            (None, Some(line)) => Some(Place::Horizontal {
+                line,
+                cell: a,
+                at: reduced(i, n_u),
+            }),
+            (None, None) => None,
+        }
+    }
+
+    /// The place of sample `s` of `m` strictly inside `side` of cell (a, b).
+    fn on_side((a, b): (usize, usize), side: Side, s: u32, m: u32) -> Place {
+        let at = reduced(s, m);
+        match side {
+            Side::Bottom => Place::Horizontal {
+                line: b,
+                cell: a,
+                at,
+            },
+            Side::Top => Place::Horizontal {
+                line: b + 1,
+                cell: a,
+                at,
+            },
+            Side::Left => Place::Vertical {
+                line: a,
+                cell: b,
+                at,
+            },
+            Side::Right => Place::Vertical {
+                line: a + 1,
+                cell: b,
+                at,
+            },
+        }
+    }
+}
+
+fn reduced(s: u32, m: u32) -> (u32, u32) {
+    let g = gcd(s, m);
+    (s / g, m / g)
+}
+
+fn gcd(mut a: u32, mut b: u32) -> u32 {
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    a
+}
+
+fn prefix_sums(counts: &[usize]) -> Vec<usize> {
+    let mut sums = Vec::with_capacity(counts.len());
+    let mut total = 0;
+    for &count in counts {
+        sums.push(total);
+        total += count;
+    }
+    sums
 }
 
 /// The common part of two intervals, if it has a length.

@@ -7,7 +7,7 @@
 mod adaptive;
 mod tables;
 
-pub use adaptive::{MAX_PIECE_SEGMENTS, Pieces, surface_pieces};
+pub use adaptive::{CELLS_PER_SPAN, Cell, CellGrid, MAX_CELL_SEGMENTS, surface_cells};
 pub use tables::{AxisSamples, BEZIER_DEGREE, BezierSegment, ROW_PADDING, SpanRun};
 
 use tables::AxisCache;
@@ -47,46 +47,11 @@ impl GridLayout {
                 what: "directly evaluated Coons patches",
             });
         }
-        let sizes: Vec<(u32, u32)> = options.iter().map(|o| (o.grid_u, o.grid_v)).collect();
-        Self::of_sizes(&sizes)
-    }
-
-    /// Lays out one grid of `sizes[k]` = (grid_u, grid_v) vertices per item, in order; the
-    /// checks of [`GridLayout::new`].
-    pub fn of_sizes(sizes: &[(u32, u32)]) -> Result<Self> {
-        // The whole job's counts first, so an error gives them exactly.
-        let (mut vertices, mut indices) = (0u64, 0u64);
-        for &(nu, nv) in sizes {
-            if nu < 2 || nv < 2 {
-                return Err(Error::GridTooSmall { nu, nv });
-            }
-            vertices += u64::from(nu) * u64::from(nv);
-            indices += 6 * u64::from(nu - 1) * u64::from(nv - 1);
-        }
-        if vertices > u64::from(u32::MAX) || indices > u64::from(u32::MAX) {
-            return Err(Error::MeshTooLarge { vertices, indices });
-        }
-        let (mut first_vertex, mut first_index) = (0u32, 0u32);
-        let mut parts = Vec::with_capacity(sizes.len());
-        for (item, &(nu, nv)) in sizes.iter().enumerate() {
-            let (vertex_count, index_count) = (nu * nv, 6 * (nu - 1) * (nv - 1));
-            parts.push(MeshPart {
-                item: item as u32,
-                grid_u: nu,
-                grid_v: nv,
-                first_vertex,
-                vertex_count,
-                first_index,
-                index_count,
-            });
-            first_vertex += vertex_count;
-            first_index += index_count;
-        }
-        Ok(GridLayout {
-            parts,
-            vertex_count: vertices,
-            index_count: indices,
-        })
+        let grids: Vec<Sampling> = options
+            .iter()
+            .map(|o| Sampling::Grid(o.grid_u, o.grid_v))
+            .collect();
+        layout_of(&grids)
     }
 }
 
@@ -109,100 +74,194 @@ pub fn cell_triangles(a: u32, grid_u: u32) -> [u32; 6] {
     [a, a + 1, c, a, c, a + grid_u]
 }
 
-/// One surface's samples: its grid's columns (u) and rows (v) over the surface's evaluation
-/// range, and where its output goes. Tables are shared between items that sample alike.
+/// One grid of surface samples: its columns (u) and rows (v) over part of the surface's
+/// evaluation range (uv fractions of the whole range), and where its vertices go. Tables are
+/// shared between grids that sample alike.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SurfaceSamples {
+    /// The surface it samples (index among the plan's surfaces).
+    pub surface: usize,
+    /// Where its grid_u × grid_v vertices go (u fastest); where the plan has no
+    /// [`SurfacePlan::triangles`], also its triangles by [`cell_triangles`].
     pub part: MeshPart,
     pub columns: Arc<AxisSamples>,
     pub rows: Arc<AxisSamples>,
 }
 
-/// The plan for a list of surfaces.
+/// The plan for a list of surfaces: one grid per surface, or for a surface sampled to a
+/// tolerance one grid per cell ([`surface_cells`]), in surface order.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct SurfacePlan {
+    /// One part per surface: its vertices (all its grids') and its triangles. A surface
+    /// sampled to a tolerance has grid_u = grid_v = 0 (it is not one grid).
     pub layout: GridLayout,
-    /// One entry per surface, in order.
+    /// The grids to evaluate, in vertex order.
     pub items: Vec<SurfaceSamples>,
+    /// All triangles, where any surface is sampled to a tolerance (its cells are joined by
+    /// the plan, not by each grid's rule); `None` where every surface is one grid.
+    pub triangles: Option<Vec<u32>>,
 }
 
 impl SurfacePlan {
     /// Plans surface k on the grid of `options[k]`, or where it sets a tolerance, on the
-    /// adaptive grid of [`surface_pieces`] (a relative tolerance taken of the diagonal of
-    /// the control points' box of all `surfaces`). Errors name the surface.
+    /// cells of [`surface_cells`] (a relative tolerance taken of the diagonal of the box of
+    /// all `surfaces`' control points). Counts are checked against u32 before anything is
+    /// allocated. Errors name the surface.
     pub fn new(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Self> {
-        let axes = surface_axes(surfaces, options)?;
-        let sizes: Vec<(u32, u32)> = axes.iter().map(Axes::size).collect();
-        let layout = GridLayout::of_sizes(&sizes)?;
+        let sampling = surface_sampling(surfaces, options)?;
+        let layout = layout_of(&sampling)?;
         let mut cache = AxisCache::default();
-        let items = surfaces
+        let mut items = Vec::with_capacity(surfaces.len());
+        let mut triangles = sampling
             .iter()
+            .any(|s| matches!(s, Sampling::Cells(_)))
+            .then(|| Vec::with_capacity(layout.index_count as usize));
+        for (index, ((surface, sampling), part)) in surfaces
+            .iter()
+            .zip(&sampling)
             .zip(&layout.parts)
-            .zip(axes)
-            .map(|((surface, &part), axes)| {
-                let (columns, rows) = match axes {
-                    Axes::Uniform(nu, nv) => (
-                        cache.uniform(surface.knots_u(), surface.range_u(), nu as usize),
-                        cache.uniform(surface.knots_v(), surface.range_v(), nv as usize),
-                    ),
-                    Axes::Pieces([u, v]) => (
-                        Arc::new(AxisSamples::piecewise_uniform(
-                            surface.knots_u(),
-                            surface.range_u(),
-                            &u,
-                        )),
-                        Arc::new(AxisSamples::piecewise_uniform(
-                            surface.knots_v(),
-                            surface.range_v(),
-                            &v,
-                        )),
-                    ),
-                };
-                SurfaceSamples {
-                    part,
-                    columns,
-                    rows,
+            .enumerate()
+        {
+            match sampling {
+                Sampling::Grid(nu, nv) => {
+                    items.push(SurfaceSamples {
+                        surface: index,
+                        part: *part,
+                        columns: cache.uniform(surface.knots_u(), surface.range_u(), *nu as usize),
+                        rows: cache.uniform(surface.knots_v(), surface.range_v(), *nv as usize),
+                    });
+                    if let Some(triangles) = &mut triangles {
+                        for j in 0..nv - 1 {
+                            for i in 0..nu - 1 {
+                                triangles.extend_from_slice(&cell_triangles(
+                                    part.first_vertex + j * nu + i,
+                                    *nu,
+                                ));
+                            }
+                        }
+                    }
                 }
-            })
-            .collect();
-        Ok(SurfacePlan { layout, items })
-    }
-
-    /// The (grid_u, grid_v) each surface gets from [`SurfacePlan::new`], without its tables:
-    /// what a memory check needs.
-    pub fn grid_sizes(
-        surfaces: &[BSplineSurface],
-        options: &[TessOptions],
-    ) -> Result<Vec<(u32, u32)>> {
-        Ok(surface_axes(surfaces, options)?
-            .iter()
-            .map(Axes::size)
-            .collect())
-    }
-}
-
-/// How one surface is sampled along u and v.
-enum Axes {
-    /// Vertices per direction, evenly spaced.
-    Uniform(u32, u32),
-    /// Adaptive: evenly spaced piece by piece.
-    Pieces([Pieces; 2]),
-}
-
-impl Axes {
-    fn size(&self) -> (u32, u32) {
-        match self {
-            Axes::Uniform(nu, nv) => (*nu, *nv),
-            Axes::Pieces([u, v]) => {
-                let vertices = |pieces: &Pieces| pieces.iter().map(|&(_, n)| n).sum::<u32>() + 1;
-                (vertices(u), vertices(v))
+                Sampling::Cells(grid) => {
+                    let mut first_vertex = part.first_vertex;
+                    for cell in &grid.cells {
+                        let (n_u, n_v) = cell.segments;
+                        let axis = |knots, range, piece, n| {
+                            Arc::new(AxisSamples::piecewise_uniform(knots, range, &[(piece, n)]))
+                        };
+                        items.push(SurfaceSamples {
+                            surface: index,
+                            part: MeshPart {
+                                item: index as u32,
+                                grid_u: n_u + 1,
+                                grid_v: n_v + 1,
+                                first_vertex,
+                                vertex_count: (n_u + 1) * (n_v + 1),
+                                first_index: part.first_index,
+                                index_count: 0,
+                            },
+                            columns: axis(surface.knots_u(), surface.range_u(), cell.range_u, n_u),
+                            rows: axis(surface.knots_v(), surface.range_v(), cell.range_v, n_v),
+                        });
+                        first_vertex += (n_u + 1) * (n_v + 1);
+                    }
+                    let triangles = triangles
+                        .as_mut()
+                        .expect("made where any surface has cells");
+                    grid.push_triangles(part.first_vertex, triangles);
+                }
             }
         }
+        debug_assert!(
+            triangles
+                .as_ref()
+                .is_none_or(|t| t.len() as u64 == layout.index_count)
+        );
+        Ok(SurfacePlan {
+            layout,
+            items,
+            triangles,
+        })
     }
+
+    /// The layout [`SurfacePlan::new`] gives these surfaces, without its tables and
+    /// triangles: what a memory check needs.
+    pub fn layout_only(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<GridLayout> {
+        layout_of(&surface_sampling(surfaces, options)?)
+    }
+
+    /// Number of surfaces planned.
+    pub fn surface_count(&self) -> usize {
+        self.layout.parts.len()
+    }
+}
+
+/// How one surface is sampled.
+enum Sampling {
+    /// One grid of this many vertices along u and v, evenly spaced.
+    Grid(u32, u32),
+    /// To a tolerance.
+    Cells(CellGrid),
+}
+
+/// One part per surface, packed in order: a grid's counts as [`GridLayout::new`] gives
+/// them, cells' from [`CellGrid::vertex_count`] and [`CellGrid::triangle_count`]; the
+/// whole job checked against u32 first.
+fn layout_of(sampling: &[Sampling]) -> Result<GridLayout> {
+    let (mut vertices, mut indices) = (0u64, 0u64);
+    let mut counts = Vec::with_capacity(sampling.len());
+    for s in sampling {
+        let (v, i) = match s {
+            Sampling::Grid(nu, nv) => {
+                if *nu < 2 || *nv < 2 {
+                    return Err(Error::GridTooSmall { nu: *nu, nv: *nv });
+                }
+                (
+                    u64::from(*nu) * u64::from(*nv),
+                    6 * u64::from(nu - 1) * u64::from(nv - 1),
+                )
+            }
+            Sampling::Cells(grid) => (grid.vertex_count(), 3 * grid.triangle_count()),
+        };
+        vertices += v;
+        indices += i;
+        counts.push((v, i));
+    }
+    if vertices > u64::from(u32::MAX) || indices > u64::from(u32::MAX) {
+        return Err(Error::MeshTooLarge { vertices, indices });
+    }
+    let (mut first_vertex, mut first_index) = (0u32, 0u32);
+    let parts = sampling
+        .iter()
+        .zip(counts)
+        .enumerate()
+        .map(|(item, (s, (v, i)))| {
+            let (grid_u, grid_v) = match s {
+                Sampling::Grid(nu, nv) => (*nu, *nv),
+                Sampling::Cells(_) => (0, 0),
+            };
+            let part = MeshPart {
+                item: item as u32,
+                grid_u,
+                grid_v,
+                first_vertex,
+                vertex_count: v as u32,
+                first_index,
+                index_count: i as u32,
+            };
+            first_vertex += v as u32;
+            first_index += i as u32;
+            part
+        })
+        .collect();
+    Ok(GridLayout {
+        parts,
+        vertex_count: vertices,
+        index_count: indices,
+    })
 }
 
 /// The sampling of every surface under its options; errors name the surface.
-fn surface_axes(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Vec<Axes>> {
+fn surface_sampling(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Vec<Sampling>> {
     if options.len() != surfaces.len() {
         return Err(Error::OptionsCount {
             expected: surfaces.len(),
@@ -223,7 +282,7 @@ fn surface_axes(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<
                 source: Box::new(source),
             };
             let tolerance = match o.tolerance {
-                None => return Ok(Axes::Uniform(o.grid_u, o.grid_v)),
+                None => return Ok(Sampling::Grid(o.grid_u, o.grid_v)),
                 Some(Tolerance::Absolute(t)) => t,
                 Some(Tolerance::Relative(r)) => {
                     if !(r.is_finite() && r > 0.0) {
@@ -235,8 +294,8 @@ fn surface_axes(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<
             if !(tolerance.is_finite() && tolerance > 0.0) {
                 return Err(in_surface(Error::InvalidTolerance { value: tolerance }));
             }
-            surface_pieces(surface, tolerance)
-                .map(Axes::Pieces)
+            surface_cells(surface, tolerance)
+                .map(Sampling::Cells)
                 .map_err(in_surface)
         })
         .collect()
