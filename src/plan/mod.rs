@@ -146,7 +146,7 @@ impl SurfacePlan {
                     for cell in &grid.cells {
                         let (n_u, n_v) = cell.segments;
                         let axis = |knots, range, piece, n| {
-                            Arc::new(AxisSamples::piecewise_uniform(knots, range, &[(piece, n)]))
+                            Arc::new(AxisSamples::uniform_over(knots, range, piece, n))
                         };
                         items.push(SurfaceSamples {
                             surface: index,

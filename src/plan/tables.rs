@@ -25,9 +25,9 @@ pub struct SpanRun {
     pub end: usize,
 }
 
-/// One direction of a grid (or a curve): `len()` samples over a range — uniform, or uniform
-/// piece by piece — with the values and first two derivatives of the non-zero basis
-/// functions at each.
+/// One direction of a grid (or a curve): `len()` samples uniform over a range (or over part
+/// of it, for a cell of an adaptive plan), with the values and first two derivatives of the
+/// non-zero basis functions at each.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AxisSamples {
     degree: usize,
@@ -46,20 +46,19 @@ impl AxisSamples {
     /// 1), the last exactly on the range end — with the basis functions there.
     pub fn uniform(knots: &KnotVector, range: Interval, samples: usize) -> Self {
         debug_assert!(samples >= 2);
-        Self::piecewise_uniform(knots, range, &[(range, samples as u32 - 1)])
+        Self::uniform_over(knots, range, range, samples as u32 - 1)
     }
 
-    /// Samples uniform within each of `pieces` — (interval, segments ≥ 1), consecutive,
-    /// covering `range` from its start to its end: piece k contributes the parameters
-    /// start_k + i/segments_k · width_k for i < segments_k, and the last piece its end too.
-    /// Runs ([`AxisSamples::runs`]) break where a piece or a knot span does, so every run is
-    /// evenly spaced.
-    pub fn piecewise_uniform(
+    /// `segments` + 1 (≥ 2) parameters uniform over `piece` ⊆ `range` — sample i at
+    /// start + i/segments · width, the last exactly on the piece's end — with their uv
+    /// fractions of `range` (exactly i / segments where the piece is the range).
+    pub fn uniform_over(
         knots: &KnotVector,
         range: Interval,
-        pieces: &[(Interval, u32)],
+        piece: Interval,
+        segments: u32,
     ) -> Self {
-        let samples = pieces.iter().map(|&(_, n)| n as usize).sum::<usize>() + 1;
+        let samples = segments as usize + 1;
         let p = knots.degree();
         let stride = samples + ROW_PADDING;
         let mut table = AxisSamples {
@@ -72,40 +71,31 @@ impl AxisSamples {
             bezier: None,
         };
         let mut ders: BasisDers = [[0.0; MAX_ORDER]; 3];
-        let last_piece = pieces.len() - 1;
-        let mut i = 0;
-        for (index, &(piece, segments)) in pieces.iter().enumerate() {
-            let count = segments + u32::from(index == last_piece);
-            // The piece's ends as fractions of the range (exactly 0 and 1 for the whole range).
-            let ends = Interval::new(
-                (piece.start - range.start) / range.width(),
-                (piece.end - range.start) / range.width(),
-            );
-            let mut new_run = true;
-            for k in 0..count {
-                let at = f64::from(k) / f64::from(segments);
-                let t = piece.lerp(at);
-                let fraction = ends.lerp(at);
-                let span = knots.find_span(t);
-                basis_ders(knots, span, t, 2, &mut ders);
-                for (table, row) in table.basis.iter_mut().zip(&ders) {
-                    for (k, &value) in row[..=p].iter().enumerate() {
-                        table[k * stride + i] = value;
-                    }
+        // The piece's ends as fractions of the range (exactly 0 and 1 for the whole range).
+        let ends = Interval::new(
+            (piece.start - range.start) / range.width(),
+            (piece.end - range.start) / range.width(),
+        );
+        for i in 0..samples {
+            let at = i as f64 / f64::from(segments);
+            let t = piece.lerp(at);
+            let span = knots.find_span(t);
+            basis_ders(knots, span, t, 2, &mut ders);
+            for (table, row) in table.basis.iter_mut().zip(&ders) {
+                for (k, &value) in row[..=p].iter().enumerate() {
+                    table[k * stride + i] = value;
                 }
-                table.params.push(t);
-                table.fractions.push(fraction);
-                table.spans.push(span);
-                match table.runs.last_mut() {
-                    Some(run) if run.span == span && !new_run => run.end = i + 1,
-                    _ => table.runs.push(SpanRun {
-                        span,
-                        start: i,
-                        end: i + 1,
-                    }),
-                }
-                new_run = false;
-                i += 1;
+            }
+            table.params.push(t);
+            table.fractions.push(ends.lerp(at));
+            table.spans.push(span);
+            match table.runs.last_mut() {
+                Some(run) if run.span == span => run.end = i + 1,
+                _ => table.runs.push(SpanRun {
+                    span,
+                    start: i,
+                    end: i + 1,
+                }),
             }
         }
         table.bezier = (p <= BEZIER_DEGREE).then(|| {
