@@ -9,7 +9,7 @@ use crate::geom::{
     shapes,
 };
 use crate::gpu::{CoonsInputs, CurveInputs, GpuBatch, GpuContext, KernelInputs};
-use crate::mesh::{Mesh, Polyline, TessOptions};
+use crate::mesh::{Mesh, Polyline, TessOptions, Tolerance};
 use crate::plan::SurfacePlan;
 use crate::{CpuTessellator, Tessellator};
 use glam::{DVec2, DVec3};
@@ -249,7 +249,10 @@ pub fn export_suite(dir: &Path) -> Result<usize> {
     write("tessellate.wgsl", crate::gpu::TESSELLATE_WGSL.as_bytes())?;
     let mut cases_json = Vec::new();
     let cases = suite();
-    for (index, case) in cases.iter().enumerate() {
+    // Cases sampled to a tolerance run the same kernels on cell grids; their triangles and
+    // shared vertices come from the plan, not the kernels, so the export leaves them out.
+    let grid_cases = cases.iter().filter(|case| case.options.tolerance.is_none());
+    for (index, case) in grid_cases.enumerate() {
         let options = vec![case.options; case.surfaces.len()];
         let plan = SurfacePlan::new(&case.surfaces, &options)?;
         let inputs = KernelInputs::new(&plan, &case.surfaces)?;
@@ -391,7 +394,7 @@ pub fn export_suite(dir: &Path) -> Result<usize> {
         coons_cases_json.join(",\n")
     );
     write("manifest.json", manifest.as_bytes())?;
-    Ok(cases.len() + curve_cases.len() + coons_cases.len())
+    Ok(cases_json.len() + curve_cases.len() + coons_cases.len())
 }
 
 /// The exported expectations of a mesh (see [`export_suite`]): per vertex 10 little-endian
@@ -551,7 +554,7 @@ pub fn suite() -> Vec<Case> {
         surfaces: degrees,
         options: grid(17),
     });
-    let rational_high = (1..=20)
+    let rational_high: Vec<BSplineSurface> = (1..=20)
         .step_by(3)
         .map(|d| {
             let (nu, nv) = (d + 3, 21 - d + 2);
@@ -565,6 +568,11 @@ pub fn suite() -> Vec<Case> {
             )
         })
         .collect();
+    cases.push(Case {
+        name: "adaptive: rational, high degree, tolerance 1e-2 of the size".into(),
+        surfaces: rational_high.clone(),
+        options: TessOptions::DEFAULT.with_tolerance(Tolerance::Relative(1e-2)),
+    });
     cases.push(Case {
         name: "rational, high degree, unclamped × clamped".into(),
         surfaces: rational_high,
@@ -588,6 +596,12 @@ pub fn suite() -> Vec<Case> {
         name: "bicubic, weights 0.01..100".into(),
         surfaces: vec![bicubic(Some(&spread_weights(nu * nv, 0.01, 100.0)))],
         options: grid(64),
+    });
+    // Sampled to a tolerance: cells of different rates, joined by the plan's triangles.
+    cases.push(Case {
+        name: "adaptive: bicubic, weights 0.01..100, tolerance 1e-3 of the size".into(),
+        surfaces: vec![bicubic(Some(&spread_weights(nu * nv, 0.01, 100.0)))],
+        options: TessOptions::DEFAULT.with_tolerance(Tolerance::Relative(1e-3)),
     });
     // Periodic: uniform knots with the first `degree` columns repeated at the end.
     let periodic = {

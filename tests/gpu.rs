@@ -156,7 +156,8 @@ fn conformance_suite_passes_on_this_adapter() {
 /// positions or a 5 mrad tilt of the limit normals fails, where the documented bounds
 /// (1e-5, 1e-4 and 1e-2 rad) are the promise to other drivers. The degeneracy cross
 /// product's limit normals (corners of collapsed edges with weights 1e-3..1e3, measured up
-/// to 1.4e-3 rad) are held to the documented 1e-2.
+/// to 1.4e-3 rad) are held to the documented 1e-2, as are the positions of the adaptive
+/// cases (below).
 #[test]
 fn conformance_holds_to_the_measured_figures_on_mesa() {
     const POSITION: f64 = 1e-6;
@@ -175,8 +176,16 @@ fn conformance_holds_to_the_measured_figures_on_mesa() {
         } else {
             DEGENERATE_NORMAL
         };
+        // Cells sampled to a tolerance crowd where a surface moves fastest in its parameters,
+        // where the kernels' f32 parameters cost the most: with weights 0.01..100, 1.6e-6 of
+        // the diagonal — held to the documented bound.
+        let position_bar = if case.name.starts_with("adaptive") {
+            POSITION_REL_BAR
+        } else {
+            POSITION
+        };
         assert!(
-            r.worst_position <= POSITION
+            r.worst_position <= position_bar
                 && r.worst_normal <= NORMAL
                 && r.worst_degenerate_normal <= degenerate_bar,
             "{}: position {:e}, normal {:e}, degenerate {:e}",
@@ -512,16 +521,20 @@ fn cli_conformance_prints_a_table_and_a_verdict() {
         .arg(&dir)
         .output()
         .unwrap();
-    let cases = conformance::suite().len()
-        + conformance::curve_suite().len()
-        + conformance::coons_suite().len();
+    // Cases sampled to a tolerance are not exported (their triangles are the plan's).
+    let grid_cases: Vec<_> = conformance::suite()
+        .into_iter()
+        .filter(|case| case.options.tolerance.is_none())
+        .collect();
+    let cases =
+        grid_cases.len() + conformance::curve_suite().len() + conformance::coons_suite().len();
     let text = String::from_utf8_lossy(&run.stdout);
     assert!(
         run.status.success() && text.contains(&format!("wrote {cases} cases")),
         "{text}"
     );
     let manifest = std::fs::read_to_string(dir.join("manifest.json")).unwrap();
-    for (index, case) in conformance::suite().iter().enumerate() {
+    for (index, case) in grid_cases.iter().enumerate() {
         assert!(manifest.contains(&format!("{:?}", case.name)));
         assert!(dir.join(format!("case{index}.expected")).is_file());
     }

@@ -7,7 +7,9 @@
 mod adaptive;
 mod tables;
 
-pub use adaptive::{CELLS_PER_SPAN, Cell, CellGrid, MAX_CELL_SEGMENTS, surface_cells};
+pub use adaptive::{
+    Cell, CellGrid, MAX_CELL_SEGMENTS, MAX_CELLS_PER_SPAN, SEGMENTS_PER_CELL, surface_cells,
+};
 pub use tables::{AxisSamples, BEZIER_DEGREE, BezierSegment, ROW_PADDING, SpanRun};
 
 use tables::AxisCache;
