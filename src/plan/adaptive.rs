@@ -13,7 +13,6 @@
 use super::cell_triangles;
 use crate::error::{Error, Result};
 use crate::geom::{BSplineSurface, BezierPatch, Interval};
-use std::collections::HashMap;
 
 /// Most segments one cell may take in one direction: a tolerance that needs more is refused
 /// (it would ask for about 10⁸ vertices per cell).
@@ -207,79 +206,107 @@ impl CellGrid {
             bases.push(next);
             next += cell.vertex_count() as u32;
         }
-        // The one index of every vertex on a cell edge, by its exact place on the lattice of
-        // cell edges: the first cell to hold it owns it.
-        let mut owners: HashMap<Place, u32> = HashMap::new();
-        for (k, cell) in self.cells.iter().enumerate() {
-            let (a, b) = (k % self.columns, k / self.columns);
-            let (n_u, n_v) = cell.segments;
-            let row = n_u + 1;
-            for j in 0..=n_v {
-                for i in 0..=n_u {
-                    if let Some(place) = Place::of((a, b), (i, j), (n_u, n_v)) {
-                        owners.entry(place).or_insert(bases[k] + j * row + i);
-                    }
-                }
+        // Vertex (i, j) of cell (a, b)'s own grid.
+        let vertex = |a: usize, b: usize, i: u32, j: u32| {
+            let k = b * self.columns + a;
+            bases[k] + j * (self.cells[k].segments.0 + 1) + i
+        };
+        let segments = |a: usize, b: usize| self.cells[b * self.columns + a].segments;
+        // Of the vertices where cells meet, each is used from the first cell (row-major) that
+        // holds it: a corner from the first of the up to four cells around it, a vertex inside
+        // an edge from the cell left of or below that edge where that cell has it.
+        let corner = |a: usize, b: usize| -> u32 {
+            // Lattice corner (a, b), 0 ≤ a ≤ columns, 0 ≤ b ≤ rows.
+            let (left, below) = (a > 0, b > 0);
+            let (right, above) = (a < self.columns, b < self.rows);
+            if left && below {
+                let (n_u, n_v) = segments(a - 1, b - 1);
+                vertex(a - 1, b - 1, n_u, n_v)
+            } else if below && right {
+                vertex(a, b - 1, 0, segments(a, b - 1).1)
+            } else if left && above {
+                vertex(a - 1, b, segments(a - 1, b).0, 0)
+            } else {
+                vertex(a, b, 0, 0)
             }
-        }
+        };
         for (k, cell) in self.cells.iter().enumerate() {
             let (a, b) = (k % self.columns, k / self.columns);
             let (n_u, n_v) = cell.segments;
             let row = n_u + 1;
-            let index = |i: u32, j: u32| {
-                Place::of((a, b), (i, j), (n_u, n_v))
-                    .map_or(bases[k] + j * row + i, |place| owners[&place])
+            let local = |i: u32, j: u32| bases[k] + j * row + i;
+            // The same sample in a neighbour with m segments along the shared edge, if it has
+            // it: s/n = s'/m.
+            let shared = |s: u32, n: u32, m: u32| {
+                let scaled = u64::from(s) * u64::from(m);
+                scaled
+                    .is_multiple_of(u64::from(n))
+                    .then(|| (scaled / u64::from(n)) as u32)
             };
-            // The neighbours' samples strictly inside each of this cell's edges, by their
-            // fraction along the edge (increasing u or v).
-            let extras = |side: Side| -> Vec<(f64, u32)> {
-                let Some(m) = self.neighbour_segments(a, b, side) else {
-                    return Vec::new();
-                };
+            let index = |i: u32, j: u32| -> u32 {
+                let on_u_end = i == 0 || i == n_u;
+                let on_v_end = j == 0 || j == n_v;
+                if on_u_end && on_v_end {
+                    corner(a + usize::from(i == n_u), b + usize::from(j == n_v))
+                } else if i == 0 && a > 0 {
+                    let (m_u, m_v) = segments(a - 1, b);
+                    shared(j, n_v, m_v).map_or(local(i, j), |s| vertex(a - 1, b, m_u, s))
+                } else if j == 0 && b > 0 {
+                    let (m_u, m_v) = segments(a, b - 1);
+                    shared(i, n_u, m_u).map_or(local(i, j), |s| vertex(a, b - 1, s, m_v))
+                } else {
+                    local(i, j)
+                }
+            };
+            // The neighbours' samples strictly inside each of this cell's edges that this cell
+            // does not have, grouped by the segment of this cell they fall in (in increasing
+            // u or v): each is the neighbour's own (left and below: earlier cells own theirs;
+            // right and above: the sample is not this cell's, so it is the neighbour's).
+            let extras = |side: Side| -> Vec<Vec<u32>> {
                 let n = if matches!(side, Side::Bottom | Side::Top) {
                     n_u
                 } else {
                     n_v
                 };
-                (1..m)
-                    .filter(|&s| (u64::from(s) * u64::from(n)) % u64::from(m) != 0)
-                    .map(|s| {
-                        let place = Place::on_side((a, b), side, s, m);
-                        (f64::from(s) / f64::from(m), owners[&place])
-                    })
-                    .collect()
+                let mut by_segment = vec![Vec::new(); n as usize];
+                let Some(m) = self.neighbour_segments(a, b, side) else {
+                    return by_segment;
+                };
+                for s in 1..m {
+                    let scaled = u64::from(s) * u64::from(n);
+                    if scaled.is_multiple_of(u64::from(m)) {
+                        continue;
+                    }
+                    let index = match side {
+                        Side::Bottom => vertex(a, b - 1, s, segments(a, b - 1).1),
+                        Side::Top => vertex(a, b + 1, s, 0),
+                        Side::Left => vertex(a - 1, b, segments(a - 1, b).0, s),
+                        Side::Right => vertex(a + 1, b, 0, s),
+                    };
+                    by_segment[(scaled / u64::from(m)) as usize].push(index);
+                }
+                by_segment
             };
-            let sides = [Side::Bottom, Side::Right, Side::Top, Side::Left].map(extras);
-            let [bottom, right, top, left] = &sides;
+            let [on_bottom, on_right, on_top, on_left] =
+                [Side::Bottom, Side::Right, Side::Top, Side::Left].map(extras);
             for j in 0..n_v {
+                let edge_row = j == 0 || j + 1 == n_v;
                 for i in 0..n_u {
-                    let within = |list: &[(f64, u32)], from: u32, to: u32, n: u32| -> Vec<u32> {
-                        let (low, high) =
-                            (f64::from(from) / f64::from(n), f64::from(to) / f64::from(n));
-                        list.iter()
-                            .filter(|(f, _)| *f > low && *f < high)
-                            .map(|&(_, v)| v)
-                            .collect()
-                    };
-                    let on_bottom = if j == 0 {
-                        within(bottom, i, i + 1, n_u)
+                    if !edge_row && i != 0 && i + 1 != n_u {
+                        out.extend_from_slice(&cell_triangles(local(i, j), row));
+                        continue;
+                    }
+                    let bottom_extras: &[u32] = if j == 0 { &on_bottom[i as usize] } else { &[] };
+                    let top_extras: &[u32] = if j + 1 == n_v {
+                        &on_top[i as usize]
                     } else {
-                        Vec::new()
+                        &[]
                     };
-                    let on_top = if j + 1 == n_v {
-                        within(top, i, i + 1, n_u)
+                    let left_extras: &[u32] = if i == 0 { &on_left[j as usize] } else { &[] };
+                    let right_extras: &[u32] = if i + 1 == n_u {
+                        &on_right[j as usize]
                     } else {
-                        Vec::new()
-                    };
-                    let on_left = if i == 0 {
-                        within(left, j, j + 1, n_v)
-                    } else {
-                        Vec::new()
-                    };
-                    let on_right = if i + 1 == n_u {
-                        within(right, j, j + 1, n_v)
-                    } else {
-                        Vec::new()
+                        &[]
                     };
                     let corners = [
                         index(i, j),
@@ -287,30 +314,27 @@ impl CellGrid {
                         index(i + 1, j + 1),
                         index(i, j + 1),
                     ];
-                    if on_bottom.is_empty()
-                        && on_top.is_empty()
-                        && on_left.is_empty()
-                        && on_right.is_empty()
+                    if bottom_extras.is_empty()
+                        && top_extras.is_empty()
+                        && left_extras.is_empty()
+                        && right_extras.is_empty()
                     {
-                        // The grid rule, on the canonical indices of the corners.
-                        let local = cell_triangles(0, 2).map(|v| match v {
-                            0 => corners[0],
-                            1 => corners[1],
-                            3 => corners[2],
-                            _ => corners[3],
-                        });
-                        out.extend_from_slice(&local);
+                        // The grid rule, on the indices of the corners: cell_triangles of
+                        // a 2 × 2 grid numbers them c00 = 0, c10 = 1, c01 = 2, c11 = 3.
+                        let [c00, c10, c11, c01] = corners;
+                        let numbered = [c00, c10, c01, c11];
+                        out.extend(cell_triangles(0, 2).map(|v| numbered[v as usize]));
                     } else {
                         // c00 → bottom → c10 → right → c11, and c00 → left → c01 → top → c11.
                         let mut chain_a = vec![corners[0]];
-                        chain_a.extend(&on_bottom);
+                        chain_a.extend_from_slice(bottom_extras);
                         chain_a.push(corners[1]);
-                        chain_a.extend(&on_right);
+                        chain_a.extend_from_slice(right_extras);
                         chain_a.push(corners[2]);
                         let mut chain_b = vec![corners[0]];
-                        chain_b.extend(&on_left);
+                        chain_b.extend_from_slice(left_extras);
                         chain_b.push(corners[3]);
-                        chain_b.extend(&on_top);
+                        chain_b.extend_from_slice(top_extras);
                         chain_b.push(corners[2]);
                         zip_chains(&chain_a, &chain_b, out);
                     }
@@ -352,85 +376,6 @@ enum Side {
     Right,
     Top,
     Left,
-}
-
-/// The exact place of a vertex on the edges between cells: a corner of the cell lattice, or
-/// a reduced fraction along one cell's edge (vertical edges by the lattice column and the
-/// cell row, horizontal ones by the lattice row and the cell column).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-enum Place {
-    Corner(usize, usize),
-    Vertical {
-        line: usize,
-        cell: usize,
-        at: (u32, u32),
-    },
-    Horizontal {
-        line: usize,
-        cell: usize,
-        at: (u32, u32),
-    },
-}
-
-impl Place {
-    /// The place of grid vertex (i, j) of cell (a, b) with `segments`, if it lies on the
-    /// cell's edge.
-    fn of((a, b): (usize, usize), (i, j): (u32, u32), (n_u, n_v): (u32, u32)) -> Option<Place> {
-        let column = [(0, a), (n_u, a + 1)]
-            .into_iter()
-            .find(|&(at, _)| at == i)
-            .map(|(_, l)| l);
-        let row = [(0, b), (n_v, b + 1)]
-            .into_iter()
-            .find(|&(at, _)| at == j)
-            .map(|(_, l)| l);
-        match (column, row) {
-            (Some(line_u), Some(line_v)) => Some(Place::Corner(line_u, line_v)),
-            (Some(line), None) => Some(Place::Vertical {
-                line,
-                cell: b,
-                at: reduced(j, n_v),
-            }),
-            (None, Some(line)) => Some(Place::Horizontal {
-                line,
-                cell: a,
-                at: reduced(i, n_u),
-            }),
-            (None, None) => None,
-        }
-    }
-
-    /// The place of sample `s` of `m` strictly inside `side` of cell (a, b).
-    fn on_side((a, b): (usize, usize), side: Side, s: u32, m: u32) -> Place {
-        let at = reduced(s, m);
-        match side {
-            Side::Bottom => Place::Horizontal {
-                line: b,
-                cell: a,
-                at,
-            },
-            Side::Top => Place::Horizontal {
-                line: b + 1,
-                cell: a,
-                at,
-            },
-            Side::Left => Place::Vertical {
-                line: a,
-                cell: b,
-                at,
-            },
-            Side::Right => Place::Vertical {
-                line: a + 1,
-                cell: b,
-                at,
-            },
-        }
-    }
-}
-
-fn reduced(s: u32, m: u32) -> (u32, u32) {
-    let g = gcd(s, m);
-    (s / g, m / g)
 }
 
 fn gcd(mut a: u32, mut b: u32) -> u32 {

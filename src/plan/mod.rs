@@ -18,6 +18,8 @@ use crate::error::{Error, Result};
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
 use crate::mesh::{MeshPart, TessOptions, Tolerance};
+use rayon::prelude::*;
+use std::collections::HashMap;
 use std::sync::Arc;
 
 /// Where every grid item's vertices and indices go in the output.
@@ -112,65 +114,63 @@ impl SurfacePlan {
     pub fn new(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Self> {
         let sampling = surface_sampling(surfaces, options)?;
         let layout = layout_of(&sampling)?;
+        let joined = sampling.iter().any(|s| matches!(s, Sampling::Cells(_)));
+        // Grids share their tables through one cache; cells are planned surface by surface
+        // in parallel.
         let mut cache = AxisCache::default();
-        let mut items = Vec::with_capacity(surfaces.len());
-        let mut triangles = sampling
-            .iter()
-            .any(|s| matches!(s, Sampling::Cells(_)))
-            .then(|| Vec::with_capacity(layout.index_count as usize));
-        for (index, ((surface, sampling), part)) in surfaces
+        let grids: Vec<Option<SurfaceSamples>> = surfaces
             .iter()
             .zip(&sampling)
             .zip(&layout.parts)
             .enumerate()
-        {
-            match sampling {
-                Sampling::Grid(nu, nv) => {
-                    items.push(SurfaceSamples {
-                        surface: index,
-                        part: *part,
-                        columns: cache.uniform(surface.knots_u(), surface.range_u(), *nu as usize),
-                        rows: cache.uniform(surface.knots_v(), surface.range_v(), *nv as usize),
-                    });
-                    if let Some(triangles) = &mut triangles {
-                        for j in 0..nv - 1 {
-                            for i in 0..nu - 1 {
-                                triangles.extend_from_slice(&cell_triangles(
-                                    part.first_vertex + j * nu + i,
-                                    *nu,
-                                ));
+            .map(|(index, ((surface, sampling), part))| match sampling {
+                Sampling::Grid(nu, nv) => Some(SurfaceSamples {
+                    surface: index,
+                    part: *part,
+                    columns: cache.uniform(surface.knots_u(), surface.range_u(), *nu as usize),
+                    rows: cache.uniform(surface.knots_v(), surface.range_v(), *nv as usize),
+                }),
+                Sampling::Cells(_) => None,
+            })
+            .collect();
+        let planned: Vec<(Vec<SurfaceSamples>, Vec<u32>)> = surfaces
+            .par_iter()
+            .zip(&sampling)
+            .zip(&layout.parts)
+            .zip(grids)
+            .enumerate()
+            .map(|(index, (((surface, sampling), part), grid))| {
+                let mut triangles = Vec::new();
+                match (sampling, grid) {
+                    (Sampling::Grid(nu, nv), Some(grid)) => {
+                        if joined {
+                            triangles.reserve(part.index_count as usize);
+                            for j in 0..nv - 1 {
+                                for i in 0..nu - 1 {
+                                    triangles.extend_from_slice(&cell_triangles(
+                                        part.first_vertex + j * nu + i,
+                                        *nu,
+                                    ));
+                                }
                             }
                         }
+                        (vec![grid], triangles)
                     }
-                }
-                Sampling::Cells(grid) => {
-                    let mut first_vertex = part.first_vertex;
-                    for cell in &grid.cells {
-                        let (n_u, n_v) = cell.segments;
-                        let axis = |knots, range, piece, n| {
-                            Arc::new(AxisSamples::uniform_over(knots, range, piece, n))
-                        };
-                        items.push(SurfaceSamples {
-                            surface: index,
-                            part: MeshPart {
-                                item: index as u32,
-                                grid_u: n_u + 1,
-                                grid_v: n_v + 1,
-                                first_vertex,
-                                vertex_count: (n_u + 1) * (n_v + 1),
-                                first_index: part.first_index,
-                                index_count: 0,
-                            },
-                            columns: axis(surface.knots_u(), surface.range_u(), cell.range_u, n_u),
-                            rows: axis(surface.knots_v(), surface.range_v(), cell.range_v, n_v),
-                        });
-                        first_vertex += (n_u + 1) * (n_v + 1);
+                    (Sampling::Cells(cells), _) => {
+                        triangles.reserve(part.index_count as usize);
+                        cells.push_triangles(part.first_vertex, &mut triangles);
+                        (cell_samples(index, surface, cells, part), triangles)
                     }
-                    let triangles = triangles
-                        .as_mut()
-                        .expect("made where any surface has cells");
-                    grid.push_triangles(part.first_vertex, triangles);
+                    (Sampling::Grid(..), None) => unreachable!("every grid was planned above"),
                 }
+            })
+            .collect();
+        let mut items = Vec::with_capacity(planned.iter().map(|(i, _)| i.len()).sum());
+        let mut triangles = joined.then(|| Vec::with_capacity(layout.index_count as usize));
+        for (surface_items, surface_triangles) in planned {
+            items.extend(surface_items);
+            if let Some(triangles) = &mut triangles {
+                triangles.extend_from_slice(&surface_triangles);
             }
         }
         debug_assert!(
@@ -195,6 +195,66 @@ impl SurfacePlan {
     pub fn surface_count(&self) -> usize {
         self.layout.parts.len()
     }
+}
+
+/// The grids of the cells of surface `index`, their vertices one after another from the
+/// first of its `part`.
+fn cell_samples(
+    index: usize,
+    surface: &BSplineSurface,
+    cells: &CellGrid,
+    part: &MeshPart,
+) -> Vec<SurfaceSamples> {
+    let mut first_vertex = part.first_vertex;
+    // Cells of one column (row) share their column (row) tables where their rates agree.
+    let mut columns: HashMap<(usize, u32), Arc<AxisSamples>> = HashMap::new();
+    let mut rows: HashMap<(usize, u32), Arc<AxisSamples>> = HashMap::new();
+    let axis =
+        |tables: &mut HashMap<(usize, u32), Arc<AxisSamples>>, at, knots, range, piece, n| {
+            tables
+                .entry((at, n))
+                .or_insert_with(|| Arc::new(AxisSamples::uniform_over(knots, range, piece, n)))
+                .clone()
+        };
+    cells
+        .cells
+        .iter()
+        .enumerate()
+        .map(|(k, cell)| {
+            let (n_u, n_v) = cell.segments;
+            let (a, b) = (k % cells.columns, k / cells.columns);
+            let samples = SurfaceSamples {
+                surface: index,
+                part: MeshPart {
+                    item: index as u32,
+                    grid_u: n_u + 1,
+                    grid_v: n_v + 1,
+                    first_vertex,
+                    vertex_count: (n_u + 1) * (n_v + 1),
+                    first_index: part.first_index,
+                    index_count: 0,
+                },
+                columns: axis(
+                    &mut columns,
+                    a,
+                    surface.knots_u(),
+                    surface.range_u(),
+                    cell.range_u,
+                    n_u,
+                ),
+                rows: axis(
+                    &mut rows,
+                    b,
+                    surface.knots_v(),
+                    surface.range_v(),
+                    cell.range_v,
+                    n_v,
+                ),
+            };
+            first_vertex += (n_u + 1) * (n_v + 1);
+            samples
+        })
+        .collect()
 }
 
 /// How one surface is sampled.
@@ -262,7 +322,8 @@ fn layout_of(sampling: &[Sampling]) -> Result<GridLayout> {
     })
 }
 
-/// The sampling of every surface under its options; errors name the surface.
+/// The sampling of every surface under its options, planned in parallel; errors name the
+/// (first failing) surface.
 fn surface_sampling(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Vec<Sampling>> {
     if options.len() != surfaces.len() {
         return Err(Error::OptionsCount {
@@ -275,7 +336,7 @@ fn surface_sampling(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Res
         .any(|o| matches!(o.tolerance, Some(Tolerance::Relative(_))))
         .then(|| model_diagonal(surfaces));
     surfaces
-        .iter()
+        .par_iter()
         .zip(options)
         .enumerate()
         .map(|(index, (surface, o))| {
@@ -300,6 +361,9 @@ fn surface_sampling(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Res
                 .map(Sampling::Cells)
                 .map_err(in_surface)
         })
+        .collect::<Vec<_>>()
+        // In surface order, so that the error reported is the first surface's.
+        .into_iter()
         .collect()
 }
 
