@@ -5,10 +5,21 @@
 //!
 //! Inputs: the shared 32×32 rational bicubic surface at 1000×1000 and the teapot at 64×64
 //! per patch.
+//!
+//! `cpu_adaptive`: triangles per second sampling to a tolerance (plan and execution, every
+//! core) — the teapot, the ducky, the 32×32 surface and Gumbo (read from ../shared/data
+//! where present) at 1e-2, 1e-3 and 1e-4 of each model's diagonal. Before timing, each
+//! prints its triangles and the deviation measured at triangle centroids and edge midpoints
+//! over the tolerance; the teapot also the coarsest uniform grid per patch whose measured
+//! deviation holds the same tolerance, with its triangles (the search measures every
+//! candidate: minutes for the larger models, so only there).
+
+#[path = "../tests/common/mod.rs"]
+mod common;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::DVec3;
-use knotwork::{CpuTessellator, Mesh, TessOptions, Tessellator};
+use knotwork::{BSplineSurface, CpuTessellator, Mesh, TessOptions, Tessellator, Tolerance};
 use std::path::Path;
 
 fn bench_cpu(c: &mut Criterion) {
@@ -73,5 +84,91 @@ fn bench_cpu(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_cpu);
+/// The coarsest n (n × n vertices per patch) whose measured deviation is within
+/// `tolerance`, by doubling then bisection (the deviation falls as n grows), with its mesh's
+/// triangle count.
+fn coarsest_uniform_grid(surfaces: &[BSplineSurface], tolerance: f64) -> (u32, usize) {
+    let holds = |n: u32| {
+        let mesh = CpuTessellator
+            .tessellate(surfaces, &TessOptions::DEFAULT.with_grid(n, n))
+            .expect("tessellates");
+        (
+            common::worst_deviation(surfaces, &mesh) <= tolerance,
+            mesh.indices.len() / 3,
+        )
+    };
+    let mut high = 4;
+    while !holds(high).0 {
+        high *= 2;
+    }
+    let mut low = high / 2;
+    while high - low > 1 {
+        let middle = (low + high) / 2;
+        if holds(middle).0 {
+            high = middle;
+        } else {
+            low = middle;
+        }
+    }
+    (high, holds(high).1)
+}
+
+fn bench_adaptive(c: &mut Criterion) {
+    let read = |path: &str| knotwork::io::read_scene(Path::new(path)).map(|s| s.surface_list());
+    let mut models = vec![
+        ("teapot", read("data/teapot.bpt").expect("teapot")),
+        ("ducky", read("data/ducky.obj").expect("ducky")),
+        (
+            "peer_bicubic_32x32",
+            read("data/peer_bicubic_32x32.obj").expect("benchmark surface"),
+        ),
+    ];
+    match read("../shared/data/gumbo.bpt") {
+        Ok(gumbo) => models.push(("gumbo", gumbo)),
+        Err(e) => eprintln!("gumbo left out: {e}"),
+    }
+    let mut group = c.benchmark_group("cpu_adaptive");
+    group.sample_size(10);
+    for (name, surfaces) in &models {
+        let (low, high) = surfaces.iter().map(BSplineSurface::control_box).fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(low, high), (a, b)| (low.min(a), high.max(b)),
+        );
+        let diagonal = (high - low).length();
+        for relative in [1e-2, 1e-3, 1e-4] {
+            let tolerance = relative * diagonal;
+            let options = TessOptions::DEFAULT.with_tolerance(Tolerance::Absolute(tolerance));
+            let mesh = CpuTessellator
+                .tessellate(surfaces, &options)
+                .expect("tessellates");
+            let triangles = mesh.indices.len() / 3;
+            let deviation = common::worst_deviation(surfaces, &mesh);
+            let uniform = if *name == "teapot" {
+                let (n, uniform) = coarsest_uniform_grid(surfaces, tolerance);
+                format!(
+                    "; coarsest uniform grid {n}x{n} per patch: {uniform} triangles ({:.2}x)",
+                    uniform as f64 / triangles as f64
+                )
+            } else {
+                String::new()
+            };
+            eprintln!(
+                "{name} at {relative:e} of the diagonal ({tolerance:.3e}): {triangles} triangles, deviation {:.2} of the tolerance{uniform}",
+                deviation / tolerance,
+            );
+            group.throughput(Throughput::Elements(triangles as u64));
+            let mut reused = Mesh::default();
+            group.bench_function(format!("{name} at {relative:e}"), |b| {
+                b.iter(|| {
+                    CpuTessellator
+                        .tessellate_into(surfaces, &options, &mut reused)
+                        .expect("tessellates")
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_cpu, bench_adaptive);
 criterion_main!(benches);

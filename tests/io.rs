@@ -774,6 +774,84 @@ fn open_edges_and_pieces(mesh: &knotwork::Mesh) -> (usize, usize) {
     (edges.values().filter(|e| e.1 == 1).count(), roots.len())
 }
 
+/// Sampled to a tolerance, the teapot's patches share their seams by index: before any
+/// welding it is the same 4 pieces, and a weld finds nothing left to merge but the
+/// vertices of its two poles (the lid's knob and the bottom's centre, where patch sides
+/// collapse to a point and are no seams); no edge is used twice the same way. Every open
+/// edge of positive length lies on one of the 16 true boundary patch edges, which a fine
+/// uniform grid welded shows: each of its ends is within the tolerance of that grid's
+/// open boundary.
+#[test]
+fn adaptive_teapot_is_closed_by_shared_indices() {
+    let scene = read_scene(Path::new("data/teapot.bpt")).unwrap();
+    let tolerance = 1e-3;
+    let options = TessOptions::DEFAULT.with_tolerance(knotwork::Tolerance::Absolute(tolerance));
+    let mesh = CpuTessellator
+        .tessellate(&scene.surface_list(), &options)
+        .unwrap();
+    let (_, pieces) = open_edges_and_pieces(&mesh);
+    assert_eq!(pieces, 4, "body (with rim and bottom), lid, handle, spout");
+    let mut directed = std::collections::HashSet::new();
+    for t in mesh.indices.chunks(3) {
+        for k in 0..3 {
+            assert!(
+                directed.insert((t[k], t[(k + 1) % 3])),
+                "edge used twice one way"
+            );
+        }
+    }
+    let diagonal = mesh.bounding_box_diagonal();
+    let (welded, report) = mesh.weld(knotwork::mesh::WELD_REL_TOLERANCE * diagonal);
+    let pole_vertices = mesh
+        .positions
+        .iter()
+        .filter(|p| p.x.hypot(p.y) < 1e-9 * diagonal)
+        .count();
+    assert!(
+        report.merged_vertices > 0 && report.merged_vertices < pole_vertices,
+        "{report:?}"
+    );
+    assert_eq!(open_edges_and_pieces(&welded).1, 4);
+    // The true boundary, from a fine grid welded: its open edges' vertices.
+    let grid = teapot_mesh(65);
+    let (grid, _) = grid.weld(knotwork::mesh::WELD_REL_TOLERANCE * grid.bounding_box_diagonal());
+    let mut uses = std::collections::HashMap::new();
+    for t in grid.indices.chunks(3) {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *uses.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    let boundary: Vec<(glam::DVec3, glam::DVec3)> = uses
+        .iter()
+        .filter(|(_, n)| **n == 1)
+        .map(|(&(a, b), _)| (grid.positions[a as usize], grid.positions[b as usize]))
+        .collect();
+    let near_boundary = |p: glam::DVec3| {
+        boundary.iter().any(|&(a, b)| {
+            let t = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+            (a + t * (b - a) - p).length() <= tolerance
+        })
+    };
+    let welded_edges: std::collections::HashSet<(u32, u32)> = welded
+        .indices
+        .chunks(3)
+        .flat_map(|t| (0..3).map(move |k| (t[k], t[(k + 1) % 3])))
+        .collect();
+    for t in welded.indices.chunks(3) {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            if !welded_edges.contains(&(b, a)) {
+                let (p, q) = (welded.positions[a as usize], welded.positions[b as usize]);
+                assert!(
+                    near_boundary(p) && near_boundary(q),
+                    "open edge {p} – {q} inside the teapot"
+                );
+            }
+        }
+    }
+}
+
 #[test]
 fn welded_teapot_is_four_pieces_with_sixteen_open_patch_edges() {
     let n = 9;

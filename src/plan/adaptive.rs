@@ -184,6 +184,11 @@ impl CellGrid {
         count
     }
 
+    /// Segments of cell (a, b).
+    fn segments(&self, a: usize, b: usize) -> (u32, u32) {
+        self.cells[b * self.columns + a].segments
+    }
+
     /// Segments of the neighbour across `side` of cell (a, b) along that side, if any.
     fn neighbour_segments(&self, a: usize, b: usize, side: Side) -> Option<u32> {
         let at = |a: usize, b: usize| self.cells[b * self.columns + a].segments;
@@ -195,81 +200,120 @@ impl CellGrid {
         }
     }
 
-    /// The triangles of the cells whose grids start at vertex `first_vertex` (cell k's grid
-    /// after cell k − 1's, (i, j) of a grid at j·(n_u + 1) + i), appended to `out`:
-    /// counter-clockwise in the parameter plane like [`cell_triangles`], every vertex on a
-    /// shared edge used by index by both cells.
-    pub fn push_triangles(&self, first_vertex: u32, out: &mut Vec<u32>) {
+    /// The vertex indices of the cells' grids when they start at vertex `first_vertex`
+    /// (cell k's grid after cell k − 1's, (i, j) of a grid at j·(n_u + 1) + i).
+    pub(crate) fn vertices(&self, first_vertex: u32) -> CellVertices<'_> {
         let mut bases = Vec::with_capacity(self.cells.len());
         let mut next = first_vertex;
         for cell in &self.cells {
             bases.push(next);
             next += cell.vertex_count() as u32;
         }
-        // Vertex (i, j) of cell (a, b)'s own grid.
-        let vertex = |a: usize, b: usize, i: u32, j: u32| {
-            let k = b * self.columns + a;
-            bases[k] + j * (self.cells[k].segments.0 + 1) + i
+        CellVertices { grid: self, bases }
+    }
+
+    /// The samples on `side` of the surface — (fraction of the surface's range along the
+    /// side, vertex), in increasing fraction, corners included — as
+    /// [`CellGrid::push_triangles`] indexes them.
+    pub(crate) fn side_samples(&self, vertices: &CellVertices, side: Side) -> Vec<(f64, u32)> {
+        let along_u = matches!(side, Side::Bottom | Side::Top);
+        let count = if along_u { self.columns } else { self.rows };
+        let range = if along_u {
+            Interval::new(
+                self.cells[0].range_u.start,
+                self.cells[self.columns - 1].range_u.end,
+            )
+        } else {
+            Interval::new(
+                self.cells[0].range_v.start,
+                self.cells[self.cells.len() - 1].range_v.end,
+            )
         };
-        let segments = |a: usize, b: usize| self.cells[b * self.columns + a].segments;
-        // Of the vertices where cells meet, each is used from the first cell (row-major) that
-        // holds it: a corner from the first of the up to four cells around it, a vertex inside
-        // an edge from the cell left of or below that edge where that cell has it.
-        let corner = |a: usize, b: usize| -> u32 {
-            // Lattice corner (a, b), 0 ≤ a ≤ columns, 0 ≤ b ≤ rows.
-            let (left, below) = (a > 0, b > 0);
-            let (right, above) = (a < self.columns, b < self.rows);
-            if left && below {
-                let (n_u, n_v) = segments(a - 1, b - 1);
-                vertex(a - 1, b - 1, n_u, n_v)
-            } else if below && right {
-                vertex(a, b - 1, 0, segments(a, b - 1).1)
-            } else if left && above {
-                vertex(a - 1, b, segments(a - 1, b).0, 0)
+        let mut samples = Vec::new();
+        for c in 0..count {
+            let (a, b) = match side {
+                Side::Bottom => (c, 0),
+                Side::Top => (c, self.rows - 1),
+                Side::Left => (0, c),
+                Side::Right => (self.columns - 1, c),
+            };
+            let cell = &self.cells[b * self.columns + a];
+            let (n_u, n_v) = cell.segments;
+            let (piece, n) = if along_u {
+                (cell.range_u, n_u)
             } else {
-                vertex(a, b, 0, 0)
+                (cell.range_v, n_v)
+            };
+            let last = if c + 1 == count { n } else { n - 1 };
+            for s in 0..=last {
+                let (i, j) = match side {
+                    Side::Bottom => (s, 0),
+                    Side::Top => (s, n_v),
+                    Side::Left => (0, s),
+                    Side::Right => (n_u, s),
+                };
+                samples.push((
+                    sample_fraction(range, piece, s, n),
+                    vertices.index(a, b, i, j),
+                ));
             }
-        };
+        }
+        samples
+    }
+
+    /// The triangles of the cells, appended to `out`: counter-clockwise in the parameter
+    /// plane like [`cell_triangles`], every vertex on an edge between cells used by index
+    /// from both. `external[side]` (in the order Bottom, Right, Top, Left) holds samples of
+    /// another surface's seam on that side of this surface's range which this surface lacks
+    /// — (fraction along the side, vertex), increasing — that its grid cells along the side
+    /// take in likewise.
+    pub(crate) fn push_triangles(
+        &self,
+        vertices: &CellVertices,
+        external: &[Vec<(f64, u32)>; 4],
+        out: &mut Vec<u32>,
+    ) {
+        let range_u = Interval::new(
+            self.cells[0].range_u.start,
+            self.cells[self.columns - 1].range_u.end,
+        );
+        let range_v = Interval::new(
+            self.cells[0].range_v.start,
+            self.cells[self.cells.len() - 1].range_v.end,
+        );
         for (k, cell) in self.cells.iter().enumerate() {
             let (a, b) = (k % self.columns, k / self.columns);
             let (n_u, n_v) = cell.segments;
             let row = n_u + 1;
-            let local = |i: u32, j: u32| bases[k] + j * row + i;
-            // The same sample in a neighbour with m segments along the shared edge, if it has
-            // it: s/n = s'/m.
-            let shared = |s: u32, n: u32, m: u32| {
-                let scaled = u64::from(s) * u64::from(m);
-                scaled
-                    .is_multiple_of(u64::from(n))
-                    .then(|| (scaled / u64::from(n)) as u32)
-            };
-            let index = |i: u32, j: u32| -> u32 {
-                let on_u_end = i == 0 || i == n_u;
-                let on_v_end = j == 0 || j == n_v;
-                if on_u_end && on_v_end {
-                    corner(a + usize::from(i == n_u), b + usize::from(j == n_v))
-                } else if i == 0 && a > 0 {
-                    let (m_u, m_v) = segments(a - 1, b);
-                    shared(j, n_v, m_v).map_or(local(i, j), |s| vertex(a - 1, b, m_u, s))
-                } else if j == 0 && b > 0 {
-                    let (m_u, m_v) = segments(a, b - 1);
-                    shared(i, n_u, m_u).map_or(local(i, j), |s| vertex(a, b - 1, s, m_v))
-                } else {
-                    local(i, j)
-                }
-            };
-            // The neighbours' samples strictly inside each of this cell's edges that this cell
-            // does not have, grouped by the segment of this cell they fall in (in increasing
-            // u or v): each is the neighbour's own (left and below: earlier cells own theirs;
-            // right and above: the sample is not this cell's, so it is the neighbour's).
+            let local = |i: u32, j: u32| vertices.vertex(a, b, i, j);
+            let index = |i: u32, j: u32| vertices.index(a, b, i, j);
+            // The samples strictly inside each of this cell's edges that it does not have,
+            // grouped by the segment of this cell they fall in (increasing u or v): from the
+            // neighbouring cell — its own (left and below: earlier cells own theirs; right and
+            // above: the sample is not this cell's, so it is the neighbour's) — or on the
+            // surface's side, from the seam.
             let extras = |side: Side| -> Vec<Vec<u32>> {
-                let n = if matches!(side, Side::Bottom | Side::Top) {
-                    n_u
-                } else {
-                    n_v
-                };
+                let along_u = matches!(side, Side::Bottom | Side::Top);
+                let n = if along_u { n_u } else { n_v };
                 let mut by_segment = vec![Vec::new(); n as usize];
                 let Some(m) = self.neighbour_segments(a, b, side) else {
+                    let (range, piece) = if along_u {
+                        (range_u, cell.range_u)
+                    } else {
+                        (range_v, cell.range_v)
+                    };
+                    let ends = [0, n].map(|s| sample_fraction(range, piece, s, n));
+                    let mut segment = 0;
+                    for &(f, vertex) in &external[side as usize] {
+                        if f <= ends[0] || f >= ends[1] {
+                            continue;
+                        }
+                        while segment + 1 < n && f >= sample_fraction(range, piece, segment + 1, n)
+                        {
+                            segment += 1;
+                        }
+                        by_segment[segment as usize].push(vertex);
+                    }
                     return by_segment;
                 };
                 for s in 1..m {
@@ -278,10 +322,10 @@ impl CellGrid {
                         continue;
                     }
                     let index = match side {
-                        Side::Bottom => vertex(a, b - 1, s, segments(a, b - 1).1),
-                        Side::Top => vertex(a, b + 1, s, 0),
-                        Side::Left => vertex(a - 1, b, segments(a - 1, b).0, s),
-                        Side::Right => vertex(a + 1, b, 0, s),
+                        Side::Bottom => vertices.vertex(a, b - 1, s, self.segments(a, b - 1).1),
+                        Side::Top => vertices.vertex(a, b + 1, s, 0),
+                        Side::Left => vertices.vertex(a - 1, b, self.segments(a - 1, b).0, s),
+                        Side::Right => vertices.vertex(a + 1, b, 0, s),
                     };
                     by_segment[(scaled / u64::from(m)) as usize].push(index);
                 }
@@ -344,6 +388,72 @@ impl CellGrid {
     }
 }
 
+/// Where the vertices of a [`CellGrid`]'s cells are (see [`CellGrid::vertices`]).
+pub(crate) struct CellVertices<'a> {
+    grid: &'a CellGrid,
+    bases: Vec<u32>,
+}
+
+impl CellVertices<'_> {
+    /// Vertex (i, j) of cell (a, b)'s own grid.
+    fn vertex(&self, a: usize, b: usize, i: u32, j: u32) -> u32 {
+        let k = b * self.grid.columns + a;
+        self.bases[k] + j * (self.grid.cells[k].segments.0 + 1) + i
+    }
+
+    /// The one vertex used for (i, j) of cell (a, b): of the vertices where cells meet, each
+    /// is used from the first cell (row-major) that holds it — a corner from the first of
+    /// the up to four cells around it, a vertex inside an edge from the cell left of or
+    /// below that edge where that cell has it.
+    fn index(&self, a: usize, b: usize, i: u32, j: u32) -> u32 {
+        let grid = self.grid;
+        let (n_u, n_v) = grid.segments(a, b);
+        // The same sample in a neighbour with m segments along the shared edge: s/n = s'/m.
+        let shared = |s: u32, n: u32, m: u32| {
+            let scaled = u64::from(s) * u64::from(m);
+            scaled
+                .is_multiple_of(u64::from(n))
+                .then(|| (scaled / u64::from(n)) as u32)
+        };
+        let on_u_end = i == 0 || i == n_u;
+        let on_v_end = j == 0 || j == n_v;
+        if on_u_end && on_v_end {
+            // Lattice corner (a', b'), 0 ≤ a' ≤ columns, 0 ≤ b' ≤ rows.
+            let (a, b) = (a + usize::from(i == n_u), b + usize::from(j == n_v));
+            let (left, below) = (a > 0, b > 0);
+            let (right, above) = (a < grid.columns, b < grid.rows);
+            if left && below {
+                let (n_u, n_v) = grid.segments(a - 1, b - 1);
+                self.vertex(a - 1, b - 1, n_u, n_v)
+            } else if below && right {
+                self.vertex(a, b - 1, 0, grid.segments(a, b - 1).1)
+            } else if left && above {
+                self.vertex(a - 1, b, grid.segments(a - 1, b).0, 0)
+            } else {
+                self.vertex(a, b, 0, 0)
+            }
+        } else if i == 0 && a > 0 {
+            let (m_u, m_v) = grid.segments(a - 1, b);
+            shared(j, n_v, m_v).map_or(self.vertex(a, b, i, j), |s| self.vertex(a - 1, b, m_u, s))
+        } else if j == 0 && b > 0 {
+            let (m_u, m_v) = grid.segments(a, b - 1);
+            shared(i, n_u, m_u).map_or(self.vertex(a, b, i, j), |s| self.vertex(a, b - 1, s, m_v))
+        } else {
+            self.vertex(a, b, i, j)
+        }
+    }
+}
+
+/// The uv fraction of `range` of sample `s` of `segments` over `piece` ⊆ `range`: what
+/// [`super::AxisSamples::uniform_over`] gives the sample, bit for bit.
+pub(crate) fn sample_fraction(range: Interval, piece: Interval, s: u32, segments: u32) -> f64 {
+    let ends = Interval::new(
+        (piece.start - range.start) / range.width(),
+        (piece.end - range.start) / range.width(),
+    );
+    ends.lerp(f64::from(s) / f64::from(segments))
+}
+
 /// Triangulates the convex polygon bounded by two chains from its corner c00 to its corner
 /// c11 (`a` along the bottom and right sides, `b` along the left and top sides; the
 /// polygon's vertices lie on the sides of a rectangle): one triangle at c00, then advancing
@@ -369,13 +479,13 @@ fn zip_chains(a: &[u32], b: &[u32], out: &mut Vec<u32>) {
     out.extend_from_slice(&[a[last_a - 1], a[last_a], b[last_b - 1]]);
 }
 
-/// A side of a cell.
+/// A side of a cell or of a surface's range (the discriminants index per-side arrays).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Side {
-    Bottom,
-    Right,
-    Top,
-    Left,
+pub(crate) enum Side {
+    Bottom = 0,
+    Right = 1,
+    Top = 2,
+    Left = 3,
 }
 
 fn gcd(mut a: u32, mut b: u32) -> u32 {

@@ -5,6 +5,7 @@
 //! neither decides a sample position or a layout of its own.
 
 mod adaptive;
+mod seams;
 mod tables;
 
 pub use adaptive::{
@@ -55,7 +56,7 @@ impl GridLayout {
             .iter()
             .map(|o| Sampling::Grid(o.grid_u, o.grid_v))
             .collect();
-        layout_of(&grids)
+        layout_of(&grids, &vec![0; grids.len()])
     }
 }
 
@@ -113,7 +114,8 @@ impl SurfacePlan {
     /// allocated. Errors name the surface.
     pub fn new(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Self> {
         let sampling = surface_sampling(surfaces, options)?;
-        let layout = layout_of(&sampling)?;
+        let seams = SeamSamples::new(surfaces, &sampling)?;
+        let layout = layout_of(&sampling, &seams.triangles())?;
         let joined = sampling.iter().any(|s| matches!(s, Sampling::Cells(_)));
         // Grids share their tables through one cache; cells are planned surface by surface
         // in parallel.
@@ -133,37 +135,44 @@ impl SurfacePlan {
                 Sampling::Cells(_) => None,
             })
             .collect();
+        let vertices = seams.vertices;
+        let external = seams.external;
+        let same = seams.same;
         let planned: Vec<(Vec<SurfaceSamples>, Vec<u32>)> = surfaces
             .par_iter()
             .zip(&sampling)
             .zip(&layout.parts)
             .zip(grids)
+            .zip(&external)
+            .zip(&vertices)
             .enumerate()
-            .map(|(index, (((surface, sampling), part), grid))| {
-                let mut triangles = Vec::new();
-                match (sampling, grid) {
-                    (Sampling::Grid(nu, nv), Some(grid)) => {
-                        if joined {
-                            triangles.reserve(part.index_count as usize);
-                            for j in 0..nv - 1 {
-                                for i in 0..nu - 1 {
-                                    triangles.extend_from_slice(&cell_triangles(
-                                        part.first_vertex + j * nu + i,
-                                        *nu,
-                                    ));
+            .map(
+                |(index, (((((surface, sampling), part), grid), external), vertices))| {
+                    let mut triangles = Vec::new();
+                    match (sampling, grid, vertices) {
+                        (Sampling::Grid(nu, nv), Some(grid), _) => {
+                            if joined {
+                                triangles.reserve(part.index_count as usize);
+                                for j in 0..nv - 1 {
+                                    for i in 0..nu - 1 {
+                                        triangles.extend_from_slice(&cell_triangles(
+                                            part.first_vertex + j * nu + i,
+                                            *nu,
+                                        ));
+                                    }
                                 }
                             }
+                            (vec![grid], triangles)
                         }
-                        (vec![grid], triangles)
+                        (Sampling::Cells(cells), _, Some(vertices)) => {
+                            triangles.reserve(part.index_count as usize);
+                            cells.push_triangles(vertices, external, &mut triangles);
+                            (cell_samples(index, surface, cells, part), triangles)
+                        }
+                        _ => unreachable!("grids have samples, cells their vertices"),
                     }
-                    (Sampling::Cells(cells), _) => {
-                        triangles.reserve(part.index_count as usize);
-                        cells.push_triangles(part.first_vertex, &mut triangles);
-                        (cell_samples(index, surface, cells, part), triangles)
-                    }
-                    (Sampling::Grid(..), None) => unreachable!("every grid was planned above"),
-                }
-            })
+                },
+            )
             .collect();
         let mut items = Vec::with_capacity(planned.iter().map(|(i, _)| i.len()).sum());
         let mut triangles = joined.then(|| Vec::with_capacity(layout.index_count as usize));
@@ -172,6 +181,11 @@ impl SurfacePlan {
             if let Some(triangles) = &mut triangles {
                 triangles.extend_from_slice(&surface_triangles);
             }
+        }
+        // Each seam vertex both sides have is used from its first surface.
+        if let (Some(triangles), false) = (&mut triangles, same.is_empty()) {
+            let one = seams::representatives(layout.vertex_count as usize, &same);
+            triangles.par_iter_mut().for_each(|v| *v = one[*v as usize]);
         }
         debug_assert!(
             triangles
@@ -188,7 +202,9 @@ impl SurfacePlan {
     /// The layout [`SurfacePlan::new`] gives these surfaces, without its tables and
     /// triangles: what a memory check needs.
     pub fn layout_only(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<GridLayout> {
-        layout_of(&surface_sampling(surfaces, options)?)
+        let sampling = surface_sampling(surfaces, options)?;
+        let seams = SeamSamples::new(surfaces, &sampling)?;
+        layout_of(&sampling, &seams.triangles())
     }
 
     /// Number of surfaces planned.
@@ -257,6 +273,65 @@ fn cell_samples(
         .collect()
 }
 
+/// The seams of a plan (see [`seams`]): where each adaptive surface's cell grids'
+/// vertices are, the samples each surface's sides lack from their seam partner, and the
+/// pairs of vertices that are one.
+struct SeamSamples<'a> {
+    vertices: Vec<Option<adaptive::CellVertices<'a>>>,
+    external: Vec<[Vec<(f64, u32)>; 4]>,
+    same: Vec<(u32, u32)>,
+}
+
+impl<'a> SeamSamples<'a> {
+    /// Finds the seams of the adaptive surfaces of `sampling` and merges their samples
+    /// (vertices numbered as the layout will: checked against u32 here first).
+    fn new(surfaces: &[BSplineSurface], sampling: &'a [Sampling]) -> Result<Self> {
+        let without_seams = layout_of(sampling, &vec![0; sampling.len()])?;
+        let cells: Vec<Option<&CellGrid>> = sampling
+            .iter()
+            .map(|s| match s {
+                Sampling::Cells(cells) => Some(cells),
+                Sampling::Grid(..) => None,
+            })
+            .collect();
+        let vertices: Vec<Option<adaptive::CellVertices>> = cells
+            .iter()
+            .zip(&without_seams.parts)
+            .map(|(cells, part)| cells.map(|c| c.vertices(part.first_vertex)))
+            .collect();
+        let adaptive: Vec<bool> = cells.iter().map(Option::is_some).collect();
+        let mut external: Vec<[Vec<(f64, u32)>; 4]> = vec![Default::default(); surfaces.len()];
+        let mut same = Vec::new();
+        for seam in seams::find_seams(surfaces, &adaptive) {
+            let side_samples = |(surface, side): (usize, adaptive::Side)| {
+                let grid = cells[surface].expect("seams join adaptive surfaces");
+                grid.side_samples(vertices[surface].as_ref().expect("planned"), side)
+            };
+            let (pairs, [first_lacks, second_lacks]) = seams::merge_samples(
+                &side_samples(seam.first),
+                &side_samples(seam.second),
+                seam.reversed,
+            );
+            same.extend(pairs);
+            external[seam.first.0][seam.first.1 as usize] = first_lacks;
+            external[seam.second.0][seam.second.1 as usize] = second_lacks;
+        }
+        Ok(SeamSamples {
+            vertices,
+            external,
+            same,
+        })
+    }
+
+    /// Triangles the seams add to each surface: one per sample it takes in.
+    fn triangles(&self) -> Vec<u64> {
+        self.external
+            .iter()
+            .map(|sides| sides.iter().map(|s| s.len() as u64).sum())
+            .collect()
+    }
+}
+
 /// How one surface is sampled.
 enum Sampling {
     /// One grid of this many vertices along u and v, evenly spaced.
@@ -266,12 +341,13 @@ enum Sampling {
 }
 
 /// One part per surface, packed in order: a grid's counts as [`GridLayout::new`] gives
-/// them, cells' from [`CellGrid::vertex_count`] and [`CellGrid::triangle_count`]; the
-/// whole job checked against u32 first.
-fn layout_of(sampling: &[Sampling]) -> Result<GridLayout> {
+/// them, cells' from [`CellGrid::vertex_count`] and [`CellGrid::triangle_count`] with
+/// `seam_triangles[k]` more for surface k (one per sample its seams add); the whole job
+/// checked against u32 first.
+fn layout_of(sampling: &[Sampling], seam_triangles: &[u64]) -> Result<GridLayout> {
     let (mut vertices, mut indices) = (0u64, 0u64);
     let mut counts = Vec::with_capacity(sampling.len());
-    for s in sampling {
+    for (s, &seam_triangles) in sampling.iter().zip(seam_triangles) {
         let (v, i) = match s {
             Sampling::Grid(nu, nv) => {
                 if *nu < 2 || *nv < 2 {
@@ -282,7 +358,10 @@ fn layout_of(sampling: &[Sampling]) -> Result<GridLayout> {
                     6 * u64::from(nu - 1) * u64::from(nv - 1),
                 )
             }
-            Sampling::Cells(grid) => (grid.vertex_count(), 3 * grid.triangle_count()),
+            Sampling::Cells(grid) => (
+                grid.vertex_count(),
+                3 * (grid.triangle_count() + seam_triangles),
+            ),
         };
         vertices += v;
         indices += i;

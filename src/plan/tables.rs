@@ -2,6 +2,7 @@
 //! the cubic Bezier form of the knot spans a low-degree direction touches. Executors round
 //! them (the GPU, to f32) but never recompute them.
 
+use super::adaptive::sample_fraction;
 use crate::geom::{BasisDers, Interval, KnotVector, MAX_ORDER, basis_ders};
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -71,11 +72,6 @@ impl AxisSamples {
             bezier: None,
         };
         let mut ders: BasisDers = [[0.0; MAX_ORDER]; 3];
-        // The piece's ends as fractions of the range (exactly 0 and 1 for the whole range).
-        let ends = Interval::new(
-            (piece.start - range.start) / range.width(),
-            (piece.end - range.start) / range.width(),
-        );
         for i in 0..samples {
             let at = i as f64 / f64::from(segments);
             let t = piece.lerp(at);
@@ -87,7 +83,9 @@ impl AxisSamples {
                 }
             }
             table.params.push(t);
-            table.fractions.push(ends.lerp(at));
+            table
+                .fractions
+                .push(sample_fraction(range, piece, i as u32, segments));
             table.spans.push(span);
             match table.runs.last_mut() {
                 Some(run) if run.span == span => run.end = i + 1,

@@ -86,10 +86,42 @@ pub fn angle(a: DVec3, b: DVec3) -> f64 {
     a.cross(b).length().atan2(a.dot(b))
 }
 
+/// The uv on `surface` of a vertex another part's surface owns (a seam vertex, at `uv` of
+/// that surface): it lies on a side of this surface's range at the same fraction along it,
+/// or the opposite one — of the candidates whose point is `position` (to rounding; several
+/// where a side collapses to a pole), the one nearest `near` in uv.
+fn seam_uv(
+    surface: &BSplineSurface,
+    uv: glam::DVec2,
+    position: DVec3,
+    near: glam::DVec2,
+) -> glam::DVec2 {
+    let (ru, rv) = (surface.range_u(), surface.range_v());
+    let mut candidates = Vec::new();
+    for f in [uv.x, uv.y] {
+        for g in [f, 1.0 - f] {
+            for c in [(g, 0.0), (g, 1.0), (0.0, g), (1.0, g)] {
+                let c = glam::DVec2::from(c);
+                let off = (surface.point(ru.lerp(c.x), rv.lerp(c.y)) - position).length();
+                candidates.push((off, c));
+            }
+        }
+    }
+    let least = candidates.iter().map(|c| c.0).fold(f64::INFINITY, f64::min);
+    let rounding = 1e-9 * surface.control_box_diagonal();
+    candidates
+        .into_iter()
+        .filter(|c| c.0 <= least + rounding)
+        .map(|c| c.1)
+        .min_by(|a, b| (*a - near).length().total_cmp(&(*b - near).length()))
+        .expect("candidates")
+}
+
 /// The largest distance, over every triangle of `mesh` (part k from `surfaces[k]`), between a
 /// point of the triangle and the surface at the same parameter — at its centroid and its edge
-/// midpoints, the parameter interpolated from the vertices' uv like the position. What an
-/// adaptive plan's tolerance bounds (distance to the surface itself is never larger).
+/// midpoints, the parameter interpolated from the vertices' uv like the position (a vertex
+/// of another part, on a seam, at its uv on this part's surface). What an adaptive plan's
+/// tolerance bounds (distance to the surface itself is never larger).
 pub fn worst_deviation(surfaces: &[BSplineSurface], mesh: &knotwork::Mesh) -> f64 {
     const AT: [[f64; 3]; 4] = [
         [1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0],
@@ -105,9 +137,25 @@ pub fn worst_deviation(surfaces: &[BSplineSurface], mesh: &knotwork::Mesh) -> f6
         for t in mesh.indices[first..first + part.index_count as usize].chunks(3) {
             for l in AT {
                 let (mut p, mut uv) = (DVec3::ZERO, glam::DVec2::ZERO);
+                let own =
+                    |v: u32| v >= part.first_vertex && v < part.first_vertex + part.vertex_count;
+                let own_uvs: Vec<glam::DVec2> = t
+                    .iter()
+                    .filter(|&&v| own(v))
+                    .map(|&v| mesh.uvs[v as usize])
+                    .collect();
+                let near =
+                    own_uvs.iter().copied().sum::<glam::DVec2>() / own_uvs.len().max(1) as f64;
                 for (k, &weight) in l.iter().enumerate() {
-                    p += weight * mesh.positions[t[k] as usize];
-                    uv += weight * mesh.uvs[t[k] as usize];
+                    let v = t[k];
+                    let position = mesh.positions[v as usize];
+                    let vertex_uv = if own(v) {
+                        mesh.uvs[v as usize]
+                    } else {
+                        seam_uv(surface, mesh.uvs[v as usize], position, near)
+                    };
+                    p += weight * position;
+                    uv += weight * vertex_uv;
                 }
                 let on_surface = surface.point(ru.lerp(uv.x), rv.lerp(uv.y));
                 worst = worst.max((on_surface - p).length());

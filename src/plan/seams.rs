@@ -1,0 +1,275 @@
+//! Seams: the sides two surfaces share. Where two adaptive surfaces meet along a side whose
+//! boundary curves are the same — the same control points (to 1e-9 of the model's size),
+//! weights and normalised knots, in the same or the opposite direction, as in .bpt and OBJ
+//! files whose neighbouring patches repeat their boundary control points — both sides'
+//! samples become the seam's vertices: a sample both sides have is one vertex (the first
+//! surface's), and each side's grid cells along the seam take in the other side's samples
+//! (see [`super::CellGrid::push_triangles`]). So the mesh is closed across the seam by shared
+//! indices, not by equal floats.
+
+use super::adaptive::Side;
+use crate::geom::BSplineSurface;
+use glam::DVec3;
+
+/// Samples of two sides closer than this (as fractions of the side) are one.
+const SAME_FRACTION: f64 = 1e-12;
+
+/// Control points of two sides closer than this fraction of the model's diagonal coincide.
+const SAME_POINT_REL: f64 = 1e-9;
+
+/// A side's boundary curve: the row or column of control points on it, with their weights,
+/// and the knots along it normalised to the side's range.
+struct SideCurve {
+    degree: usize,
+    knots: Vec<f64>,
+    points: Vec<DVec3>,
+    weights: Vec<f64>,
+}
+
+/// The boundary curve of `surface` on `side`, if the side is where the control net's first
+/// or last row (column) is the boundary: the knots clamped at that end and the evaluation
+/// range reaching it, and the range along the side the whole knot domain.
+fn side_curve(surface: &BSplineSurface, side: Side) -> Option<SideCurve> {
+    let along_u = matches!(side, Side::Bottom | Side::Top);
+    let (across, along) = if along_u {
+        (surface.knots_v(), surface.knots_u())
+    } else {
+        (surface.knots_u(), surface.knots_v())
+    };
+    let (range_across, range_along) = if along_u {
+        (surface.range_v(), surface.range_u())
+    } else {
+        (surface.range_u(), surface.range_v())
+    };
+    let at_start = matches!(side, Side::Bottom | Side::Left);
+    let (q, k) = (across.degree(), across.knots());
+    let (domain_start, domain_end) = across.domain();
+    let clamped = if at_start {
+        k[0] == k[q] && range_across.start == domain_start
+    } else {
+        k[k.len() - 1] == k[k.len() - 1 - q] && range_across.end == domain_end
+    };
+    if !clamped || along.domain() != (range_along.start, range_along.end) {
+        return None;
+    }
+    let (count_u, count_v) = (surface.count_u(), surface.count_v());
+    let (count, fixed) = if along_u {
+        (count_u, if at_start { 0 } else { count_v - 1 })
+    } else {
+        (count_v, if at_start { 0 } else { count_u - 1 })
+    };
+    let at = |k: usize| if along_u { (k, fixed) } else { (fixed, k) };
+    let width = range_along.end - range_along.start;
+    Some(SideCurve {
+        degree: along.degree(),
+        knots: along
+            .knots()
+            .iter()
+            .map(|t| (t - range_along.start) / width)
+            .collect(),
+        points: (0..count)
+            .map(|k| {
+                let (i, j) = at(k);
+                surface.control_point(i, j)
+            })
+            .collect(),
+        weights: (0..count)
+            .map(|k| {
+                let (i, j) = at(k);
+                surface.weight(i, j)
+            })
+            .collect(),
+    })
+}
+
+impl SideCurve {
+    /// Whether `other` is the same curve, run the same way (`reversed` false) or the other.
+    fn same_as(&self, other: &SideCurve, reversed: bool, tolerance: f64) -> bool {
+        let n = self.points.len();
+        if self.degree != other.degree
+            || n != other.points.len()
+            || self.knots.len() != other.knots.len()
+        {
+            return false;
+        }
+        let pick = |k: usize| if reversed { n - 1 - k } else { k };
+        let knots_agree = self.knots.iter().enumerate().all(|(k, &t)| {
+            let m = self.knots.len();
+            let s = if reversed {
+                1.0 - other.knots[m - 1 - k]
+            } else {
+                other.knots[k]
+            };
+            (t - s).abs() <= SAME_FRACTION
+        });
+        let ratio = self.weights[0] / other.weights[pick(0)];
+        knots_agree
+            && (0..n).all(|k| {
+                (self.points[k] - other.points[pick(k)]).length() <= tolerance
+                    && (self.weights[k] - ratio * other.weights[pick(k)]).abs()
+                        <= 1e-12 * self.weights[k]
+            })
+    }
+}
+
+/// Samples along a side: (fraction of the side's range, vertex index), increasing.
+pub(crate) type SideSamples = Vec<(f64, u32)>;
+
+/// Two surfaces' sides that are one seam.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Seam {
+    pub first: (usize, Side),
+    pub second: (usize, Side),
+    /// The second side runs the other way.
+    pub reversed: bool,
+}
+
+/// The seams among the sides of the surfaces sampled to a tolerance (`adaptive[k]`): each
+/// side in one seam at most (the first match, in surface and side order).
+pub(crate) fn find_seams(surfaces: &[BSplineSurface], adaptive: &[bool]) -> Vec<Seam> {
+    let (low, high) = surfaces.iter().map(BSplineSurface::control_box).fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(low, high), (a, b)| (low.min(a), high.max(b)),
+    );
+    let tolerance = SAME_POINT_REL * (high - low).length();
+    let sides = [Side::Bottom, Side::Right, Side::Top, Side::Left];
+    let curves: Vec<((usize, Side), SideCurve)> = surfaces
+        .iter()
+        .enumerate()
+        .filter(|&(k, _)| adaptive[k])
+        .flat_map(|(k, surface)| {
+            sides
+                .iter()
+                .filter_map(move |&side| side_curve(surface, side).map(|c| ((k, side), c)))
+        })
+        // A side collapsed to a point (a pole) is no seam: every pole of that point would
+        // match it, and its samples are one point anyway.
+        .filter(|(_, curve)| {
+            curve
+                .points
+                .iter()
+                .any(|p| (*p - curve.points[0]).length() > tolerance)
+        })
+        .collect();
+    // Candidates by the cell of their first and last points on a grid of the tolerance's
+    // size (both orders), so that matching is not quadratic in the sides.
+    let key = |p: DVec3| (p / (tolerance * 16.0)).floor().as_i64vec3().to_array();
+    let ends = |c: &SideCurve| (key(c.points[0]), key(c.points[c.points.len() - 1]));
+    let mut by_ends: std::collections::HashMap<_, Vec<usize>> = std::collections::HashMap::new();
+    for (index, (_, curve)) in curves.iter().enumerate() {
+        by_ends.entry(ends(curve)).or_default().push(index);
+    }
+    let mut taken = vec![false; curves.len()];
+    let mut seams = Vec::new();
+    for (index, ((surface, side), curve)) in curves.iter().enumerate() {
+        if taken[index] {
+            continue;
+        }
+        let (start, end) = ends(curve);
+        let candidates = [(start, end, false), (end, start, true)];
+        let found = candidates.iter().find_map(|&(a, b, reversed)| {
+            by_ends
+                .get(&(a, b))?
+                .iter()
+                .copied()
+                .find(|&other| {
+                    other != index
+                        && !taken[other]
+                        && curves[other].0.0 != *surface
+                        && curve.same_as(&curves[other].1, reversed, tolerance)
+                })
+                .map(|other| (other, reversed))
+        });
+        if let Some((other, reversed)) = found {
+            taken[index] = true;
+            taken[other] = true;
+            seams.push(Seam {
+                first: (*surface, *side),
+                second: curves[other].0,
+                reversed,
+            });
+        }
+    }
+    seams
+}
+
+/// Merges the samples of two sides of one seam, each (fraction along its side, vertex
+/// index) in increasing fraction: returns the pairs of vertices that are one sample, and
+/// the samples each side lacks from the other (in that side's fractions, increasing).
+pub(crate) fn merge_samples(
+    first: &[(f64, u32)],
+    second: &[(f64, u32)],
+    reversed: bool,
+) -> (Vec<(u32, u32)>, [SideSamples; 2]) {
+    let flip = |f: f64| if reversed { 1.0 - f } else { f };
+    let mut second_in_first: Vec<(f64, u32)> = second.iter().map(|&(f, v)| (flip(f), v)).collect();
+    second_in_first.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (mut same, mut first_lacks, mut second_lacks) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut i, mut j) = (0, 0);
+    while i < first.len() || j < second_in_first.len() {
+        match (first.get(i), second_in_first.get(j)) {
+            (Some(&(fa, va)), Some(&(fb, vb))) if (fa - fb).abs() <= SAME_FRACTION => {
+                same.push((va, vb));
+                i += 1;
+                j += 1;
+            }
+            (Some(&(fa, va)), Some(&(fb, _))) if fa < fb => {
+                second_lacks.push((flip(fa), va));
+                i += 1;
+            }
+            (Some(&(fa, va)), None) => {
+                second_lacks.push((flip(fa), va));
+                i += 1;
+            }
+            (_, Some(&(fb, vb))) => {
+                first_lacks.push((fb, vb));
+                j += 1;
+            }
+            (None, None) => unreachable!("the loop runs while either has samples"),
+        }
+    }
+    second_lacks.sort_by(|a, b| a.0.total_cmp(&b.0));
+    (same, [first_lacks, second_lacks])
+}
+
+/// The representative of every vertex after merging `pairs` (the smallest index of each
+/// group): union–find over the vertices `0..count` that pairs name.
+pub(crate) fn representatives(count: usize, pairs: &[(u32, u32)]) -> Vec<u32> {
+    let mut parent: Vec<u32> = (0..count as u32).collect();
+    fn find(parent: &mut [u32], mut v: u32) -> u32 {
+        while parent[v as usize] != v {
+            let up = parent[parent[v as usize] as usize];
+            parent[v as usize] = up;
+            v = up;
+        }
+        v
+    }
+    for &(a, b) in pairs {
+        let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+        let (low, high) = (ra.min(rb), ra.max(rb));
+        parent[high as usize] = low;
+    }
+    (0..count as u32).map(|v| find(&mut parent, v)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Shared samples pair up; the rest go to the side that lacks them, in its own
+    /// direction and order.
+    #[test]
+    fn samples_merge_both_ways() {
+        let first = [(0.0, 0), (0.5, 1), (1.0, 2)];
+        let second = [(0.0, 10), (0.25, 11), (0.5, 12), (1.0, 13)];
+        let (same, [first_lacks, second_lacks]) = merge_samples(&first, &second, true);
+        assert_eq!(same, [(0, 13), (1, 12), (2, 10)]);
+        assert_eq!(first_lacks, [(0.75, 11)]);
+        assert!(second_lacks.is_empty());
+        let groups = representatives(14, &same);
+        assert_eq!(
+            (groups[13], groups[12], groups[10], groups[11]),
+            (0, 1, 2, 11)
+        );
+    }
+}
