@@ -1598,7 +1598,7 @@ fn json_errors_name_the_item_and_the_field() {
 }
 
 /// Tolerances from the command line and from JSON: `--tolerance` gives the library's mesh
-/// at the same options (the teapot at 1e-3), `--tolerance-rel` is taken of the file's
+/// at the same options (the teapot at 1e-3; as .glb it passes the Khronos validator), `--tolerance-rel` is taken of the file's
 /// control-point box; a zero, negative or non-numeric tolerance and a tolerance beside
 /// `--grid` are refused before anything is written. A JSON surface's own `tolerance` or
 /// `tolerance_rel` wins over the command line; two of `grid`, `tolerance`, `tolerance_rel`
@@ -1631,6 +1631,17 @@ fn tolerances_reach_the_plan_from_the_cli_and_json() {
         "{}",
         String::from_utf8_lossy(&run.stderr)
     );
+    // Adaptive meshes (seams shared across parts) are valid glTF.
+    let glb = dir.join("teapot.glb");
+    succeeds(&[
+        "tessellate",
+        "data/teapot.bpt",
+        "-o",
+        glb.to_str().unwrap(),
+        "--tolerance",
+        "1e-3",
+    ]);
+    validate_with_khronos(&glb);
     // The teapot's control box is about 6.4 across: 1e-3 of it is about 6.4e-3.
     let relative = dir.join("relative.obj");
     succeeds(&[
