@@ -966,7 +966,8 @@ fn repeated_scenes_allocate_nothing_after_the_first_call() {
 
 /// A batch writes into the caller's own buffers at the caller's offsets (OpenSubdiv-style),
 /// leaving the bytes before them alone, never reallocates them, reads back the same mesh as
-/// a batch with its own buffers, and refuses buffers it cannot use, naming the problem.
+/// a batch with its own buffers, and refuses buffers it cannot use, naming the problem —
+/// for plans sampled to a tolerance too.
 #[test]
 fn batches_fill_caller_buffers_at_offsets() {
     let Some(context) = gpu() else { return };
@@ -1044,7 +1045,7 @@ fn batches_fill_caller_buffers_at_offsets() {
             buffer: vertices.clone(),
             offset: 4,
         },
-        ..targets
+        ..targets.clone()
     };
     let err = GpuBatch::new(
         context,
@@ -1052,6 +1053,36 @@ fn batches_fill_caller_buffers_at_offsets() {
     )
     .unwrap_err();
     assert!(err.to_string().contains("alignment"), "{err}");
+    // Sampled to a tolerance, the plan's triangles are uploaded into the caller's index
+    // buffer — which then needs COPY_DST too, or the batch is refused, naming it.
+    let adaptive = TessOptions::DEFAULT.with_tolerance(Tolerance::Relative(1e-2));
+    let mut batch = GpuBatch::new(
+        context,
+        &BatchDescriptor::new(&surfaces, &adaptive).into_targets(targets.clone()),
+    )
+    .unwrap();
+    batch.dispatch().unwrap();
+    let cpu = CpuTessellator.tessellate(&surfaces, &adaptive).unwrap();
+    assert_eq!(batch.read_mesh().unwrap().indices, cpu.indices);
+    let no_copy = device.create_buffer(&knotwork::wgpu::BufferDescriptor {
+        label: Some("the renderer's, without COPY_DST"),
+        size: 1 << 20,
+        usage: usage - knotwork::wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let without_copy = knotwork::gpu::OutputTargets {
+        indices: knotwork::gpu::BufferSlice {
+            buffer: no_copy,
+            offset: 0,
+        },
+        ..targets
+    };
+    let err = GpuBatch::new(
+        context,
+        &BatchDescriptor::new(&surfaces, &adaptive).into_targets(without_copy),
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("COPY_DST"), "{err}");
 }
 
 /// How far a world position rounded to f32 may be from the exact one, relative to the larger
