@@ -1056,7 +1056,7 @@ fn batches_fill_caller_buffers_at_offsets() {
     // Sampled to a tolerance, the plan's triangles are uploaded into the caller's index
     // buffer — which then needs COPY_DST too, or the batch is refused, naming it.
     let adaptive = TessOptions::DEFAULT.with_tolerance(Tolerance::Relative(1e-2));
-    let mut batch = GpuBatch::new(
+    let batch = GpuBatch::new(
         context,
         &BatchDescriptor::new(&surfaces, &adaptive).into_targets(targets.clone()),
     )
