@@ -255,7 +255,7 @@ fn append_topology(
 pub(crate) trait GridMesh {
     fn parts_and_polylines_mut(&mut self) -> (&mut [MeshPart], &mut [Polyline]);
     /// Rearranges whole parts — each's vertices and triangles — into the order `order` (a
-    /// permutation of the part indices); every part's triangles must use its own vertices.
+    /// permutation of the part indices); a triangle using another part's vertex keeps it.
     fn reorder_parts(&mut self, order: &[usize]);
     /// Drops the vertices no triangle uses, keeping the others in order (and every part's
     /// vertices contiguous): the copies an adaptive plan's cell grids evaluate where cells
@@ -309,21 +309,30 @@ fn reordered(
     indices: &[u32],
     order: &[usize],
 ) -> (Vec<MeshPart>, Vec<u32>, Vec<std::ops::Range<usize>>) {
-    let (mut new_parts, mut new_indices, mut ranges) = (Vec::new(), Vec::new(), Vec::new());
+    let vertex_count: usize = parts.iter().map(|p| p.vertex_count as usize).sum();
+    // Where each vertex goes: parts' vertex ranges one after another in the new order. A
+    // triangle may use another part's vertex (a seam shared by index): it follows that part.
+    let mut new_index = vec![0u32; vertex_count];
+    let (mut new_parts, mut ranges) = (Vec::new(), Vec::new());
     let mut first_vertex = 0u32;
     for &k in order {
         let old = parts[k];
-        let shift = |i: &u32| i - old.first_vertex + first_vertex;
-        let first_index = new_indices.len() as u32;
-        let range = old.first_index as usize..(old.first_index + old.index_count) as usize;
-        new_indices.extend(indices[range].iter().map(shift));
+        let range = old.first_vertex as usize..(old.first_vertex + old.vertex_count) as usize;
+        for (offset, slot) in new_index[range.clone()].iter_mut().enumerate() {
+            *slot = first_vertex + offset as u32;
+        }
         new_parts.push(MeshPart {
             first_vertex,
-            first_index,
             ..old
         });
-        ranges.push(old.first_vertex as usize..(old.first_vertex + old.vertex_count) as usize);
+        ranges.push(range);
         first_vertex += old.vertex_count;
+    }
+    let mut new_indices = Vec::with_capacity(indices.len());
+    for part in &mut new_parts {
+        let range = part.first_index as usize..(part.first_index + part.index_count) as usize;
+        part.first_index = new_indices.len() as u32;
+        new_indices.extend(indices[range].iter().map(|&i| new_index[i as usize]));
     }
     (new_parts, new_indices, ranges)
 }
@@ -596,5 +605,47 @@ impl Mesh {
             });
         }
         (welded, report)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Reordering parts keeps a triangle that uses another part's vertex (a seam shared by
+    /// index) on that vertex, wherever it moves.
+    #[test]
+    fn reordering_follows_vertices_shared_between_parts() {
+        let part = |first_vertex, vertex_count, first_index| MeshPart {
+            item: 0,
+            grid_u: 0,
+            grid_v: 0,
+            first_vertex,
+            vertex_count,
+            first_index,
+            index_count: 3,
+        };
+        let positions: Vec<DVec3> = (0..5).map(|k| DVec3::splat(k as f64)).collect();
+        let mut mesh = Mesh {
+            positions: positions.clone(),
+            normals: positions.clone(),
+            uvs: vec![DVec2::ZERO; 5],
+            // Part 1's triangle uses part 0's vertex 1.
+            indices: vec![0, 1, 2, 1, 3, 4],
+            parts: vec![part(0, 3, 0), part(3, 2, 3)],
+            ..Mesh::default()
+        };
+        mesh.reorder_parts(&[1, 0]);
+        let corners = |t: &[u32]| {
+            t.iter()
+                .map(|&i| mesh.positions[i as usize].x)
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(corners(&mesh.indices[0..3]), [1.0, 3.0, 4.0]);
+        assert_eq!(corners(&mesh.indices[3..6]), [0.0, 1.0, 2.0]);
+        assert_eq!(
+            (mesh.parts[0].first_vertex, mesh.parts[1].first_vertex),
+            (0, 2)
+        );
     }
 }
