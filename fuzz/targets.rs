@@ -101,6 +101,7 @@ pub fn cli_args(data: &[u8]) {
                     grid,
                     tolerance,
                     tolerance_rel,
+                    max_edge,
                     format,
                     input_format,
                     weld,
@@ -110,7 +111,7 @@ pub fn cli_args(data: &[u8]) {
                 },
         }) => {
             let job = Job::new(
-                knotwork::cli::tess_options(grid, tolerance, tolerance_rel),
+                knotwork::cli::tess_options(grid, tolerance, tolerance_rel, max_edge),
                 format,
                 input_format,
                 weld,

@@ -61,6 +61,10 @@ pub enum Command {
         /// (e.g. 1e-3).
         #[arg(long, value_parser = parse_tolerance, allow_hyphen_values = true, conflicts_with = "grid")]
         tolerance_rel: Option<f64>,
+        /// Instead of a grid (or beside a tolerance), sample so that no triangle edge is
+        /// longer than this (model units).
+        #[arg(long, value_parser = parse_tolerance, allow_hyphen_values = true, conflicts_with = "grid")]
+        max_edge: Option<f64>,
         /// Which tessellator runs.
         #[arg(long, value_enum, default_value_t = Backend::Auto)]
         backend: Backend,
@@ -231,22 +235,27 @@ pub struct Job {
     pub memory_budget: u64,
 }
 
-/// The options of `--grid`, `--tolerance` and `--tolerance-rel` (at most one tolerance: clap
-/// refuses both).
+/// The options of `--grid`, `--tolerance`, `--tolerance-rel` and `--max-edge` (at most one
+/// tolerance, and neither with `--grid`: clap refuses those).
 pub fn tess_options(
     grid: (u32, u32),
     tolerance: Option<f64>,
     tolerance_rel: Option<f64>,
+    max_edge: Option<f64>,
 ) -> TessOptions {
-    let options = TessOptions::DEFAULT.with_grid(grid.0, grid.1);
+    let mut options = TessOptions::DEFAULT.with_grid(grid.0, grid.1);
     match (tolerance, tolerance_rel) {
-        (Some(t), _) => options.with_tolerance(Tolerance::Absolute(t)),
-        (None, Some(r)) => options.with_tolerance(Tolerance::Relative(r)),
-        (None, None) => options,
+        (Some(t), _) => options = options.with_tolerance(Tolerance::Absolute(t)),
+        (None, Some(r)) => options = options.with_tolerance(Tolerance::Relative(r)),
+        (None, None) => {}
+    }
+    match max_edge {
+        Some(length) => options.with_max_edge(length),
+        None => options,
     }
 }
 
-/// Parses a tolerance: a finite number greater than 0.
+/// Parses a tolerance or a length: a finite number greater than 0.
 pub fn parse_tolerance(text: &str) -> Result<f64, String> {
     match text.trim().parse::<f64>() {
         Ok(value) if value.is_finite() && value > 0.0 => Ok(value),

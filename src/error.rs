@@ -96,9 +96,15 @@ pub enum Error {
     #[error("tolerance {value:e} is invalid: it must be a finite number greater than 0")]
     InvalidTolerance { value: f64 },
     #[error(
-        "tolerance {tolerance:e} needs more than {segments} segments across one knot span: ask for a larger tolerance"
+        "tolerance {tolerance:e} (longest edge {max_edge:e}) needs more than {segments} segments across one knot span: ask for a larger tolerance or edge"
     )]
-    ToleranceTooFine { tolerance: f64, segments: u32 },
+    ToleranceTooFine {
+        tolerance: f64,
+        max_edge: f64,
+        segments: u32,
+    },
+    #[error("longest edge {value:e} is invalid: it must be a finite number greater than 0")]
+    InvalidMaxEdge { value: f64 },
     #[error(
         "{what} cannot be sampled to a tolerance yet: give them a grid (JSON \"grid\" or --grid)"
     )]

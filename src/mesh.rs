@@ -18,11 +18,14 @@ pub struct TessOptions {
     pub grid_v: u32,
     /// Sample to a deviation instead of a grid: see [`Tolerance`].
     pub tolerance: Option<Tolerance>,
+    /// Sample so that no triangle edge is longer than this (model units, > 0), instead of a
+    /// grid; with a tolerance, both hold.
+    pub max_edge: Option<f64>,
 }
 
 /// The largest distance allowed between a mesh and its surface, which an adaptive plan
 /// guarantees from bounds on the surface's second derivatives (see
-/// [`crate::geom::SecondDerivativeBound`]): every triangle within it of the surface over
+/// [`crate::geom::DerivativeBound`]): every triangle within it of the surface over
 /// its parameter triangle.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Tolerance {
@@ -39,15 +42,26 @@ impl TessOptions {
         grid_u: 33,
         grid_v: 33,
         tolerance: None,
+        max_edge: None,
     };
 
     /// Sets the number of vertices per surface along u and v (and samples on that grid, not
-    /// to a tolerance).
+    /// to a tolerance or edge length).
     pub const fn with_grid(self, grid_u: u32, grid_v: u32) -> Self {
         Self {
             grid_u,
             grid_v,
             tolerance: None,
+            max_edge: None,
+        }
+    }
+
+    /// Samples every surface with no triangle edge longer than `length` (model units), as
+    /// adaptively as [`TessOptions::with_tolerance`] (with a tolerance too, both hold).
+    pub const fn with_max_edge(self, length: f64) -> Self {
+        Self {
+            max_edge: Some(length),
+            ..self
         }
     }
 

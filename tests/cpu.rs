@@ -1687,17 +1687,19 @@ proptest! {
         ..ProptestConfig::with_cases(48)
     })]
 
-    /// The second-derivative bound of each Bezier patch of a surface holds wherever the
-    /// patch is sampled, rational ones included (weights 0.1..10).
+    /// The first- and second-derivative bounds of each Bezier patch of a surface hold
+    /// wherever the patch is sampled, rational ones included (weights 0.1..10).
     #[test]
-    fn second_derivative_bounds_hold((surface, _) in adaptive_case()) {
+    fn derivative_bounds_hold((surface, _) in adaptive_case()) {
         for patch in surface.bezier_patches() {
-            let bound = patch.second_derivative_bound();
+            let bound = patch.derivative_bound();
             // Inside the patch: on a knot, evaluation takes the derivatives of the next span.
             for k in 0..25 {
                 let (s, t) = (((k % 5) as f64 + 0.5) / 5.0, ((k / 5) as f64 + 0.5) / 5.0);
                 let sample = surface.evaluate(patch.range_u.lerp(s), patch.range_v.lerp(t));
                 let slack = 1.0 + 1e-9;
+                prop_assert!(sample.du.length() <= bound.u * slack + 1e-9, "S_u {} > {}", sample.du.length(), bound.u);
+                prop_assert!(sample.dv.length() <= bound.v * slack + 1e-9, "S_v {} > {}", sample.dv.length(), bound.v);
                 prop_assert!(sample.duu.length() <= bound.uu * slack + 1e-9, "S_uu {} > {}", sample.duu.length(), bound.uu);
                 prop_assert!(sample.duv.length() <= bound.uv * slack + 1e-9, "S_uv {} > {}", sample.duv.length(), bound.uv);
                 prop_assert!(sample.dvv.length() <= bound.vv * slack + 1e-9, "S_vv {} > {}", sample.dvv.length(), bound.vv);
@@ -1710,7 +1712,8 @@ proptest! {
     /// meet without a crack: every edge inside the surface is used once in each direction
     /// (no T-junction, one orientation), the edges used once lie on the boundary of its
     /// parameter range, every triangle turns counter-clockwise in uv, and every vertex is
-    /// used.
+    /// used. With a longest edge as well, no triangle edge is longer and the tolerance still
+    /// holds.
     #[test]
     fn adaptive_meshes_stay_within_their_tolerance((surface, tolerance) in adaptive_case()) {
         let options = TessOptions::DEFAULT.with_tolerance(Tolerance::Absolute(tolerance));
@@ -1730,6 +1733,19 @@ proptest! {
             }
         }
         prop_assert!(used.iter().all(|&u| u), "unused vertices");
+        // With a longest edge too (a tenth of the control box), both hold.
+        let max_edge = 0.1 * surface.control_box_diagonal();
+        let both = CpuTessellator
+            .tessellate(std::slice::from_ref(&surface), &options.with_max_edge(max_edge))
+            .unwrap();
+        let worst = worst_deviation(std::slice::from_ref(&surface), &both);
+        prop_assert!(worst <= tolerance + rounding, "deviation {worst:e} over tolerance {tolerance:e}");
+        for t in both.indices.chunks(3) {
+            for k in 0..3 {
+                let edge = both.positions[t[k] as usize] - both.positions[t[(k + 1) % 3] as usize];
+                prop_assert!(edge.length() <= max_edge * (1.0 + 1e-12), "edge {} > {max_edge}", edge.length());
+            }
+        }
         for &(a, b) in &directed {
             if !directed.contains(&(b, a)) {
                 let (p, q) = (mesh.uvs[a as usize], mesh.uvs[b as usize]);
@@ -1794,6 +1810,11 @@ fn invalid_tolerances_are_refused_by_name() {
                 "{err}"
             );
         }
+    }
+    for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        let options = TessOptions::DEFAULT.with_max_edge(bad);
+        let err = CpuTessellator.tessellate(&surfaces, &options).unwrap_err();
+        assert!(matches!(err.root(), Error::InvalidMaxEdge { .. }), "{err}");
     }
     let too_fine = TessOptions::DEFAULT.with_tolerance(Tolerance::Relative(1e-15));
     let err = CpuTessellator.tessellate(&surfaces, &too_fine).unwrap_err();

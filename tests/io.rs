@@ -1598,7 +1598,8 @@ fn json_errors_name_the_item_and_the_field() {
 }
 
 /// Tolerances from the command line and from JSON: `--tolerance` gives the library's mesh
-/// at the same options (the teapot at 1e-3; as .glb it passes the Khronos validator), `--tolerance-rel` is taken of the file's
+/// at the same options (the teapot at 1e-3; as .glb it passes the Khronos validator), as
+/// does `--max-edge` beside it, `--tolerance-rel` is taken of the file's
 /// control-point box; a zero, negative or non-numeric tolerance and a tolerance beside
 /// `--grid` are refused before anything is written. A JSON surface's own `tolerance` or
 /// `tolerance_rel` wins over the command line; two of `grid`, `tolerance`, `tolerance_rel`
@@ -1620,9 +1621,10 @@ fn tolerances_reach_the_plan_from_the_cli_and_json() {
         "cpu",
     ]);
     let scene = knotwork::io::read_scene(Path::new("data/teapot.bpt")).unwrap();
-    let options = TessOptions::DEFAULT.with_tolerance(knotwork::Tolerance::Absolute(1e-3));
+    let options_with =
+        |t: f64| TessOptions::DEFAULT.with_tolerance(knotwork::Tolerance::Absolute(t));
     let library = CpuTessellator
-        .tessellate(&scene.surface_list(), &options)
+        .tessellate(&scene.surface_list(), &options_with(1e-3))
         .unwrap();
     let written = std::fs::read_to_string(out).unwrap();
     assert_eq!(
@@ -1630,6 +1632,39 @@ fn tolerances_reach_the_plan_from_the_cli_and_json() {
         library.indices.len() / 3,
         "{}",
         String::from_utf8_lossy(&run.stderr)
+    );
+    // --max-edge reaches the plan too (beside a tolerance: both hold).
+    let edged = dir.join("edged.obj");
+    succeeds(&[
+        "tessellate",
+        "data/teapot.bpt",
+        "-o",
+        edged.to_str().unwrap(),
+        "--tolerance",
+        "1e-2",
+        "--max-edge",
+        "0.2",
+        "--backend",
+        "cpu",
+    ]);
+    let both = options_with(1e-2).with_max_edge(0.2);
+    let library_both = CpuTessellator
+        .tessellate(&scene.surface_list(), &both)
+        .unwrap();
+    let faces = std::fs::read_to_string(&edged)
+        .unwrap()
+        .lines()
+        .filter(|l| l.starts_with("f "))
+        .count();
+    assert_eq!(faces, library_both.indices.len() / 3);
+    assert!(
+        faces
+            > CpuTessellator
+                .tessellate(&scene.surface_list(), &options_with(1e-2))
+                .unwrap()
+                .indices
+                .len()
+                / 3
     );
     // Adaptive meshes (seams shared across parts) are valid glTF.
     let glb = dir.join("teapot.glb");
@@ -1669,6 +1704,7 @@ fn tolerances_reach_the_plan_from_the_cli_and_json() {
         vec!["--tolerance-rel", "abc"],
         vec!["--tolerance", "1e-3", "--grid", "9x9"],
         vec!["--tolerance", "1e-3", "--tolerance-rel", "1e-3"],
+        vec!["--max-edge", "0", "--tolerance", "1e-3"],
     ] {
         let refused = dir.join("refused.obj");
         let mut args = vec![
@@ -1684,7 +1720,10 @@ fn tolerances_reach_the_plan_from_the_cli_and_json() {
             !run.status.success() && !refused.exists(),
             "{bad:?}: {message}"
         );
-        assert!(message.contains("--tolerance"), "{bad:?}: {message}");
+        assert!(
+            message.contains("--tolerance") || message.contains("--max-edge"),
+            "{bad:?}: {message}"
+        );
     }
     let sphere = |own: &str| {
         format!(

@@ -85,6 +85,7 @@ fn main() -> ExitCode {
             grid,
             tolerance,
             tolerance_rel,
+            max_edge,
             backend,
             format,
             input_format,
@@ -93,7 +94,7 @@ fn main() -> ExitCode {
             max_memory,
         } => {
             let job = Job::new(
-                knotwork::cli::tess_options(grid, tolerance, tolerance_rel),
+                knotwork::cli::tess_options(grid, tolerance, tolerance_rel, max_edge),
                 format,
                 input_format,
                 weld,

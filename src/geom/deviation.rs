@@ -13,16 +13,33 @@ use super::BezierPatch;
 use super::piecewise::split_bezier;
 use glam::{DVec3, DVec4};
 
-/// Upper bounds of |S_uu|, |S_uv| and |S_vv| over a parameter rectangle, in model units per
-/// parameter unit squared.
+/// Upper bounds of |S_u|, |S_v| (model units per parameter unit) and of |S_uu|, |S_uv|,
+/// |S_vv| (per parameter unit squared) over a parameter rectangle.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct SecondDerivativeBound {
+pub struct DerivativeBound {
+    pub u: f64,
+    pub v: f64,
     pub uu: f64,
     pub uv: f64,
     pub vv: f64,
 }
 
-impl SecondDerivativeBound {
+/// What a sampling must meet: a deviation and, optionally, an edge length (model units).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SamplingLimits {
+    /// Largest distance between a triangle and the surface (> 0; infinite: no limit).
+    pub tolerance: f64,
+    /// Longest triangle edge (> 0; infinite: no limit).
+    pub max_edge: f64,
+}
+
+impl DerivativeBound {
+    /// The longest an edge of parameter extents (h, k) can be: h·|S_u| + k·|S_v| (the mean
+    /// value theorem along the edge).
+    pub fn edge_length(&self, h: f64, k: f64) -> f64 {
+        h * self.u + k * self.v
+    }
+
     /// The deviation bound (model units) of a triangle of parameter extents (h, k) inside
     /// the rectangle: ⅛·(h²·M_uu + 2·h·k·M_uv + k²·M_vv).
     pub fn deviation(&self, h: f64, k: f64) -> f64 {
@@ -30,35 +47,49 @@ impl SecondDerivativeBound {
     }
 
     /// The fewest grid cells (n_u · n_v, each ≥ 1) over a `width_u` × `width_v` rectangle
-    /// whose [`deviation`](Self::deviation) at the cell size (width_u / n_u, width_v / n_v)
-    /// is at most `tolerance` (> 0, model units). Counts are capped at `max_segments` per
-    /// direction; at the cap the deviation may exceed the tolerance, which the caller
+    /// whose cells, of size (h, k) = (width_u / n_u, width_v / n_v), meet `limits`: the
+    /// [`deviation`](Self::deviation) at most the tolerance and the
+    /// [`edge_length`](Self::edge_length) of the cell's diagonal — the longest edge any
+    /// triangle inside it can have — at most the longest edge. Counts are capped at
+    /// `max_segments` per direction; at the cap the limits may be exceeded, which the caller
     /// reports.
     pub fn segments(
         &self,
         (width_u, width_v): (f64, f64),
-        tolerance: f64,
+        limits: SamplingLimits,
         max_segments: u32,
     ) -> (u32, u32) {
-        let budget = 8.0 * tolerance;
+        let budget = 8.0 * limits.tolerance;
+        let meets = |h: f64, k: f64| {
+            self.deviation(h, k) <= limits.tolerance && self.edge_length(h, k) <= limits.max_edge
+        };
         // The fewest v-segments for a u-spacing h: the largest k with
-        // M_vv·k² + 2·M_uv·h·k ≤ 8·tol − M_uu·h².
+        // M_vv·k² + 2·M_uv·h·k ≤ 8·tol − M_uu·h² and h·|S_u| + k·|S_v| ≤ longest edge.
         let rows_for = |h: f64| -> Option<u32> {
             let rest = budget - self.uu * h * h;
-            if rest <= 0.0 {
+            let edge_rest = limits.max_edge - self.u * h;
+            if rest <= 0.0 || edge_rest <= 0.0 {
                 return None;
             }
             let b = self.uv * h;
-            let k = if self.vv > 0.0 {
+            let by_deviation = if rest.is_infinite() {
+                f64::INFINITY
+            } else if self.vv > 0.0 {
                 rest / (b + (b * b + self.vv * rest).sqrt())
             } else if b > 0.0 {
                 rest / (2.0 * b)
             } else {
                 f64::INFINITY
             };
+            let by_edge = if self.v > 0.0 {
+                edge_rest / self.v
+            } else {
+                f64::INFINITY
+            };
+            let k = by_deviation.min(by_edge);
             let mut n = (width_v / k).ceil().max(1.0);
             // ceil of a rounded quotient: step past a count that still misses by rounding.
-            while n < f64::from(max_segments) && self.deviation(h, width_v / n) > tolerance {
+            while n < f64::from(max_segments) && !meets(h, width_v / n) {
                 n += 1.0;
             }
             Some(n.min(f64::from(max_segments)) as u32)
@@ -66,12 +97,9 @@ impl SecondDerivativeBound {
         // The fewest u-segments that leave room for any v-spacing at all, then a search
         // over the trade between the two directions (the product is minimised over whole
         // numbers: the continuous optimum would round up in both).
-        let least_u = if self.uu > 0.0 {
-            ((width_u * (self.uu / budget).sqrt()).floor() + 1.0).min(f64::from(max_segments))
-                as u32
-        } else {
-            1
-        };
+        let least = |needed: f64| (needed.floor() + 1.0).min(f64::from(max_segments)) as u32;
+        let least_u = least(width_u * (self.uu / budget).sqrt())
+            .max(least(width_u * self.u / limits.max_edge));
         let mut best = (max_segments, max_segments);
         let mut best_cells = u64::from(max_segments) * u64::from(max_segments);
         let last_u = least_u
@@ -94,15 +122,15 @@ impl SecondDerivativeBound {
 }
 
 impl BezierPatch {
-    /// Bounds of the second derivatives of the patch over its parameter ranges, from its
-    /// control net (convex-hull property of Bezier derivatives). Polynomial: M_uu =
+    /// Bounds of the first and second derivatives of the patch over its parameter ranges,
+    /// from its control net (convex-hull property of Bezier derivatives): |S_u| ≤ G_u below. Polynomial: M_uu =
     /// p(p−1)/Δu² · max|Δ²_u P| (M_uv, M_vv likewise). Rational, in homogeneous coordinates
     /// relative to the centre C of the control points' box, with R = max|P − C|, w_min the
     /// least weight and D, W the same difference bounds of w·(P − C) and of w: |S_u| ≤ G_u =
     /// (D_u + W_u·R)/w_min and, from the quotient rule, M_uu ≤ (D_uu + 2·W_u·G_u + W_uu·R)
     /// / w_min, M_uv ≤ (D_uv + W_u·G_v + W_v·G_u + W_uv·R) / w_min. With equal weights W = 0
     /// and this is the polynomial bound. Needs positive weights.
-    pub fn second_derivative_bound(&self) -> SecondDerivativeBound {
+    pub fn derivative_bound(&self) -> DerivativeBound {
         let (p, q) = (self.degree_u, self.degree_v);
         let row = p + 1;
         let cartesian: Vec<DVec3> = self.points.iter().map(|h| h.truncate() / h.w).collect();
@@ -164,7 +192,9 @@ impl BezierPatch {
         let (d_v, w_v) = (scale_v * first_v.0, scale_v * first_v.1);
         let g_u = (d_u + w_u * radius) / least_weight;
         let g_v = (d_v + w_v * radius) / least_weight;
-        SecondDerivativeBound {
+        DerivativeBound {
+            u: g_u,
+            v: g_v,
             uu: (scale_uu * second_uu.0 + 2.0 * w_u * g_u + scale_uu * second_uu.1 * radius)
                 / least_weight,
             uv: (scale_uv * second_uv.0 + w_u * g_v + w_v * g_u + scale_uv * second_uv.1 * radius)

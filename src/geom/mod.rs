@@ -22,7 +22,7 @@ pub use bezier::{
     piecewise_bezier_surface,
 };
 pub use curve::BSplineCurve;
-pub use deviation::SecondDerivativeBound;
+pub use deviation::{DerivativeBound, SamplingLimits};
 pub(crate) use eval::Rail;
 pub use eval::{DEGENERATE_EPSILONS, SurfaceSample, cross_scale, degenerate_cross_sq};
 pub(crate) use knots::check_degree;

@@ -1,5 +1,5 @@
 //! Sampling to a tolerance: rates from the proven deviation bound of
-//! [`crate::geom::SecondDerivativeBound`] — never by meshing and measuring — and the triangles
+//! [`crate::geom::DerivativeBound`] — never by meshing and measuring — and the triangles
 //! that join cells sampled at different rates without a crack.
 //!
 //! A surface's evaluation range is cut at its knots, and each knot span into cells of about
@@ -12,7 +12,7 @@
 
 use super::cell_triangles;
 use crate::error::{Error, Result};
-use crate::geom::{BSplineSurface, BezierPatch, Interval};
+use crate::geom::{BSplineSurface, BezierPatch, Interval, SamplingLimits};
 
 /// Most segments one cell may take in one direction: a tolerance that needs more is refused
 /// (it would ask for about 10⁸ vertices per cell).
@@ -55,9 +55,10 @@ pub struct CellGrid {
     pub cells: Vec<Cell>,
 }
 
-/// The cells of `surface` for `tolerance` (model units, > 0): every triangle made from them
-/// lies within the tolerance of the surface over its parameter triangle.
-pub fn surface_cells(surface: &BSplineSurface, tolerance: f64) -> Result<CellGrid> {
+/// The cells of `surface` for `limits`: every triangle made from them lies within the
+/// tolerance of the surface over its parameter triangle, and none has an edge longer than
+/// the longest edge.
+pub fn surface_cells(surface: &BSplineSurface, limits: SamplingLimits) -> Result<CellGrid> {
     let (range_u, range_v) = (surface.range_u(), surface.range_v());
     let patches: Vec<BezierPatch> = surface
         .bezier_patches()
@@ -68,11 +69,9 @@ pub fn surface_cells(surface: &BSplineSurface, tolerance: f64) -> Result<CellGri
     let span_columns = distinct(patches.iter().map(|patch| patch.range_u));
     let span_rows = distinct(patches.iter().map(|patch| patch.range_v));
     let segments_of = |patch: &BezierPatch, u: Interval, v: Interval| {
-        patch.second_derivative_bound().segments(
-            (u.width(), v.width()),
-            tolerance,
-            MAX_CELL_SEGMENTS,
-        )
+        patch
+            .derivative_bound()
+            .segments((u.width(), v.width()), limits, MAX_CELL_SEGMENTS)
     };
     // Each span's own rate decides how many cells it is worth cutting into (the most any
     // span of its column, or row, asks for).
@@ -135,7 +134,8 @@ pub fn surface_cells(surface: &BSplineSurface, tolerance: f64) -> Result<CellGri
                 let segments = segments_of(&strip.restricted_v(v0, v1), u, v);
                 if segments.0.max(segments.1) >= MAX_CELL_SEGMENTS {
                     return Err(Error::ToleranceTooFine {
-                        tolerance,
+                        tolerance: limits.tolerance,
+                        max_edge: limits.max_edge,
                         segments: MAX_CELL_SEGMENTS,
                     });
                 }

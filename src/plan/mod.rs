@@ -17,7 +17,7 @@ use tables::AxisCache;
 
 use crate::error::{Error, Result};
 use crate::geom::patches::CoonsPatch;
-use crate::geom::{BSplineCurve, BSplineSurface};
+use crate::geom::{BSplineCurve, BSplineSurface, SamplingLimits};
 use crate::mesh::{MeshPart, TessOptions, Tolerance};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -47,7 +47,10 @@ impl GridLayout {
                 found: options.len(),
             });
         }
-        if options.iter().any(|o| o.tolerance.is_some()) {
+        if options
+            .iter()
+            .any(|o| o.tolerance.is_some() || o.max_edge.is_some())
+        {
             return Err(Error::NoToleranceFor {
                 what: "directly evaluated Coons patches",
             });
@@ -423,8 +426,11 @@ fn surface_sampling(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Res
                 index,
                 source: Box::new(source),
             };
+            if o.tolerance.is_none() && o.max_edge.is_none() {
+                return Ok(Sampling::Grid(o.grid_u, o.grid_v));
+            }
             let tolerance = match o.tolerance {
-                None => return Ok(Sampling::Grid(o.grid_u, o.grid_v)),
+                None => f64::INFINITY,
                 Some(Tolerance::Absolute(t)) => t,
                 Some(Tolerance::Relative(r)) => {
                     if !(r.is_finite() && r > 0.0) {
@@ -433,12 +439,22 @@ fn surface_sampling(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Res
                     r * relative_to.expect("computed when any tolerance is relative")
                 }
             };
-            if !(tolerance.is_finite() && tolerance > 0.0) {
+            if !(tolerance > 0.0 && (tolerance.is_finite() || o.tolerance.is_none())) {
                 return Err(in_surface(Error::InvalidTolerance { value: tolerance }));
             }
-            surface_cells(surface, tolerance)
-                .map(Sampling::Cells)
-                .map_err(in_surface)
+            let max_edge = o.max_edge.unwrap_or(f64::INFINITY);
+            if !(max_edge > 0.0 && (max_edge.is_finite() || o.max_edge.is_none())) {
+                return Err(in_surface(Error::InvalidMaxEdge { value: max_edge }));
+            }
+            surface_cells(
+                surface,
+                SamplingLimits {
+                    tolerance,
+                    max_edge,
+                },
+            )
+            .map(Sampling::Cells)
+            .map_err(in_surface)
         })
         .collect::<Vec<_>>()
         // In surface order, so that the error reported is the first surface's.
