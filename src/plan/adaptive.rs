@@ -202,14 +202,20 @@ impl CellGrid {
 
     /// The vertex indices of the cells' grids when they start at vertex `first_vertex`
     /// (cell k's grid after cell k − 1's, (i, j) of a grid at j·(n_u + 1) + i).
-    pub(crate) fn vertices(&self, first_vertex: u32) -> CellVertices<'_> {
+    /// A side of the surface in `poles` (in the order Bottom, Right, Top, Left) is collapsed
+    /// to a point: its samples are all one vertex, so the grid cells along it become a fan.
+    pub(crate) fn vertices(&self, first_vertex: u32, poles: [bool; 4]) -> CellVertices<'_> {
         let mut bases = Vec::with_capacity(self.cells.len());
         let mut next = first_vertex;
         for cell in &self.cells {
             bases.push(next);
             next += cell.vertex_count() as u32;
         }
-        CellVertices { grid: self, bases }
+        CellVertices {
+            grid: self,
+            bases,
+            poles,
+        }
     }
 
     /// The samples on `side` of the surface — (fraction of the surface's range along the
@@ -268,6 +274,30 @@ impl CellGrid {
     /// — (fraction along the side, vertex), increasing — that its grid cells along the side
     /// take in likewise.
     pub(crate) fn push_triangles(
+        &self,
+        vertices: &CellVertices,
+        external: &[Vec<(f64, u32)>; 4],
+        out: &mut Vec<u32>,
+    ) {
+        let first = out.len();
+        self.push_cell_triangles(vertices, external, out);
+        // Along a pole the grid cells' triangles on the pole's edge have two corners in one
+        // vertex: without them the cells along it make a fan.
+        if vertices.poles.iter().any(|&p| p) {
+            let mut kept = first;
+            for t in first / 3..out.len() / 3 {
+                let [a, b, c] = [out[3 * t], out[3 * t + 1], out[3 * t + 2]];
+                if a != b && b != c && c != a {
+                    out[kept..kept + 3].copy_from_slice(&[a, b, c]);
+                    kept += 3;
+                }
+            }
+            out.truncate(kept);
+        }
+    }
+
+    /// [`CellGrid::push_triangles`] before the pole triangles are dropped.
+    fn push_cell_triangles(
         &self,
         vertices: &CellVertices,
         external: &[Vec<(f64, u32)>; 4],
@@ -392,9 +422,15 @@ impl CellGrid {
 pub(crate) struct CellVertices<'a> {
     grid: &'a CellGrid,
     bases: Vec<u32>,
+    poles: [bool; 4],
 }
 
 impl CellVertices<'_> {
+    /// The cells these vertices belong to.
+    pub(crate) fn grid(&self) -> &CellGrid {
+        self.grid
+    }
+
     /// Vertex (i, j) of cell (a, b)'s own grid.
     fn vertex(&self, a: usize, b: usize, i: u32, j: u32) -> u32 {
         let k = b * self.grid.columns + a;
@@ -406,6 +442,29 @@ impl CellVertices<'_> {
     /// the up to four cells around it, a vertex inside an edge from the cell left of or
     /// below that edge where that cell has it.
     fn index(&self, a: usize, b: usize, i: u32, j: u32) -> u32 {
+        let grid = self.grid;
+        let (n_u, n_v) = grid.segments(a, b);
+        // On a pole: the pole's one vertex, its first corner's.
+        let (last_a, last_b) = (grid.columns - 1, grid.rows - 1);
+        let on_side = [
+            b == 0 && j == 0,
+            a == last_a && i == n_u,
+            b == last_b && j == n_v,
+            a == 0 && i == 0,
+        ];
+        if let Some(side) = (0..4).find(|&s| self.poles[s] && on_side[s]) {
+            let (a, b, i, j) = match side {
+                0 | 3 => (0, 0, 0, 0),
+                1 => (last_a, 0, grid.segments(last_a, 0).0, 0),
+                _ => (0, last_b, 0, grid.segments(0, last_b).1),
+            };
+            return self.canonical(a, b, i, j);
+        }
+        self.canonical(a, b, i, j)
+    }
+
+    /// [`CellVertices::index`] without poles.
+    fn canonical(&self, a: usize, b: usize, i: u32, j: u32) -> u32 {
         let grid = self.grid;
         let (n_u, n_v) = grid.segments(a, b);
         // The same sample in a neighbour with m segments along the shared edge: s/n = s'/m.

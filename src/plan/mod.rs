@@ -118,6 +118,7 @@ impl SurfacePlan {
     pub fn new(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Self> {
         let sampling = surface_sampling(surfaces, options)?;
         let seams = SeamSamples::new(surfaces, &sampling)?;
+        // Vertices are laid out now; triangles once they are made (poles drop some).
         let layout = layout_of(&sampling, &seams.triangles())?;
         let joined = sampling.iter().any(|s| matches!(s, Sampling::Cells(_)));
         // Grids share their tables through one cache; cells are planned surface by surface
@@ -177,9 +178,20 @@ impl SurfacePlan {
                 },
             )
             .collect();
+        let made: Vec<u64> = planned.iter().map(|(_, t)| t.len() as u64 / 3).collect();
+        let layout = layout_of(&sampling, &made)?;
         let mut items = Vec::with_capacity(planned.iter().map(|(i, _)| i.len()).sum());
         let mut triangles = joined.then(|| Vec::with_capacity(layout.index_count as usize));
-        for (surface_items, surface_triangles) in planned {
+        for (((mut surface_items, surface_triangles), part), sampling) in
+            planned.into_iter().zip(&layout.parts).zip(&sampling)
+        {
+            // Index ranges move where poles dropped triangles before them.
+            for item in &mut surface_items {
+                match sampling {
+                    Sampling::Grid(..) => item.part = *part,
+                    Sampling::Cells(_) => item.part.first_index = part.first_index,
+                }
+            }
             items.extend(surface_items);
             if let Some(triangles) = &mut triangles {
                 triangles.extend_from_slice(&surface_triangles);
@@ -297,10 +309,14 @@ impl<'a> SeamSamples<'a> {
                 Sampling::Grid(..) => None,
             })
             .collect();
+        let tolerance = seams::point_tolerance(surfaces);
         let vertices: Vec<Option<adaptive::CellVertices>> = cells
             .iter()
             .zip(&without_seams.parts)
-            .map(|(cells, part)| cells.map(|c| c.vertices(part.first_vertex)))
+            .zip(surfaces)
+            .map(|((cells, part), surface)| {
+                cells.map(|c| c.vertices(part.first_vertex, seams::pole_sides(surface, tolerance)))
+            })
             .collect();
         let adaptive: Vec<bool> = cells.iter().map(Option::is_some).collect();
         let mut external: Vec<[Vec<(f64, u32)>; 4]> = vec![Default::default(); surfaces.len()];
@@ -326,11 +342,18 @@ impl<'a> SeamSamples<'a> {
         })
     }
 
-    /// Triangles the seams add to each surface: one per sample it takes in.
+    /// Triangles of each adaptive surface before its poles drop theirs (an upper bound:
+    /// what a memory check may count on): its cells' joins and one per sample its seams
+    /// add.
     fn triangles(&self) -> Vec<u64> {
-        self.external
+        self.vertices
             .iter()
-            .map(|sides| sides.iter().map(|s| s.len() as u64).sum())
+            .zip(&self.external)
+            .map(|(vertices, sides)| {
+                vertices.as_ref().map_or(0, |v| {
+                    v.grid().triangle_count() + sides.iter().map(|s| s.len() as u64).sum::<u64>()
+                })
+            })
             .collect()
     }
 }
@@ -344,13 +367,12 @@ enum Sampling {
 }
 
 /// One part per surface, packed in order: a grid's counts as [`GridLayout::new`] gives
-/// them, cells' from [`CellGrid::vertex_count`] and [`CellGrid::triangle_count`] with
-/// `seam_triangles[k]` more for surface k (one per sample its seams add); the whole job
-/// checked against u32 first.
-fn layout_of(sampling: &[Sampling], seam_triangles: &[u64]) -> Result<GridLayout> {
+/// them, cells' vertices from [`CellGrid::vertex_count`] and `triangles[k]` triangles for
+/// surface k (ignored for grids); the whole job checked against u32 first.
+fn layout_of(sampling: &[Sampling], triangles: &[u64]) -> Result<GridLayout> {
     let (mut vertices, mut indices) = (0u64, 0u64);
     let mut counts = Vec::with_capacity(sampling.len());
-    for (s, &seam_triangles) in sampling.iter().zip(seam_triangles) {
+    for (s, &triangles) in sampling.iter().zip(triangles) {
         let (v, i) = match s {
             Sampling::Grid(nu, nv) => {
                 if *nu < 2 || *nv < 2 {
@@ -361,10 +383,7 @@ fn layout_of(sampling: &[Sampling], seam_triangles: &[u64]) -> Result<GridLayout
                     6 * u64::from(nu - 1) * u64::from(nv - 1),
                 )
             }
-            Sampling::Cells(grid) => (
-                grid.vertex_count(),
-                3 * (grid.triangle_count() + seam_triangles),
-            ),
+            Sampling::Cells(grid) => (grid.vertex_count(), 3 * triangles),
         };
         vertices += v;
         indices += i;

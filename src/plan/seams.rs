@@ -83,6 +83,13 @@ fn side_curve(surface: &BSplineSurface, side: Side) -> Option<SideCurve> {
 }
 
 impl SideCurve {
+    /// Whether every control point is within `tolerance` of the first.
+    fn is_point(&self, tolerance: f64) -> bool {
+        self.points
+            .iter()
+            .all(|p| (*p - self.points[0]).length() <= tolerance)
+    }
+
     /// Whether `other` is the same curve, run the same way (`reversed` false) or the other.
     fn same_as(&self, other: &SideCurve, reversed: bool, tolerance: f64) -> bool {
         let n = self.points.len();
@@ -115,6 +122,23 @@ impl SideCurve {
 /// Samples along a side: (fraction of the side's range, vertex index), increasing.
 pub(crate) type SideSamples = Vec<(f64, u32)>;
 
+/// Which sides of `surface` (in the order Bottom, Right, Top, Left) collapse to a point —
+/// poles, whose samples are one vertex — with control points within `tolerance`.
+pub(crate) fn pole_sides(surface: &BSplineSurface, tolerance: f64) -> [bool; 4] {
+    [Side::Bottom, Side::Right, Side::Top, Side::Left]
+        .map(|side| side_curve(surface, side).is_some_and(|c| c.is_point(tolerance)))
+}
+
+/// How close control points must be to coincide: [`SAME_POINT_REL`] of the diagonal of the
+/// box around all `surfaces`' control points.
+pub(crate) fn point_tolerance(surfaces: &[BSplineSurface]) -> f64 {
+    let (low, high) = surfaces.iter().map(BSplineSurface::control_box).fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(low, high), (a, b)| (low.min(a), high.max(b)),
+    );
+    SAME_POINT_REL * (high - low).length()
+}
+
 /// Two surfaces' sides that are one seam.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Seam {
@@ -127,11 +151,7 @@ pub(crate) struct Seam {
 /// The seams among the sides of the surfaces sampled to a tolerance (`adaptive[k]`): each
 /// side in one seam at most (the first match, in surface and side order).
 pub(crate) fn find_seams(surfaces: &[BSplineSurface], adaptive: &[bool]) -> Vec<Seam> {
-    let (low, high) = surfaces.iter().map(BSplineSurface::control_box).fold(
-        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-        |(low, high), (a, b)| (low.min(a), high.max(b)),
-    );
-    let tolerance = SAME_POINT_REL * (high - low).length();
+    let tolerance = point_tolerance(surfaces);
     let sides = [Side::Bottom, Side::Right, Side::Top, Side::Left];
     let curves: Vec<((usize, Side), SideCurve)> = surfaces
         .iter()
@@ -144,12 +164,7 @@ pub(crate) fn find_seams(surfaces: &[BSplineSurface], adaptive: &[bool]) -> Vec<
         })
         // A side collapsed to a point (a pole) is no seam: every pole of that point would
         // match it, and its samples are one point anyway.
-        .filter(|(_, curve)| {
-            curve
-                .points
-                .iter()
-                .any(|p| (*p - curve.points[0]).length() > tolerance)
-        })
+        .filter(|(_, curve)| !curve.is_point(tolerance))
         .collect();
     // Candidates by the cell of their first and last points on a grid of the tolerance's
     // size (both orders), so that matching is not quadratic in the sides.

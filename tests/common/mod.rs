@@ -86,30 +86,34 @@ pub fn angle(a: DVec3, b: DVec3) -> f64 {
     a.cross(b).length().atan2(a.dot(b))
 }
 
-/// The uv on `surface` of a vertex another part's surface owns (a seam vertex, at `uv` of
-/// that surface): it lies on a side of this surface's range at the same fraction along it,
-/// or the opposite one — of the candidates whose point is `position` (to rounding; several
-/// where a side collapses to a pole), the one nearest `near` in uv.
-fn seam_uv(
+/// The uv on `surface` of a triangle's vertex at `uv` (of its own surface) and `position`,
+/// where that uv may not be this triangle's: a vertex another part's surface owns (a seam
+/// vertex: on a side of this surface's range at the same fraction along it, or the opposite
+/// one), or a pole's one vertex (any point of the collapsed side, taken nearest the
+/// triangle's other corners `others`). Of the candidates whose point is `position` (to
+/// rounding), the one nearest the other corners in uv.
+fn corner_uv(
     surface: &BSplineSurface,
     uv: glam::DVec2,
     position: DVec3,
-    near: glam::DVec2,
+    others: &[glam::DVec2],
 ) -> glam::DVec2 {
     let (ru, rv) = (surface.range_u(), surface.range_v());
-    let mut candidates = Vec::new();
+    let mut candidates = vec![uv];
     for f in [uv.x, uv.y] {
         for g in [f, 1.0 - f] {
-            for c in [(g, 0.0), (g, 1.0), (0.0, g), (1.0, g)] {
-                let c = glam::DVec2::from(c);
-                let off = (surface.point(ru.lerp(c.x), rv.lerp(c.y)) - position).length();
-                candidates.push((off, c));
-            }
+            candidates.extend([(g, 0.0), (g, 1.0), (0.0, g), (1.0, g)].map(glam::DVec2::from));
         }
     }
-    let least = candidates.iter().map(|c| c.0).fold(f64::INFINITY, f64::min);
+    for o in others {
+        candidates.extend([(o.x, 0.0), (o.x, 1.0), (0.0, o.y), (1.0, o.y)].map(glam::DVec2::from));
+    }
+    let off = |c: glam::DVec2| (surface.point(ru.lerp(c.x), rv.lerp(c.y)) - position).length();
+    let scored: Vec<(f64, glam::DVec2)> = candidates.into_iter().map(|c| (off(c), c)).collect();
+    let least = scored.iter().map(|c| c.0).fold(f64::INFINITY, f64::min);
     let rounding = 1e-9 * surface.control_box_diagonal();
-    candidates
+    let near = others.iter().copied().sum::<glam::DVec2>() / others.len().max(1) as f64;
+    scored
         .into_iter()
         .filter(|c| c.0 <= least + rounding)
         .map(|c| c.1)
@@ -139,21 +143,28 @@ pub fn worst_deviation(surfaces: &[BSplineSurface], mesh: &knotwork::Mesh) -> f6
                 let (mut p, mut uv) = (DVec3::ZERO, glam::DVec2::ZERO);
                 let own =
                     |v: u32| v >= part.first_vertex && v < part.first_vertex + part.vertex_count;
-                let own_uvs: Vec<glam::DVec2> = t
-                    .iter()
-                    .filter(|&&v| own(v))
-                    .map(|&v| mesh.uvs[v as usize])
+                // A corner's uv where it may not be this triangle's: a seam vertex of another
+                // part, or a vertex on the range's boundary (a pole's one vertex).
+                let corners: Vec<glam::DVec2> = (0..3)
+                    .map(|k| {
+                        let v = t[k];
+                        let vertex_uv = mesh.uvs[v as usize];
+                        let on_side = [vertex_uv.x, vertex_uv.y]
+                            .iter()
+                            .any(|&c| c == 0.0 || c == 1.0);
+                        if own(v) && !on_side {
+                            return vertex_uv;
+                        }
+                        let others: Vec<glam::DVec2> = (0..3)
+                            .filter(|&j| j != k && own(t[j]))
+                            .map(|j| mesh.uvs[t[j] as usize])
+                            .collect();
+                        corner_uv(surface, vertex_uv, mesh.positions[v as usize], &others)
+                    })
                     .collect();
-                let near =
-                    own_uvs.iter().copied().sum::<glam::DVec2>() / own_uvs.len().max(1) as f64;
                 for (k, &weight) in l.iter().enumerate() {
-                    let v = t[k];
-                    let position = mesh.positions[v as usize];
-                    let vertex_uv = if own(v) {
-                        mesh.uvs[v as usize]
-                    } else {
-                        seam_uv(surface, mesh.uvs[v as usize], position, near)
-                    };
+                    let position = mesh.positions[t[k] as usize];
+                    let vertex_uv = corners[k];
                     p += weight * position;
                     uv += weight * vertex_uv;
                 }
