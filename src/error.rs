@@ -113,6 +113,12 @@ pub enum Error {
     OptionsCount { expected: usize, found: usize },
     #[error("{found} sample counts for {expected} curves")]
     SampleCounts { expected: usize, found: usize },
+    #[error("trim loop {loop_index} {problem}")]
+    InvalidTrimLoop { loop_index: usize, problem: String },
+    #[error(
+        "the trimmed face needs more than {vertices} vertices for tolerance {tolerance:e}: ask for a larger tolerance"
+    )]
+    TrimmedTooFine { vertices: usize, tolerance: f64 },
     #[error("surface {index}: {source}")]
     InSurface { index: usize, source: Box<Error> },
     #[error("curve {index}: {source}")]

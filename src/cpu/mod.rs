@@ -4,10 +4,12 @@
 mod coons;
 mod grid;
 mod lanes;
+mod trimmed;
 
 pub use crate::geom::SurfaceSample;
 pub use coons::{execute_coons, tessellate_coons_into};
 pub use grid::{evaluate_grid_into, execute_surfaces, execute_surfaces_f32, tessellate_grid_into};
+pub use trimmed::execute_trimmed;
 
 use crate::Tessellator;
 use crate::error::Result;

@@ -142,6 +142,23 @@ impl BSplineCurve {
     pub fn is_rational(&self) -> bool {
         self.rational
     }
+    /// The evaluation range cut at the knots inside it: its start, those knots (each once),
+    /// its end — the pieces over which the curve is a single polynomial (or rational).
+    pub fn span_breaks(&self) -> Vec<f64> {
+        let range = self.range;
+        let mut breaks = vec![range.start];
+        breaks.extend(
+            self.knots
+                .knots()
+                .iter()
+                .copied()
+                .filter(|&t| t > range.start && t < range.end),
+        );
+        breaks.push(range.end);
+        breaks.dedup();
+        breaks
+    }
+
     pub fn range(&self) -> Interval {
         self.range
     }

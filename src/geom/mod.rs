@@ -15,6 +15,7 @@ pub mod patches;
 mod piecewise;
 pub mod shapes;
 mod surface;
+mod trim;
 
 pub(crate) use basis::{BasisDers, MAX_ORDER, basis_ders};
 pub use bezier::{
@@ -29,6 +30,7 @@ pub(crate) use knots::check_degree;
 pub use knots::{KnotVector, MAX_DEGREE};
 pub(crate) use surface::cartesian_box;
 pub use surface::{BSplineSurface, Interval};
+pub use trim::{AxisMap, LOOP_GAP, ParamMap, TrimLoop, TrimmedSurface};
 
 use crate::error::{Error, Result};
 use glam::{DVec3, DVec4};

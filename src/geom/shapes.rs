@@ -30,6 +30,11 @@ fn check_sweep(name: &'static str, angles: Interval) -> Result<f64> {
     Ok(sweep)
 }
 
+/// Segments of [`unit_arc`] for a sweep (radians): one per quarter turn begun.
+pub(crate) fn arc_segments(sweep: f64) -> usize {
+    ((sweep / FRAC_PI_2) - 1e-9).ceil().max(1.0) as usize
+}
+
 /// A planar rational profile: knots and (x, y, weight) control points.
 pub type PlanarProfile = (KnotVector, Vec<(f64, f64, f64)>);
 
@@ -38,7 +43,7 @@ pub type PlanarProfile = (KnotVector, Vec<(f64, f64, f64)>);
 /// a full turn ends exactly where it starts.
 pub fn unit_arc(angles: Interval) -> Result<PlanarProfile> {
     let sweep = check_sweep("arc sweep", angles)?;
-    let segments = ((sweep / FRAC_PI_2) - 1e-9).ceil().max(1.0) as usize;
+    let segments = arc_segments(sweep);
     let delta = sweep / segments as f64;
     let w = (delta / 2.0).cos();
     let mut points = Vec::with_capacity(2 * segments + 1);

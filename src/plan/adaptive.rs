@@ -12,7 +12,7 @@
 
 use super::cell_triangles;
 use crate::error::{Error, Result};
-use crate::geom::{BSplineSurface, BezierPatch, Interval, SamplingLimits};
+use crate::geom::{BSplineSurface, BezierPatch, DerivativeBound, Interval, SamplingLimits};
 
 /// Most segments one cell may take in one direction: a tolerance that needs more is refused
 /// (it would ask for about 10⁸ vertices per cell).
@@ -37,6 +37,8 @@ pub struct Cell {
     pub range_v: Interval,
     /// Segments along u and v (≥ 1 each): (n_u + 1) × (n_v + 1) vertices.
     pub segments: (u32, u32),
+    /// Bounds of the surface's derivatives over the cell, which the rates come from.
+    pub bound: DerivativeBound,
 }
 
 impl Cell {
@@ -68,10 +70,8 @@ pub fn surface_cells(surface: &BSplineSurface, limits: SamplingLimits) -> Result
         .collect();
     let span_columns = distinct(patches.iter().map(|patch| patch.range_u));
     let span_rows = distinct(patches.iter().map(|patch| patch.range_v));
-    let segments_of = |patch: &BezierPatch, u: Interval, v: Interval| {
-        patch
-            .derivative_bound()
-            .segments((u.width(), v.width()), limits, MAX_CELL_SEGMENTS)
+    let segments_of = |bound: DerivativeBound, u: Interval, v: Interval| {
+        bound.segments((u.width(), v.width()), limits, MAX_CELL_SEGMENTS)
     };
     // Each span's own rate decides how many cells it is worth cutting into (the most any
     // span of its column, or row, asks for).
@@ -91,7 +91,7 @@ pub fn surface_cells(surface: &BSplineSurface, limits: SamplingLimits) -> Result
     for (patch, &(c, r)) in patches.iter().zip(&placed) {
         let clipped_u = overlap(patch.range_u, range_u).unwrap();
         let clipped_v = overlap(patch.range_v, range_v).unwrap();
-        let (n_u, n_v) = segments_of(patch, clipped_u, clipped_v);
+        let (n_u, n_v) = segments_of(patch.derivative_bound(), clipped_u, clipped_v);
         cells_u[c] = cells_u[c].max(cells_for(n_u));
         cells_v[r] = cells_v[r].max(cells_for(n_v));
     }
@@ -125,13 +125,15 @@ pub fn surface_cells(surface: &BSplineSurface, limits: SamplingLimits) -> Result
         range_u,
         range_v,
         segments: (0, 0),
+        bound: DerivativeBound::default(),
     };
     let mut cells = vec![unset; columns * rows];
     for (patch, &(c, r)) in patches.iter().zip(&placed) {
         for (a, &(u0, u1, u)) in along_u[c].iter().enumerate() {
             let strip = patch.restricted_u(u0, u1);
             for (b, &(v0, v1, v)) in along_v[r].iter().enumerate() {
-                let segments = segments_of(&strip.restricted_v(v0, v1), u, v);
+                let bound = strip.restricted_v(v0, v1).derivative_bound();
+                let segments = segments_of(bound, u, v);
                 if segments.0.max(segments.1) >= MAX_CELL_SEGMENTS {
                     return Err(Error::ToleranceTooFine {
                         tolerance: limits.tolerance,
@@ -143,6 +145,7 @@ pub fn surface_cells(surface: &BSplineSurface, limits: SamplingLimits) -> Result
                     range_u: u,
                     range_v: v,
                     segments,
+                    bound,
                 };
             }
         }

@@ -1,0 +1,241 @@
+//! Trimmed surfaces: a surface of which only the region inside an outer loop and outside its
+//! holes is real, the loops closed chains of curves in its parameter domain — what CAD
+//! systems write (IGES 144 and 143, OBJ `trim`/`hole`).
+//!
+//! Loops are kept as the file gives them, in the file's parameters; a [`ParamMap`] takes
+//! those to the parameters of knotwork's B-spline form of the surface (the same for a
+//! B-spline surface, an affine change for a plane or a tabulated cylinder, the angle of a
+//! converted surface of revolution).
+
+use super::shapes::arc_segments;
+use super::{BSplineCurve, BSplineSurface, Interval};
+use crate::error::{Error, Result};
+use glam::DVec2;
+
+/// How one of a file's surface parameters maps onto a parameter of the B-spline form.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AxisMap {
+    /// t ↦ scale·t + offset.
+    Affine { scale: f64, offset: f64 },
+    /// An angle (radians, within `angles`) to the parameter on [0, 1] of the arc
+    /// [`super::shapes::unit_arc`] builds over `angles`: each rational quadratic segment of
+    /// sweep δ, with middle weight cos(δ/2), reaches the angle φ from its middle at
+    /// s = ½·(1 + tan(φ/2) / tan(δ/4)) — inverted exactly, not approximated.
+    Angle { angles: Interval },
+}
+
+impl AxisMap {
+    /// The identity.
+    pub const SAME: AxisMap = AxisMap::Affine {
+        scale: 1.0,
+        offset: 0.0,
+    };
+
+    /// The B-spline form's parameter for the file's `t`.
+    pub fn apply(&self, t: f64) -> f64 {
+        match *self {
+            AxisMap::Affine { scale, offset } => scale * t + offset,
+            AxisMap::Angle { angles } => {
+                let segments = arc_segments(angles.width());
+                let delta = angles.width() / segments as f64;
+                let along = (t.clamp(angles.start, angles.end) - angles.start) / delta;
+                let segment = (along.floor().max(0.0) as usize).min(segments - 1);
+                let phi = (along - segment as f64 - 0.5) * delta;
+                let s = 0.5 * (1.0 + (phi / 2.0).tan() / (delta / 4.0).tan());
+                (segment as f64 + s.clamp(0.0, 1.0)) / segments as f64
+            }
+        }
+    }
+}
+
+/// A file's (s, t) parameters to the B-spline form's (u, v): `swap` exchanges s and t first,
+/// then `u` and `v` map each.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParamMap {
+    pub swap: bool,
+    pub u: AxisMap,
+    pub v: AxisMap,
+}
+
+impl ParamMap {
+    /// The identity: the file's parameters are the surface's.
+    pub const SAME: ParamMap = ParamMap {
+        swap: false,
+        u: AxisMap::SAME,
+        v: AxisMap::SAME,
+    };
+
+    /// The surface's (u, v) for the file's (s, t).
+    pub fn apply(&self, st: DVec2) -> DVec2 {
+        let (a, b) = if self.swap {
+            (st.y, st.x)
+        } else {
+            (st.x, st.y)
+        };
+        DVec2::new(self.u.apply(a), self.v.apply(b))
+    }
+}
+
+/// A closed loop: a chain of curves in the file's parameter plane, each starting where the
+/// one before ends; a curve's x and y are the parameters (its z is ignored).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrimLoop {
+    pub curves: Vec<BSplineCurve>,
+}
+
+/// A surface with its outer loop (`None`: the boundary of its evaluation range) and holes.
+/// Which side of a loop is kept does not depend on its orientation: the region is the set of
+/// points inside the outer loop and outside every hole (odd crossing count).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrimmedSurface {
+    surface: BSplineSurface,
+    map: ParamMap,
+    outer: Option<TrimLoop>,
+    holes: Vec<TrimLoop>,
+}
+
+/// How far (as a fraction of the diagonal of the surface's parameter range) a loop's curves
+/// may miss each other's ends, or stray outside the range, before the loop is refused.
+/// CAD files meet to their own modelling tolerance, not exactly.
+pub const LOOP_GAP: f64 = 1e-4;
+
+impl TrimmedSurface {
+    /// Validates the loops: each has at least one curve, each curve starts where the one
+    /// before ends and the last ends where the first starts (within [`LOOP_GAP`]), and every
+    /// curve's ends lie in the surface's range (within the same). Loop 0 is the outer loop,
+    /// holes are 1, 2, … in order (also when there is no outer loop). The range is checked at
+    /// each curve's knots and 8 points per knot span.
+    pub fn try_new(
+        surface: BSplineSurface,
+        map: ParamMap,
+        outer: Option<TrimLoop>,
+        holes: Vec<TrimLoop>,
+    ) -> Result<Self> {
+        let face = TrimmedSurface {
+            surface,
+            map,
+            outer,
+            holes,
+        };
+        let (range_u, range_v) = (face.surface.range_u(), face.surface.range_v());
+        let slack = LOOP_GAP * range_u.width().hypot(range_v.width());
+        for (loop_index, trim_loop) in face.loops() {
+            let problem = |problem: String| Error::InvalidTrimLoop {
+                loop_index,
+                problem,
+            };
+            let Some(last) = trim_loop.curves.last() else {
+                return Err(problem("has no curves".into()));
+            };
+            let mut previous_end = face.curve_point(last, last.range().end);
+            for (k, curve) in trim_loop.curves.iter().enumerate() {
+                let (start, end) = (curve.range().start, curve.range().end);
+                let (first, final_point) =
+                    (face.curve_point(curve, start), face.curve_point(curve, end));
+                for p in face.curve_samples(curve) {
+                    let outside = (range_u.start - p.x)
+                        .max(p.x - range_u.end)
+                        .max(range_v.start - p.y)
+                        .max(p.y - range_v.end);
+                    if outside.is_nan() || outside > slack {
+                        return Err(problem(format!(
+                            "curve {k} reaches ({}, {}), outside the surface's range [{}, {}] × [{}, {}]",
+                            p.x, p.y, range_u.start, range_u.end, range_v.start, range_v.end
+                        )));
+                    }
+                }
+                let gap = (first - previous_end).length();
+                if gap.is_nan() || gap > slack {
+                    return Err(problem(format!(
+                        "is not closed: curve {k} starts {gap:e} (in parameters) away from where the curve before it ends"
+                    )));
+                }
+                previous_end = final_point;
+            }
+        }
+        Ok(face)
+    }
+
+    /// The whole surface, untrimmed (B-spline form).
+    pub fn surface(&self) -> &BSplineSurface {
+        &self.surface
+    }
+
+    /// The map from the loops' parameters to the surface's.
+    pub fn map(&self) -> ParamMap {
+        self.map
+    }
+
+    /// The outer loop; `None`: the boundary of the surface's range.
+    pub fn outer(&self) -> Option<&TrimLoop> {
+        self.outer.as_ref()
+    }
+
+    /// The holes.
+    pub fn holes(&self) -> &[TrimLoop] {
+        &self.holes
+    }
+
+    /// Every loop given with its number (0: the outer loop, k ≥ 1: hole k − 1).
+    pub fn loops(&self) -> impl Iterator<Item = (usize, &TrimLoop)> {
+        self.outer
+            .iter()
+            .map(|l| (0, l))
+            .chain(self.holes.iter().enumerate().map(|(k, l)| (k + 1, l)))
+    }
+
+    /// The surface parameters of a loop curve's point at its parameter `t`.
+    pub fn curve_point(&self, curve: &BSplineCurve, t: f64) -> DVec2 {
+        self.map.apply(curve.point(t).truncate())
+    }
+
+    /// Points of a loop curve in surface parameters: its ends, its knots and 8 points inside
+    /// each knot span (what validation checks against the range).
+    fn curve_samples(&self, curve: &BSplineCurve) -> Vec<DVec2> {
+        let breaks = curve.span_breaks();
+        let mut samples = vec![self.curve_point(curve, curve.range().end)];
+        for span in breaks.windows(2) {
+            samples.extend((0..8).map(|k| {
+                self.curve_point(curve, span[0] + (span[1] - span[0]) * f64::from(k) / 8.0)
+            }));
+        }
+        samples
+    }
+
+    /// The diagonal of the box of the surface's control points (model units).
+    pub fn control_box_diagonal(&self) -> f64 {
+        self.surface.control_box_diagonal()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::shapes::unit_arc;
+
+    #[test]
+    fn the_angle_map_inverts_the_arc() {
+        for (start, end) in [(0.0, std::f64::consts::TAU), (-0.3, 1.2), (1.0, 4.0)] {
+            let angles = Interval::new(start, end);
+            let (knots, points) = unit_arc(angles).unwrap();
+            let cartesian: Vec<_> = points
+                .iter()
+                .map(|&(x, y, _)| glam::DVec3::new(x, y, 0.0))
+                .collect();
+            let weights: Vec<f64> = points.iter().map(|p| p.2).collect();
+            let arc = BSplineCurve::try_new(knots, &cartesian, Some(&weights)).unwrap();
+            for k in 0..=200 {
+                let angle = angles.lerp(k as f64 / 200.0);
+                let t = AxisMap::Angle { angles }.apply(angle);
+                let p = arc.point(t);
+                let reached = p.y.atan2(p.x);
+                let turn = (reached - angle).rem_euclid(std::f64::consts::TAU);
+                let error = turn.min(std::f64::consts::TAU - turn);
+                assert!(
+                    error < 1e-13,
+                    "angle {angle}: the arc is at {reached} (t = {t})"
+                );
+            }
+        }
+    }
+}

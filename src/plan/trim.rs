@@ -1,0 +1,873 @@
+//! Planning a trimmed face: where to sample it and how its samples join, in its parameter
+//! domain, so that every triangle lies within the tolerance of the surface and the boundary
+//! follows the trimming loops within it.
+//!
+//! 1. The adaptive cells of the whole surface ([`super::surface_cells`]) give the interior
+//!    samples (their grid points inside the face) and a bound on the derivatives over each
+//!    cell.
+//! 2. The loops are sampled by bisecting each curve's knot spans until, at ¼, ½ and ¾ of
+//!    every piece, the surface point on the loop lies within tol/2 of the surface point at
+//!    the piece's chord in (u, v) (measured in model space) and the bound over the chord's
+//!    parameter box allows tol/2 ([`crate::geom::DerivativeBound`]); then until the box of
+//!    every two consecutive pieces allows the tolerance (the ear they make meets it).
+//!    Every piece is cut where the loop crosses a cell boundary, at the crossing.
+//! 3. The cell boundaries and grid lines inside the face are constraint edges beside the
+//!    loop segments: every triangle lies in one cell, whose own bound holds for it (the
+//!    bound of a neighbour, or across a C⁰ knot, would not), and the interior keeps the
+//!    cells' rectangles.
+//! 4. A constrained Delaunay triangulation (spade) in scaled parameters keeps every
+//!    constraint; a triangle is part of the face when its centroid is (odd crossing count
+//!    against the loops).
+//! 5. Triangles whose parameter box is too wide for their cell's bound are split at their
+//!    centroids until every one meets the tolerance and the longest edge.
+
+use super::adaptive::{CellGrid, surface_cells};
+use crate::error::{Error, Result};
+use crate::geom::{DerivativeBound, Interval, SamplingLimits, TrimmedSurface};
+use glam::DVec2;
+use spade::handles::FixedVertexHandle;
+use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
+use std::collections::{HashMap, HashSet};
+
+/// Most vertices the plan of one trimmed face may hold: a tolerance that needs more is refused.
+pub const MAX_TRIMMED_VERTICES: usize = 1 << 24;
+
+/// Deepest bisection of one knot span of a loop curve (2³⁰ pieces).
+const MAX_LOOP_DEPTH: u32 = 30;
+
+/// What to sample of one trimmed face and how the samples join.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TrimmedPlan {
+    /// The surface parameters (u, v) of every vertex, within the surface's range.
+    pub params: Vec<DVec2>,
+    /// Triangles, counter-clockwise in (u, v) (so the normal S_u × S_v sees them
+    /// counter-clockwise).
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Plans `face` to `limits` (see the module's steps). Errors: the surface's own
+/// sampling errors, [`Error::InvalidTrimLoop`] for a loop that encloses nothing or crosses
+/// itself or another loop, [`Error::TrimmedTooFine`] past [`MAX_TRIMMED_VERTICES`].
+pub fn plan_trimmed(face: &TrimmedSurface, limits: SamplingLimits) -> Result<TrimmedPlan> {
+    let surface = face.surface();
+    let grid = surface_cells(surface, limits)?;
+    let bounds = CellBounds::new(&grid);
+    let lines = CellLines {
+        lines: bounds.interior_lines(),
+        snap_width: [surface.range_u(), surface.range_v()].map(|r| 1e-12 * r.width()),
+    };
+    let mut polylines = loop_polylines(face, &bounds, &lines, limits)?;
+    for polyline in &mut polylines {
+        *polyline = with_line_crossings(polyline, &lines.lines);
+    }
+    let region = Region::new(&polylines);
+
+    // Triangulated in scaled parameters: u·√M_uu and v·√M_vv (typical over the cells),
+    // in which the deviation bound is about as strict along either axis, so Delaunay
+    // triangles are not slivers of the bound's own shape.
+    let scale = bounds.typical_scale(surface.range_u().width(), surface.range_v().width());
+    let mut vertices = Vertices::new(&lines.lines, scale);
+    let mut edges: Vec<[usize; 2]> = Vec::new();
+    for polyline in &polylines {
+        let ids: Vec<usize> = polyline.iter().map(|&p| vertices.add(p)).collect();
+        for (k, &a) in ids.iter().enumerate() {
+            let b = ids[(k + 1) % ids.len()];
+            if a != b {
+                edges.push([a, b]);
+            }
+        }
+    }
+    let loop_edge_count = edges.len();
+    let loop_edges: HashSet<[usize; 2]> =
+        edges.iter().flat_map(|&[a, b]| [[a, b], [b, a]]).collect();
+    // The grid lines of the cells between samples inside the face: constraints wherever
+    // they cross no loop, so the interior keeps the cells' own rectangles, whose bounds
+    // hold (a Delaunay triangle could join a coarse cell to a fine one).
+    let mut grid_lines: Vec<[usize; 2]> = Vec::new();
+    for cell in &grid.cells {
+        let (n_u, n_v) = cell.segments;
+        let row_length = n_u as usize + 1;
+        let mut ids: Vec<Option<usize>> = Vec::with_capacity(row_length * (n_v as usize + 1));
+        for j in 0..=n_v {
+            let v = cell.range_v.lerp(f64::from(j) / f64::from(n_v));
+            for i in 0..=n_u {
+                let p = DVec2::new(cell.range_u.lerp(f64::from(i) / f64::from(n_u)), v);
+                ids.push(region.contains(p).then(|| vertices.add(p)));
+            }
+        }
+        for (k, &id) in ids.iter().enumerate() {
+            let right = (k % row_length + 1 < row_length)
+                .then(|| ids[k + 1])
+                .flatten();
+            let up = ids.get(k + row_length).copied().flatten();
+            for other in [right, up] {
+                if let (Some(a), Some(b)) = (id, other) {
+                    grid_lines.push([a, b]);
+                }
+            }
+        }
+    }
+    edges.extend(vertices.line_edges(&region, &loop_edges));
+
+    let points: Vec<Point2<f64>> = vertices
+        .positions
+        .iter()
+        .map(|&p| scaled(p, scale))
+        .collect();
+    let mut conflicts = Vec::new();
+    let cdt = ConstrainedDelaunayTriangulation::<Point2<f64>>::try_bulk_load_cdt(
+        points,
+        edges.clone(),
+        |edge| conflicts.push(edge),
+    )
+    .map_err(|error| Error::InvalidTrimLoop {
+        loop_index: 0,
+        problem: format!("cannot be triangulated: {error}"),
+    })?;
+    if let Some(&conflict) = conflicts.first() {
+        // Constraints go in order, so the edge refused is of the later loop of the two.
+        let at = vertices.positions[conflict[0]];
+        let loop_index = edges[..loop_edge_count]
+            .iter()
+            .position(|&edge| edge == conflict)
+            .map_or(0, |k| region.loop_of_edge(k));
+        return Err(Error::InvalidTrimLoop {
+            loop_index,
+            problem: format!(
+                "crosses itself or another loop near (u, v) = ({}, {})",
+                at.x, at.y
+            ),
+        });
+    }
+    let mut mesh = FaceTriangulation {
+        cdt,
+        params: vertices.positions,
+        scale,
+        loop_segments: edges[..loop_edge_count].to_vec(),
+    };
+    for [a, b] in grid_lines {
+        mesh.cdt.try_add_constraint(
+            FixedVertexHandle::from_index(a),
+            FixedVertexHandle::from_index(b),
+        );
+    }
+    mesh.refine(&bounds, limits)?;
+    Ok(mesh.collect())
+}
+
+/// A point of the parameter plane in the triangulation's scaled coordinates.
+fn scaled(p: DVec2, scale: DVec2) -> Point2<f64> {
+    Point2::new(p.x * scale.x, p.y * scale.y)
+}
+
+/// The triangulation of a face: spade's, in scaled coordinates, with the exact parameters
+/// of every vertex by its index (what the plan keeps; the scaled points only decide
+/// topology).
+struct FaceTriangulation {
+    cdt: ConstrainedDelaunayTriangulation<Point2<f64>>,
+    params: Vec<DVec2>,
+    scale: DVec2,
+    /// The loops' segments by vertex index.
+    loop_segments: Vec<[usize; 2]>,
+}
+
+/// Most edges a loop segment is found split into (by vertices lying exactly on it).
+const MAX_SPLIT_WALK: usize = 1 << 16;
+
+/// An undirected edge's key.
+fn edge_key(a: usize, b: usize) -> [usize; 2] {
+    [a.min(b), a.max(b)]
+}
+
+impl FaceTriangulation {
+    /// The edges of the triangulation along the loops: each loop segment, or the chain of
+    /// constraint edges spade split it into where vertices lie exactly on it.
+    fn loop_edges(&self) -> HashSet<[usize; 2]> {
+        let mut keys = HashSet::new();
+        for &[a, b] in &self.loop_segments {
+            let direct = self.cdt.get_edge_from_neighbors(
+                FixedVertexHandle::from_index(a),
+                FixedVertexHandle::from_index(b),
+            );
+            if direct.is_some() {
+                keys.insert(edge_key(a, b));
+                continue;
+            }
+            let (pa, pb) = (self.params[a], self.params[b]);
+            let along = pb - pa;
+            let length_squared = along.length_squared();
+            let (mut current, mut progress) = (a, 0.0);
+            for _ in 0..MAX_SPLIT_WALK {
+                if current == b {
+                    break;
+                }
+                let next = self
+                    .cdt
+                    .vertex(FixedVertexHandle::from_index(current))
+                    .out_edges()
+                    .filter(|edge| self.cdt.is_constraint_edge(edge.as_undirected().fix()))
+                    .map(|edge| edge.to().fix().index())
+                    .filter_map(|v| {
+                        let offset = self.params[v] - pa;
+                        let t = offset.dot(along) / length_squared;
+                        let off_line = offset.perp_dot(along).abs() / length_squared;
+                        (t > progress && t <= 1.0 + 1e-12 && off_line <= 1e-12).then_some((t, v))
+                    })
+                    .min_by(|x, y| x.0.total_cmp(&y.0));
+                let Some((t, v)) = next else { break };
+                keys.insert(edge_key(current, v));
+                (current, progress) = (v, t);
+            }
+        }
+        keys
+    }
+
+    /// Whether each inner face (by index) is part of the face: parity of the loop edges
+    /// crossed on a walk from outside the hull, spread from face to face (consistent for
+    /// slivers whose centroids a point-in-polygon test would place by rounding).
+    fn inside(&self) -> Vec<bool> {
+        let loop_edges = self.loop_edges();
+        let is_loop = |edge: &spade::handles::DirectedEdgeHandle<_, _, _, _>| {
+            loop_edges.contains(&edge_key(
+                edge.from().fix().index(),
+                edge.to().fix().index(),
+            ))
+        };
+        let mut inside: Vec<Option<bool>> = vec![None; self.cdt.num_all_faces()];
+        let mut queue = std::collections::VecDeque::new();
+        for face in self.cdt.inner_faces() {
+            for edge in face.adjacent_edges() {
+                if edge.rev().face().is_outer() && inside[face.fix().index()].is_none() {
+                    inside[face.fix().index()] = Some(is_loop(&edge));
+                    queue.push_back(face);
+                }
+            }
+        }
+        while let Some(face) = queue.pop_front() {
+            let parity = inside[face.fix().index()].expect("queued faces are placed");
+            for edge in face.adjacent_edges() {
+                if let Some(next) = edge.rev().face().as_inner()
+                    && inside[next.fix().index()].is_none()
+                {
+                    inside[next.fix().index()] = Some(parity != is_loop(&edge));
+                    queue.push_back(next);
+                }
+            }
+        }
+        inside.into_iter().map(|k| k.unwrap_or(false)).collect()
+    }
+
+    /// The parameters of every triangle of the face, counter-clockwise, with their indices.
+    fn triangles(&self) -> Vec<([usize; 3], [DVec2; 3])> {
+        let inside = self.inside();
+        self.cdt
+            .inner_faces()
+            .filter(|face| inside[face.fix().index()])
+            .map(|face| {
+                let ids = face.vertices().map(|v| v.fix().index());
+                (ids, ids.map(|k| self.params[k]))
+            })
+            .collect()
+    }
+
+    /// Splits triangles of the face at their centroids until each meets `limits` by the
+    /// bound of the cells its parameter box overlaps.
+    fn refine(&mut self, bounds: &CellBounds, limits: SamplingLimits) -> Result<()> {
+        loop {
+            let mut splits = Vec::new();
+            for (_, [a, b, c]) in self.triangles() {
+                let (low, high) = (a.min(b).min(c), a.max(b).max(c));
+                let extent = high - low;
+                let bound = bounds.over(low, high);
+                if bound.deviation(extent.x, extent.y) > limits.tolerance
+                    || bound.edge_length(extent.x, extent.y) > limits.max_edge
+                {
+                    splits.push((a + b + c) / 3.0);
+                }
+            }
+            if self.params.len() + splits.len() > MAX_TRIMMED_VERTICES {
+                return Err(Error::TrimmedTooFine {
+                    vertices: MAX_TRIMMED_VERTICES,
+                    tolerance: limits.tolerance,
+                });
+            }
+            // A sliver whose centroid rounds onto one of its corners cannot be split further
+            // at f64 resolution: refinement stops when a pass adds nothing.
+            let before = self.params.len();
+            for p in splits {
+                let handle = self.cdt.insert(scaled(p, self.scale)).map_err(|error| {
+                    Error::InvalidTrimLoop {
+                        loop_index: 0,
+                        problem: format!("cannot be triangulated: {error}"),
+                    }
+                })?;
+                if handle.index() == self.params.len() {
+                    self.params.push(p);
+                }
+            }
+            if self.params.len() == before {
+                return Ok(());
+            }
+        }
+    }
+
+    /// The triangles of the face and the vertices they use, renumbered in order of use.
+    fn collect(&self) -> TrimmedPlan {
+        let mut plan = TrimmedPlan::default();
+        let mut renumbered: HashMap<usize, u32> = HashMap::new();
+        for (ids, _) in self.triangles() {
+            let triangle = ids.map(|k| {
+                *renumbered.entry(k).or_insert_with(|| {
+                    plan.params.push(self.params[k]);
+                    (plan.params.len() - 1) as u32
+                })
+            });
+            plan.triangles.push(triangle);
+        }
+        plan
+    }
+}
+
+/// Every loop of the face as a closed polyline in surface parameters (no repeated end).
+fn loop_polylines(
+    face: &TrimmedSurface,
+    bounds: &CellBounds,
+    lines: &CellLines,
+    limits: SamplingLimits,
+) -> Result<Vec<Vec<DVec2>>> {
+    let surface = face.surface();
+    let (range_u, range_v) = (surface.range_u(), surface.range_v());
+    let clamp = |p: DVec2| {
+        DVec2::new(
+            p.x.clamp(range_u.start, range_u.end),
+            p.y.clamp(range_v.start, range_v.end),
+        )
+    };
+    // Whether the parameter box of `points` allows `tolerance` and the longest edge.
+    let box_allows = |points: &[DVec2], tolerance: f64| {
+        let low = points.iter().fold(points[0], |low, &p| low.min(p));
+        let high = points.iter().fold(points[0], |high, &p| high.max(p));
+        let extent = high - low;
+        let bound = bounds.over(low, high);
+        bound.deviation(extent.x, extent.y) <= tolerance
+            && bound.edge_length(extent.x, extent.y) <= limits.max_edge
+    };
+    // A piece of a path is kept when its chord follows the path on the surface and its
+    // parameter box allows half the tolerance.
+    let half = 0.5 * limits.tolerance;
+    let accept = |at: &dyn Fn(f64) -> DVec2, t0: f64, t1: f64, a: DVec2, b: DVec2| {
+        box_allows(&[a, b], half)
+            && [0.25, 0.5, 0.75].iter().all(|&s| {
+                let on_loop = at(t0 + (t1 - t0) * s);
+                let on_chord = a + (b - a) * s;
+                surface
+                    .point(on_loop.x, on_loop.y)
+                    .distance(surface.point(on_chord.x, on_chord.y))
+                    <= half
+            })
+    };
+    // Two consecutive pieces are kept when the box of their three points allows the whole
+    // tolerance: the triangle they make (a loop's ear) meets it too.
+    // An ear across a cell line is no triangle: the line is a constraint through its middle
+    // point.
+    let ear_allows = |points: &[DVec2; 3]| {
+        let low = points[0].min(points[1]).min(points[2]);
+        let high = points[0].max(points[1]).max(points[2]);
+        lines.crossed(low, high).is_some() || box_allows(points, limits.tolerance)
+    };
+    let mut polylines = Vec::new();
+    if face.outer().is_none() {
+        let corners = [
+            DVec2::new(range_u.start, range_v.start),
+            DVec2::new(range_u.end, range_v.start),
+            DVec2::new(range_u.end, range_v.end),
+            DVec2::new(range_u.start, range_v.end),
+        ];
+        let sides: Vec<Path> = (0..4)
+            .map(|k| {
+                let (from, to) = (corners[k], corners[(k + 1) % 4]);
+                // The side's knots are where its second derivatives may jump.
+                let (knots, range) = if k % 2 == 0 {
+                    (surface.knots_u(), range_u)
+                } else {
+                    (surface.knots_v(), range_v)
+                };
+                let mut breaks: Vec<f64> = knots
+                    .knots()
+                    .iter()
+                    .map(|&t| (t - range.start) / range.width())
+                    .map(|f| if k >= 2 { 1.0 - f } else { f })
+                    .filter(|&f| f > 0.0 && f < 1.0)
+                    .collect();
+                breaks.push(0.0);
+                breaks.push(1.0);
+                breaks.sort_by(f64::total_cmp);
+                breaks.dedup();
+                Path {
+                    at: Box::new(move |t: f64| from.lerp(to, t)),
+                    breaks,
+                    minimum: 1,
+                }
+            })
+            .collect();
+        polylines.push(sample_loop(&sides, lines, &accept, &ear_allows));
+    }
+    for (loop_index, trim_loop) in face.loops() {
+        let paths: Vec<Path> = trim_loop
+            .curves
+            .iter()
+            .map(|curve| Path {
+                at: Box::new(move |t: f64| clamp(face.curve_point(curve, t))),
+                breaks: curve.span_breaks(),
+                minimum: if curve.degree() > 1 { 2 } else { 1 },
+            })
+            .collect();
+        let mut polyline = sample_loop(&paths, lines, &accept, &ear_allows);
+        polyline.dedup();
+        if polyline.len() > 1 && polyline.first() == polyline.last() {
+            polyline.pop();
+        }
+        if polyline.len() < 3 || enclosed_area(&polyline) == 0.0 {
+            return Err(Error::InvalidTrimLoop {
+                loop_index,
+                problem: "encloses no area".into(),
+            });
+        }
+        polylines.push(polyline);
+    }
+    Ok(polylines)
+}
+
+/// One part of a loop: a point function over consecutive `breaks` (where its second
+/// derivatives may jump), cut into at least `minimum` pieces per span.
+struct Path<'a> {
+    at: Box<dyn Fn(f64) -> DVec2 + 'a>,
+    breaks: Vec<f64>,
+    minimum: u32,
+}
+
+/// Whether a piece of a path (the point function, its parameters t0 and t1, its end points)
+/// may be one loop segment.
+type PieceTest<'a> = &'a dyn Fn(&dyn Fn(f64) -> DVec2, f64, f64, DVec2, DVec2) -> bool;
+
+/// Most rounds of bisecting the pieces beside ears the tolerance does not allow.
+const MAX_EAR_ROUNDS: u32 = 30;
+
+/// Samples a closed loop made of `paths`: each path's pieces bisected until `accept` keeps
+/// them ([`sample_path`]), then the two pieces beside every ear `ear_allows` refuses
+/// bisected until none is left.
+fn sample_loop(
+    paths: &[Path],
+    lines: &CellLines,
+    accept: PieceTest,
+    ear_allows: &dyn Fn(&[DVec2; 3]) -> bool,
+) -> Vec<DVec2> {
+    // (path, parameter, point) of the start of every piece; a piece ends where the next
+    // starts, or at its path's end.
+    let mut samples: Vec<(usize, f64, DVec2)> = Vec::new();
+    for (k, path) in paths.iter().enumerate() {
+        let at = |t: f64| lines.snap((path.at)(t));
+        let mut pieces = Vec::new();
+        sample_path(&at, &path.breaks, path.minimum, lines, accept, &mut pieces);
+        samples.extend(pieces.into_iter().map(|(t, p)| (k, t, p)));
+    }
+    for _ in 0..MAX_EAR_ROUNDS {
+        let n = samples.len();
+        if n < 3 {
+            break;
+        }
+        let mut split = vec![false; n];
+        for i in 0..n {
+            let before = (i + n - 1) % n;
+            let ear = [samples[before].2, samples[i].2, samples[(i + 1) % n].2];
+            if !ear_allows(&ear) {
+                split[before] = true;
+                split[i] = true;
+            }
+        }
+        if !split.contains(&true) {
+            break;
+        }
+        let mut finer = Vec::with_capacity(2 * n);
+        for i in 0..n {
+            let (path, t0, p) = samples[i];
+            finer.push((path, t0, p));
+            if split[i] {
+                let next = samples[(i + 1) % n];
+                let t1 = if next.0 == path && next.1 > t0 {
+                    next.1
+                } else {
+                    *paths[path].breaks.last().expect("a path has breaks")
+                };
+                let middle = 0.5 * (t0 + t1);
+                if middle > t0 && middle < t1 {
+                    finer.push((path, middle, lines.snap((paths[path].at)(middle))));
+                }
+            }
+        }
+        if finer.len() == n {
+            break;
+        }
+        samples = finer;
+    }
+    samples.into_iter().map(|(_, _, p)| p).collect()
+}
+
+/// Appends (parameter, point) of the start of every piece of a path (`at` over consecutive
+/// `breaks`), every piece bisected until `accept` keeps it, each span into at least `minimum`
+/// pieces, and cut where it crosses a cell line at the crossing's parameter (found by
+/// bisection; `at` puts points within rounding of a line on it).
+fn sample_path(
+    at: &dyn Fn(f64) -> DVec2,
+    breaks: &[f64],
+    minimum: u32,
+    lines: &CellLines,
+    accept: PieceTest,
+    out: &mut Vec<(f64, DVec2)>,
+) {
+    for span in breaks.windows(2) {
+        let (start, end) = (span[0], span[1]);
+        let piece_end = |k: u32| {
+            if k == minimum {
+                end
+            } else {
+                start + (end - start) * f64::from(k) / f64::from(minimum)
+            }
+        };
+        // Depth-first, left piece first, so samples come out in order: (start, its point,
+        // end, its point, depth), a crossing's point put on its line.
+        let mut stack: Vec<(f64, DVec2, f64, DVec2, u32)> = (0..minimum)
+            .rev()
+            .map(|k| {
+                let (t0, t1) = (piece_end(k), piece_end(k + 1));
+                (t0, at(t0), t1, at(t1), 0)
+            })
+            .collect();
+        while let Some((t0, a, t1, b, depth)) = stack.pop() {
+            let cut = match lines.crossed(a, b) {
+                Some((axis, line)) if depth < MAX_LOOP_DEPTH => {
+                    let t = crossing(at, axis, line, t0, t1);
+                    let mut on_line = at(t);
+                    on_line[axis] = line;
+                    Some((t, on_line))
+                }
+                _ if depth >= MAX_LOOP_DEPTH || accept(at, t0, t1, a, b) => None,
+                _ => {
+                    let t = 0.5 * (t0 + t1);
+                    Some((t, at(t)))
+                }
+            };
+            match cut {
+                Some((t, p)) if t > t0 && t < t1 => {
+                    stack.push((t, p, t1, b, depth + 1));
+                    stack.push((t0, a, t, p, depth + 1));
+                }
+                _ => out.push((t0, a)),
+            }
+        }
+    }
+}
+
+/// The parameter in (t0, t1) where the path crosses `line` of `axis`, to rounding
+/// (bisection on the sign of the side, which differs at t0 and t1).
+fn crossing(at: &dyn Fn(f64) -> DVec2, axis: usize, line: f64, t0: f64, t1: f64) -> f64 {
+    let side = |t: f64| at(t)[axis] > line;
+    let start_side = side(t0);
+    let (mut low, mut high) = (t0, t1);
+    for _ in 0..64 {
+        let middle = 0.5 * (low + high);
+        if middle <= low || middle >= high {
+            break;
+        }
+        if side(middle) == start_side {
+            low = middle;
+        } else {
+            high = middle;
+        }
+    }
+    high
+}
+
+/// The cell boundaries inside the range: lines of constant u (`lines[0]`) and of constant v
+/// (`lines[1]`), ascending. No triangle crosses one.
+struct CellLines {
+    lines: [Vec<f64>; 2],
+    /// How near (parameter units) a point counts as on a line of each axis: rounding.
+    snap_width: [f64; 2],
+}
+
+impl CellLines {
+    /// The first line of either axis strictly between a and b, if any.
+    fn crossed(&self, a: DVec2, b: DVec2) -> Option<(usize, f64)> {
+        (0..2).find_map(|axis| {
+            let (low, high) = (a[axis].min(b[axis]), a[axis].max(b[axis]));
+            let lines = &self.lines[axis];
+            let first = lines.partition_point(|&line| line <= low);
+            lines
+                .get(first)
+                .filter(|&&line| line < high)
+                .map(|&line| (axis, line))
+        })
+    }
+
+    /// `p` with each coordinate within rounding of a line put on it.
+    fn snap(&self, mut p: DVec2) -> DVec2 {
+        for axis in 0..2 {
+            let lines = &self.lines[axis];
+            let next = lines.partition_point(|&line| line < p[axis]);
+            for &line in lines[next.saturating_sub(1)..].iter().take(2) {
+                if (p[axis] - line).abs() <= self.snap_width[axis] {
+                    p[axis] = line;
+                }
+            }
+        }
+        p
+    }
+}
+
+/// Twice the signed area of a closed polyline (shoelace).
+fn enclosed_area(polyline: &[DVec2]) -> f64 {
+    (0..polyline.len())
+        .map(|k| polyline[k].perp_dot(polyline[(k + 1) % polyline.len()]))
+        .sum()
+}
+
+/// The polyline with a vertex added wherever a segment still crosses a cell line (a piece
+/// whose ends lie on one side while the loop dips across between them; `lines[0]`: of
+/// constant u, `lines[1]`: of constant v), placed exactly on the line.
+fn with_line_crossings(polyline: &[DVec2], lines: &[Vec<f64>; 2]) -> Vec<DVec2> {
+    let mut out = Vec::with_capacity(polyline.len());
+    for (k, &a) in polyline.iter().enumerate() {
+        let b = polyline[(k + 1) % polyline.len()];
+        out.push(a);
+        let mut crossings: Vec<(f64, DVec2)> = Vec::new();
+        for axis in 0..2 {
+            let (from, to) = (a[axis], b[axis]);
+            let (low, high) = (from.min(to), from.max(to));
+            let lines = &lines[axis];
+            let first = lines.partition_point(|&line| line <= low);
+            for &line in lines[first..].iter().take_while(|&&line| line < high) {
+                let t = (line - from) / (to - from);
+                let mut p = a.lerp(b, t);
+                p[axis] = line;
+                crossings.push((t, p));
+            }
+        }
+        crossings.sort_by(|x, y| x.0.total_cmp(&y.0));
+        out.extend(crossings.into_iter().map(|(_, p)| p));
+    }
+    out
+}
+
+/// The loops as segments, bucketed by v, for the crossing-number test.
+struct Region {
+    /// (start, end) of every segment, loop after loop.
+    segments: Vec<(DVec2, DVec2)>,
+    /// The first segment of each loop (ascending), for naming a loop.
+    loop_starts: Vec<usize>,
+    /// Segment indices of each row of the v range.
+    rows: Vec<Vec<u32>>,
+    v_start: f64,
+    row_height: f64,
+}
+
+impl Region {
+    fn new(polylines: &[Vec<DVec2>]) -> Self {
+        let mut segments = Vec::new();
+        let mut loop_starts = Vec::new();
+        for polyline in polylines {
+            loop_starts.push(segments.len());
+            for (k, &a) in polyline.iter().enumerate() {
+                segments.push((a, polyline[(k + 1) % polyline.len()]));
+            }
+        }
+        let (v_start, v_end) = segments
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(low, high), (a, b)| {
+                (low.min(a.y).min(b.y), high.max(a.y).max(b.y))
+            });
+        let row_count = (segments.len() as f64).sqrt().clamp(1.0, 4096.0) as usize;
+        let row_height = ((v_end - v_start) / row_count as f64).max(f64::MIN_POSITIVE);
+        let mut rows = vec![Vec::new(); row_count];
+        let row_of =
+            |v: f64| (((v - v_start) / row_height).floor().max(0.0) as usize).min(row_count - 1);
+        for (k, (a, b)) in segments.iter().enumerate() {
+            for row in &mut rows[row_of(a.y.min(b.y))..=row_of(a.y.max(b.y))] {
+                row.push(k as u32);
+            }
+        }
+        Region {
+            segments,
+            loop_starts,
+            rows,
+            v_start,
+            row_height,
+        }
+    }
+
+    /// Whether `p` is inside the face: an odd number of loop segments cross the ray from `p`
+    /// towards +u (each segment half-open in v, so a vertex on the ray counts once).
+    fn contains(&self, p: DVec2) -> bool {
+        let row = (p.y - self.v_start) / self.row_height;
+        if !(row >= 0.0 && row < self.rows.len() as f64 + 1.0) {
+            return false;
+        }
+        let row = (row as usize).min(self.rows.len() - 1);
+        let mut inside = false;
+        for &k in &self.rows[row] {
+            let (a, b) = self.segments[k as usize];
+            if (a.y > p.y) != (b.y > p.y) {
+                let x = a.x + (p.y - a.y) / (b.y - a.y) * (b.x - a.x);
+                if p.x < x {
+                    inside = !inside;
+                }
+            }
+        }
+        inside
+    }
+
+    /// The loop (position among the face's polylines) of segment `k`.
+    fn loop_of_edge(&self, k: usize) -> usize {
+        self.loop_starts.partition_point(|&start| start <= k) - 1
+    }
+}
+
+/// The vertices of the triangulation, each position once, with those on each cell line.
+struct Vertices {
+    positions: Vec<DVec2>,
+    index_of: HashMap<[u64; 2], usize>,
+    /// The triangulation's scale (see [`scaled`]).
+    scale: DVec2,
+    /// Cell line of each axis by its parameter's bits → its vertices.
+    on_lines: [std::collections::BTreeMap<u64, Vec<usize>>; 2],
+}
+
+impl Vertices {
+    fn new(cell_lines: &[Vec<f64>; 2], scale: DVec2) -> Self {
+        let lines = |axis: usize| {
+            cell_lines[axis]
+                .iter()
+                .map(|t| (t.to_bits(), Vec::new()))
+                .collect()
+        };
+        Vertices {
+            positions: Vec::new(),
+            index_of: HashMap::new(),
+            scale,
+            on_lines: [lines(0), lines(1)],
+        }
+    }
+
+    /// The index of `p`, added if new.
+    fn add(&mut self, p: DVec2) -> usize {
+        // Keyed by the scaled point spade sees (points distinct only before scaling are one
+        // vertex to spade); -0.0 and 0.0 are one position.
+        let q = scaled(p, self.scale);
+        let key = [(q.x + 0.0).to_bits(), (q.y + 0.0).to_bits()];
+        if let Some(&index) = self.index_of.get(&key) {
+            return index;
+        }
+        let index = self.positions.len();
+        self.positions.push(p);
+        self.index_of.insert(key, index);
+        for axis in 0..2 {
+            if let Some(line) = self.on_lines[axis].get_mut(&(p[axis] + 0.0).to_bits()) {
+                line.push(index);
+            }
+        }
+        index
+    }
+
+    /// Constraint edges along the cell lines inside the face: between consecutive vertices
+    /// of each line whose midpoint is inside and which are not already a loop segment.
+    fn line_edges(&self, region: &Region, loop_edges: &HashSet<[usize; 2]>) -> Vec<[usize; 2]> {
+        let mut edges = Vec::new();
+        for axis in 0..2 {
+            for line in self.on_lines[axis].values() {
+                let mut along = line.clone();
+                along.sort_by(|&a, &b| {
+                    self.positions[a][1 - axis].total_cmp(&self.positions[b][1 - axis])
+                });
+                for pair in along.windows(2) {
+                    let [a, b] = [pair[0], pair[1]];
+                    let middle = 0.5 * (self.positions[a] + self.positions[b]);
+                    if !loop_edges.contains(&[a, b]) && region.contains(middle) {
+                        edges.push([a, b]);
+                    }
+                }
+            }
+        }
+        edges
+    }
+}
+
+/// The derivative bounds of a surface's adaptive cells, looked up by parameter box.
+pub(crate) struct CellBounds {
+    columns: Vec<Interval>,
+    rows: Vec<Interval>,
+    bounds: Vec<DerivativeBound>,
+}
+
+impl CellBounds {
+    pub(crate) fn new(grid: &CellGrid) -> Self {
+        CellBounds {
+            columns: grid.cells[..grid.columns]
+                .iter()
+                .map(|c| c.range_u)
+                .collect(),
+            rows: grid
+                .cells
+                .iter()
+                .step_by(grid.columns)
+                .map(|c| c.range_v)
+                .collect(),
+            bounds: grid.cells.iter().map(|c| c.bound).collect(),
+        }
+    }
+
+    /// The cell boundaries strictly inside the range: lines of constant u (`[0]`) and of
+    /// constant v (`[1]`), ascending.
+    fn interior_lines(&self) -> [Vec<f64>; 2] {
+        let inner = |cells: &[Interval]| cells[1..].iter().map(|c| c.start).collect();
+        [inner(&self.columns), inner(&self.rows)]
+    }
+
+    /// Per-axis scales (1 / parameter unit) under which the deviation bound is about as
+    /// strict along u as along v: √M_uu and √M_vv at their median over the cells, an axis
+    /// with none (flat along it) at 1 / its range width.
+    pub(crate) fn typical_scale(&self, width_u: f64, width_v: f64) -> DVec2 {
+        let median = |of: fn(&DerivativeBound) -> f64, width: f64| {
+            let mut values: Vec<f64> = self.bounds.iter().map(of).filter(|&m| m > 0.0).collect();
+            if values.is_empty() {
+                return 1.0 / width;
+            }
+            let middle = values.len() / 2;
+            values.select_nth_unstable_by(middle, f64::total_cmp);
+            values[middle].sqrt()
+        };
+        DVec2::new(median(|b| b.uu, width_u), median(|b| b.vv, width_v))
+    }
+
+    /// The largest of each bound over the cells the box [low, high] overlaps (a box of zero
+    /// width along an axis: a cell on either side of it): a bound over the box wherever the
+    /// surface is C¹ across it.
+    pub(crate) fn over(&self, low: DVec2, high: DVec2) -> DerivativeBound {
+        let touched = |cells: &[Interval], low: f64, high: f64| {
+            let first = cells.partition_point(|c| c.end <= low).min(cells.len() - 1);
+            let last = cells.partition_point(|c| c.start < high).max(first + 1);
+            first..last
+        };
+        let mut bound = DerivativeBound::default();
+        for b in touched(&self.rows, low.y, high.y) {
+            for a in touched(&self.columns, low.x, high.x) {
+                let cell = &self.bounds[b * self.columns.len() + a];
+                bound.u = bound.u.max(cell.u);
+                bound.v = bound.v.max(cell.v);
+                bound.uu = bound.uu.max(cell.uu);
+                bound.uv = bound.uv.max(cell.uv);
+                bound.vv = bound.vv.max(cell.vv);
+            }
+        }
+        bound
+    }
+}
