@@ -2057,17 +2057,8 @@ fn trimmed_triangles_never_straddle_a_crease() {
 /// an outer circle in its parameter range, a quadrilateral hole inside it.
 fn trimmed_case() -> impl Strategy<Value = (TrimmedSurface, f64, glam::DVec2, f64, [glam::DVec2; 4])>
 {
-    let no_thin_spans = |(surface, _): &(BSplineSurface, f64)| {
-        [surface.knots_u(), surface.knots_v()].iter().all(|knots| {
-            let (start, end) = knots.domain();
-            knots
-                .knots()
-                .windows(2)
-                .all(|w| w[1] == w[0] || w[1] - w[0] > 1e-3 * (end - start))
-        })
-    };
     (
-        adaptive_case().prop_filter("spans 1e-6 wide: see the note on thin spans", no_thin_spans),
+        adaptive_case(),
         -3.0f64..-1.0,
         0.3f64..0.48,
         prop::array::uniform4((0.02f64..0.15, 0.0f64..1.5)),
@@ -2120,7 +2111,7 @@ proptest! {
     /// used once lie on a loop, the boundary's shoelace area is the triangles' area), and
     /// no triangle lies outside the outer circle or inside the hole.
     #[test]
-    #[ignore = "fails: open edges inside random faces (issue 15, in progress)"]
+    #[ignore = "fails: with seed 7 over 400 cases a face loses a band along its outer loop (uv area 0.449 of 0.501); issue 15 in progress"]
     fn trimmed_faces_stay_within_their_tolerance_inside_their_loops(
         (face, tolerance, centre, radius, hole) in trimmed_case()
     ) {
@@ -2130,7 +2121,11 @@ proptest! {
         let worst = worst_deviation(std::slice::from_ref(&surface), &mesh);
         let rounding = 1e-12 * surface.control_box_diagonal();
         prop_assert!(worst <= tolerance + rounding, "deviation {worst:e} over {tolerance:e}");
-        let on_circle = |p: glam::DVec2| ((p - centre).length() - radius).abs() < 1e-9;
+        // A boundary vertex is a loop's own point, or a point of a loop's chord (a grid point
+        // spade finds on a chord), within a chord's sagitta — here under 5 % of the radius —
+        // of the loop: a hole left inside the face would show edges farther in.
+        let near = 0.05 * radius;
+        let on_circle = |p: glam::DVec2| ((p - centre).length() - radius).abs() < near;
         let on_hole = |p: glam::DVec2| {
             (0..4).any(|k| {
                 let (a, b) = (hole[k], hole[(k + 1) % 4]);
@@ -2147,7 +2142,7 @@ proptest! {
         }
         let hole_area = 0.5 * (0..4).map(|k| hole[k].perp_dot(hole[(k + 1) % 4])).sum::<f64>();
         let disc = std::f64::consts::PI * radius * radius;
-        prop_assert!(area < disc - hole_area + 1e-12 && area > 0.9 * (disc - hole_area), "uv area {area}");
+        prop_assert!(area < disc - hole_area + 1e-12 && area > 0.9 * (disc - hole_area), "uv area {area} of {} (disc {disc}, hole {hole_area})", disc - hole_area);
     }
 }
 
