@@ -2111,7 +2111,7 @@ proptest! {
     /// used once lie on a loop, the boundary's shoelace area is the triangles' area), and
     /// no triangle lies outside the outer circle or inside the hole.
     #[test]
-    #[ignore = "fails: with seed 7 over 400 cases a face loses a band along its outer loop (uv area 0.449 of 0.501); issue 15 in progress"]
+    #[ignore = "fails: with seed 7 over 400 cases, a sliver of three collinear hole-loop points beside a cell line deviates 2.2e-2 over a tolerance of 1.1e-2; issue 15 in progress"]
     fn trimmed_faces_stay_within_their_tolerance_inside_their_loops(
         (face, tolerance, centre, radius, hole) in trimmed_case()
     ) {
@@ -2142,7 +2142,14 @@ proptest! {
         }
         let hole_area = 0.5 * (0..4).map(|k| hole[k].perp_dot(hole[(k + 1) % 4])).sum::<f64>();
         let disc = std::f64::consts::PI * radius * radius;
-        prop_assert!(area < disc - hole_area + 1e-12 && area > 0.9 * (disc - hole_area), "uv area {area} of {} (disc {disc}, hole {hole_area})", disc - hole_area);
+        // At least the regular octagon inscribed in the circle: the fewest samples, two
+        // pieces per quarter arc, at the arcs' ends and middles; more samples only add area.
+        let octagon = 2.0 * std::f64::consts::SQRT_2 * radius * radius;
+        prop_assert!(
+            area < disc - hole_area + 1e-12 && area > octagon - hole_area - 1e-12,
+            "uv area {area} of {} (disc {disc}, hole {hole_area})",
+            disc - hole_area
+        );
     }
 }
 
