@@ -2103,7 +2103,7 @@ fn trimmed_case() -> impl Strategy<Value = (TrimmedSurface, f64, glam::DVec2, f6
 proptest! {
     #![proptest_config(ProptestConfig {
         rng_seed: proptest::test_runner::RngSeed::Fixed(20261202),
-        ..ProptestConfig::with_cases(32)
+        ..ProptestConfig::with_cases(64)
     })]
 
     /// A trimmed face stays within its tolerance (centroids and edge midpoints against the
@@ -2111,7 +2111,6 @@ proptest! {
     /// used once lie on a loop, the boundary's shoelace area is the triangles' area), and
     /// no triangle lies outside the outer circle or inside the hole.
     #[test]
-    #[ignore = "fails: with seed 7 over 400 cases, a sliver of three collinear hole-loop points beside a cell line deviates 2.2e-2 over a tolerance of 1.1e-2; issue 15 in progress"]
     fn trimmed_faces_stay_within_their_tolerance_inside_their_loops(
         (face, tolerance, centre, radius, hole) in trimmed_case()
     ) {
@@ -2134,10 +2133,10 @@ proptest! {
             })
         };
         let area = check_trimmed_topology(&mesh, |p| on_circle(p) || on_hole(p))?;
-        let inside_hole = |p: glam::DVec2| (0..4).all(|k| (hole[(k + 1) % 4] - hole[k]).perp_dot(p - hole[k]) > 0.0);
+        let inside_hole = |p: glam::DVec2| (0..4).all(|k| (hole[(k + 1) % 4] - hole[k]).perp_dot(p - hole[k]) > 1e-12);
         for [a, b, c] in uv_triangles(&mesh) {
             let centroid = (a + b + c) / 3.0;
-            prop_assert!((centroid - centre).length() < radius, "centroid {centroid} outside the circle");
+            prop_assert!((centroid - centre).length() < radius + 1e-9, "centroid {centroid} outside the circle by {:e}", (centroid - centre).length() - radius);
             prop_assert!(!inside_hole(centroid), "centroid {centroid} inside the hole");
         }
         let hole_area = 0.5 * (0..4).map(|k| hole[k].perp_dot(hole[(k + 1) % 4])).sum::<f64>();

@@ -367,14 +367,9 @@ fn loop_polylines(
             })
     };
     // Two consecutive pieces are kept when the box of their three points allows the whole
-    // tolerance: the triangle they make (a loop's ear) meets it too.
-    // An ear across a cell line is no triangle: the line is a constraint through its middle
-    // point.
-    let ear_allows = |points: &[DVec2; 3]| {
-        let low = points[0].min(points[1]).min(points[2]);
-        let high = points[0].max(points[1]).max(points[2]);
-        lines.crossed(low, high).is_some() || box_allows(points, limits.tolerance)
-    };
+    // tolerance: the triangle they make (a loop's ear, a sliver where the loop is straight)
+    // meets it too.
+    let ear_allows = |points: &[DVec2; 3]| box_allows(points, limits.tolerance);
     let mut polylines = Vec::new();
     if face.outer().is_none() {
         let corners = [
