@@ -142,6 +142,7 @@ impl BSplineCurve {
     pub fn is_rational(&self) -> bool {
         self.rational
     }
+
     /// The evaluation range cut at the knots inside it: its start, those knots (each once),
     /// its end — the pieces over which the curve is a single polynomial (or rational).
     pub fn span_breaks(&self) -> Vec<f64> {

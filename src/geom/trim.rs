@@ -201,11 +201,6 @@ impl TrimmedSurface {
         }
         samples
     }
-
-    /// The diagonal of the box of the surface's control points (model units).
-    pub fn control_box_diagonal(&self) -> f64 {
-        self.surface.control_box_diagonal()
-    }
 }
 
 #[cfg(test)]

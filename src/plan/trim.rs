@@ -16,8 +16,8 @@
 //!    bound of a neighbour, or across a C⁰ knot, would not), and the interior keeps the
 //!    cells' rectangles.
 //! 4. A constrained Delaunay triangulation (spade) in scaled parameters keeps every
-//!    constraint; a triangle is part of the face when its centroid is (odd crossing count
-//!    against the loops).
+//!    constraint; a triangle is part of the face when an odd number of loop edges separate
+//!    it from outside the hull (parity spread from face to face).
 //! 5. Triangles whose parameter box is too wide for their cell's bound are split at their
 //!    centroids until every one meets the tolerance and the longest edge.
 
@@ -58,7 +58,7 @@ pub fn plan_trimmed(face: &TrimmedSurface, limits: SamplingLimits) -> Result<Tri
     };
     let mut polylines = loop_polylines(face, &bounds, &lines, limits)?;
     for polyline in &mut polylines {
-        *polyline = with_line_crossings(polyline, &lines.lines);
+        *polyline = with_line_crossings(polyline, &lines);
     }
     let region = Region::new(&polylines);
 
@@ -77,9 +77,8 @@ pub fn plan_trimmed(face: &TrimmedSurface, limits: SamplingLimits) -> Result<Tri
             }
         }
     }
-    let loop_edge_count = edges.len();
-    let loop_edges: HashSet<[usize; 2]> =
-        edges.iter().flat_map(|&[a, b]| [[a, b], [b, a]]).collect();
+    let loop_segments = edges.clone();
+    let loop_edges: HashSet<[usize; 2]> = edges.iter().map(|&[a, b]| edge_key(a, b)).collect();
     // The grid lines of the cells between samples inside the face: constraints wherever
     // they cross no loop, so the interior keeps the cells' own rectangles, whose bounds
     // hold (a Delaunay triangle could join a coarse cell to a fine one).
@@ -115,19 +114,18 @@ pub fn plan_trimmed(face: &TrimmedSurface, limits: SamplingLimits) -> Result<Tri
         .map(|&p| scaled(p, scale))
         .collect();
     let mut conflicts = Vec::new();
-    let cdt = ConstrainedDelaunayTriangulation::<Point2<f64>>::try_bulk_load_cdt(
-        points,
-        edges.clone(),
-        |edge| conflicts.push(edge),
-    )
-    .map_err(|error| Error::InvalidTrimLoop {
-        loop_index: 0,
-        problem: format!("cannot be triangulated: {error}"),
-    })?;
+    let cdt =
+        ConstrainedDelaunayTriangulation::<Point2<f64>>::try_bulk_load_cdt(points, edges, |edge| {
+            conflicts.push(edge)
+        })
+        .map_err(|error| Error::InvalidTrimLoop {
+            loop_index: 0,
+            problem: format!("cannot be triangulated: {error}"),
+        })?;
     if let Some(&conflict) = conflicts.first() {
         // Constraints go in order, so the edge refused is of the later loop of the two.
         let at = vertices.positions[conflict[0]];
-        let loop_index = edges[..loop_edge_count]
+        let loop_index = loop_segments
             .iter()
             .position(|&edge| edge == conflict)
             .map_or(0, |k| region.loop_of_edge(k));
@@ -143,7 +141,7 @@ pub fn plan_trimmed(face: &TrimmedSurface, limits: SamplingLimits) -> Result<Tri
         cdt,
         params: vertices.positions,
         scale,
-        loop_segments: edges[..loop_edge_count].to_vec(),
+        loop_segments,
     };
     for [a, b] in grid_lines {
         mesh.cdt.try_add_constraint(
@@ -151,8 +149,8 @@ pub fn plan_trimmed(face: &TrimmedSurface, limits: SamplingLimits) -> Result<Tri
             FixedVertexHandle::from_index(b),
         );
     }
-    mesh.refine(&bounds, limits)?;
-    Ok(mesh.collect())
+    let triangles = mesh.refine(&bounds, limits)?;
+    Ok(mesh.collect(&triangles))
 }
 
 /// A point of the parameter plane in the triangulation's scaled coordinates.
@@ -271,11 +269,16 @@ impl FaceTriangulation {
     }
 
     /// Splits triangles of the face at their centroids until each meets `limits` by the
-    /// bound of the cells its parameter box overlaps.
-    fn refine(&mut self, bounds: &CellBounds, limits: SamplingLimits) -> Result<()> {
+    /// bound of the cells its parameter box overlaps; returns the face's final triangles.
+    fn refine(
+        &mut self,
+        bounds: &CellBounds,
+        limits: SamplingLimits,
+    ) -> Result<Vec<([usize; 3], [DVec2; 3])>> {
         loop {
+            let triangles = self.triangles();
             let mut splits = Vec::new();
-            for (_, [a, b, c]) in self.triangles() {
+            for &(_, [a, b, c]) in &triangles {
                 let (low, high) = (a.min(b).min(c), a.max(b).max(c));
                 let extent = high - low;
                 let bound = bounds.over(low, high);
@@ -306,16 +309,17 @@ impl FaceTriangulation {
                 }
             }
             if self.params.len() == before {
-                return Ok(());
+                return Ok(triangles);
             }
         }
     }
 
-    /// The triangles of the face and the vertices they use, renumbered in order of use.
-    fn collect(&self) -> TrimmedPlan {
+    /// The plan of `triangles` (the face's) and the vertices they use, renumbered in order
+    /// of use.
+    fn collect(&self, triangles: &[([usize; 3], [DVec2; 3])]) -> TrimmedPlan {
         let mut plan = TrimmedPlan::default();
         let mut renumbered: HashMap<usize, u32> = HashMap::new();
-        for (ids, _) in self.triangles() {
+        for &(ids, _) in triangles {
             let triangle = ids.map(|k| {
                 *renumbered.entry(k).or_insert_with(|| {
                     plan.params.push(self.params[k]);
@@ -378,29 +382,13 @@ fn loop_polylines(
             DVec2::new(range_u.end, range_v.end),
             DVec2::new(range_u.start, range_v.end),
         ];
+        // Cut at every cell line it crosses, so at the surface's knots too.
         let sides: Vec<Path> = (0..4)
             .map(|k| {
                 let (from, to) = (corners[k], corners[(k + 1) % 4]);
-                // The side's knots are where its second derivatives may jump.
-                let (knots, range) = if k % 2 == 0 {
-                    (surface.knots_u(), range_u)
-                } else {
-                    (surface.knots_v(), range_v)
-                };
-                let mut breaks: Vec<f64> = knots
-                    .knots()
-                    .iter()
-                    .map(|&t| (t - range.start) / range.width())
-                    .map(|f| if k >= 2 { 1.0 - f } else { f })
-                    .filter(|&f| f > 0.0 && f < 1.0)
-                    .collect();
-                breaks.push(0.0);
-                breaks.push(1.0);
-                breaks.sort_by(f64::total_cmp);
-                breaks.dedup();
                 Path {
                     at: Box::new(move |t: f64| from.lerp(to, t)),
-                    breaks,
+                    breaks: vec![0.0, 1.0],
                     minimum: 1,
                 }
             })
@@ -592,15 +580,20 @@ struct CellLines {
 }
 
 impl CellLines {
+    /// The lines of `axis` strictly between the coordinates `from` and `to`, ascending.
+    fn between(&self, axis: usize, from: f64, to: f64) -> &[f64] {
+        let (low, high) = (from.min(to), from.max(to));
+        let lines = &self.lines[axis];
+        let first = lines.partition_point(|&line| line <= low);
+        let end = lines.partition_point(|&line| line < high).max(first);
+        &lines[first..end]
+    }
+
     /// The first line of either axis strictly between a and b, if any.
     fn crossed(&self, a: DVec2, b: DVec2) -> Option<(usize, f64)> {
         (0..2).find_map(|axis| {
-            let (low, high) = (a[axis].min(b[axis]), a[axis].max(b[axis]));
-            let lines = &self.lines[axis];
-            let first = lines.partition_point(|&line| line <= low);
-            lines
-                .get(first)
-                .filter(|&&line| line < high)
+            self.between(axis, a[axis], b[axis])
+                .first()
                 .map(|&line| (axis, line))
         })
     }
@@ -628,9 +621,9 @@ fn enclosed_area(polyline: &[DVec2]) -> f64 {
 }
 
 /// The polyline with a vertex added wherever a segment still crosses a cell line (a piece
-/// whose ends lie on one side while the loop dips across between them; `lines[0]`: of
-/// constant u, `lines[1]`: of constant v), placed exactly on the line.
-fn with_line_crossings(polyline: &[DVec2], lines: &[Vec<f64>; 2]) -> Vec<DVec2> {
+/// whose ends lie on one side while the loop dips across between them), placed exactly on
+/// the line.
+fn with_line_crossings(polyline: &[DVec2], lines: &CellLines) -> Vec<DVec2> {
     let mut out = Vec::with_capacity(polyline.len());
     for (k, &a) in polyline.iter().enumerate() {
         let b = polyline[(k + 1) % polyline.len()];
@@ -638,10 +631,7 @@ fn with_line_crossings(polyline: &[DVec2], lines: &[Vec<f64>; 2]) -> Vec<DVec2> 
         let mut crossings: Vec<(f64, DVec2)> = Vec::new();
         for axis in 0..2 {
             let (from, to) = (a[axis], b[axis]);
-            let (low, high) = (from.min(to), from.max(to));
-            let lines = &lines[axis];
-            let first = lines.partition_point(|&line| line <= low);
-            for &line in lines[first..].iter().take_while(|&&line| line < high) {
+            for &line in lines.between(axis, from, to) {
                 let t = (line - from) / (to - from);
                 let mut p = a.lerp(b, t);
                 p[axis] = line;
@@ -786,7 +776,7 @@ impl Vertices {
                 for pair in along.windows(2) {
                     let [a, b] = [pair[0], pair[1]];
                     let middle = 0.5 * (self.positions[a] + self.positions[b]);
-                    if !loop_edges.contains(&[a, b]) && region.contains(middle) {
+                    if !loop_edges.contains(&edge_key(a, b)) && region.contains(middle) {
                         edges.push([a, b]);
                     }
                 }
@@ -797,14 +787,14 @@ impl Vertices {
 }
 
 /// The derivative bounds of a surface's adaptive cells, looked up by parameter box.
-pub(crate) struct CellBounds {
+struct CellBounds {
     columns: Vec<Interval>,
     rows: Vec<Interval>,
     bounds: Vec<DerivativeBound>,
 }
 
 impl CellBounds {
-    pub(crate) fn new(grid: &CellGrid) -> Self {
+    fn new(grid: &CellGrid) -> Self {
         CellBounds {
             columns: grid.cells[..grid.columns]
                 .iter()
@@ -830,7 +820,7 @@ impl CellBounds {
     /// Per-axis scales (1 / parameter unit) under which the deviation bound is about as
     /// strict along u as along v: √M_uu and √M_vv at their median over the cells, an axis
     /// with none (flat along it) at 1 / its range width.
-    pub(crate) fn typical_scale(&self, width_u: f64, width_v: f64) -> DVec2 {
+    fn typical_scale(&self, width_u: f64, width_v: f64) -> DVec2 {
         let median = |of: fn(&DerivativeBound) -> f64, width: f64| {
             let mut values: Vec<f64> = self.bounds.iter().map(of).filter(|&m| m > 0.0).collect();
             if values.is_empty() {
@@ -846,7 +836,7 @@ impl CellBounds {
     /// The largest of each bound over the cells the box [low, high] overlaps (a box of zero
     /// width along an axis: a cell on either side of it): a bound over the box wherever the
     /// surface is C¹ across it.
-    pub(crate) fn over(&self, low: DVec2, high: DVec2) -> DerivativeBound {
+    fn over(&self, low: DVec2, high: DVec2) -> DerivativeBound {
         let touched = |cells: &[Interval], low: f64, high: f64| {
             let first = cells.partition_point(|c| c.end <= low).min(cells.len() - 1);
             let last = cells.partition_point(|c| c.start < high).max(first + 1);
