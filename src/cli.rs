@@ -37,14 +37,18 @@ impl Cli {
 /// The subcommands.
 #[derive(Subcommand)]
 pub enum Command {
-    /// Tessellate surface files (.obj free-form, .bpt, .json) into mesh files (.obj, .ply, .stl, .glb).
+    /// Tessellate surface files (.obj free-form, .bpt, .json, .igs/.iges) into mesh files (.obj, .ply, .stl, .glb).
+    ///
+    /// Trimmed faces (IGES) are meshed to a tolerance: --tolerance or --tolerance-rel, else
+    /// 1e-3 of the model's diagonal. A face that cannot be read is reported by entity and
+    /// reason, the rest of the file is written, and the exit status is 1.
     ///
     /// One input and an output file name: writes that file. Several inputs, a directory of
     /// inputs, or an output that is a directory: writes OUTPUT/NAME.FORMAT for each (NAME:
     /// the input's file name), files in parallel. The GPU computes in f32 (positions within
     /// 1e-5 of each surface's size); `--backend cpu` gives the f64 reference.
     Tessellate {
-        /// Input files or directories (their .obj, .bpt and .json files).
+        /// Input files or directories (their .obj, .bpt, .json, .igs and .iges files).
         #[arg(required = true)]
         inputs: Vec<PathBuf>,
         /// Output file, or directory for several inputs.
@@ -153,6 +157,7 @@ pub enum InputFormat {
     Obj,
     Bpt,
     Json,
+    Iges,
 }
 
 /// Parses `--grid`: NUxNV, each side at least 2 vertices.
@@ -330,6 +335,7 @@ impl InputFormat {
             InputFormat::Obj => SceneFormat::Obj,
             InputFormat::Bpt => SceneFormat::Bpt,
             InputFormat::Json => SceneFormat::Json,
+            InputFormat::Iges => SceneFormat::Iges,
         }
     }
 }

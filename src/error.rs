@@ -119,6 +119,20 @@ pub enum Error {
         "the trimmed face needs more than {vertices} vertices for tolerance {tolerance:e}: ask for a larger tolerance"
     )]
     TrimmedTooFine { vertices: usize, tolerance: f64 },
+    #[error("not supported: {what}")]
+    Unsupported { what: String },
+    #[error("entity {kind} (directory entry {directory}): {source}")]
+    InEntity {
+        kind: u32,
+        directory: usize,
+        source: Box<Error>,
+    },
+    #[error("item {index} ({name}): {source}")]
+    InItem {
+        index: usize,
+        name: String,
+        source: Box<Error>,
+    },
     #[error("surface {index}: {source}")]
     InSurface { index: usize, source: Box<Error> },
     #[error("curve {index}: {source}")]
@@ -245,7 +259,9 @@ impl Error {
             Error::AtLine { source, .. }
             | Error::InFile { source, .. }
             | Error::InSurface { source, .. }
-            | Error::InCurve { source, .. } => source.root(),
+            | Error::InCurve { source, .. }
+            | Error::InEntity { source, .. }
+            | Error::InItem { source, .. } => source.root(),
             other => other,
         }
     }
@@ -254,7 +270,9 @@ impl Error {
     pub fn line(&self) -> Option<usize> {
         match self {
             Error::AtLine { line, .. } => Some(*line),
-            Error::InFile { source, .. } => source.line(),
+            Error::InFile { source, .. }
+            | Error::InEntity { source, .. }
+            | Error::InItem { source, .. } => source.line(),
             _ => None,
         }
     }

@@ -74,4 +74,4 @@ pub use error::{Error, Result};
 pub use geom::{BSplineCurve, BSplineSurface, BezierPatch, Interval, KnotVector, TrimmedSurface};
 pub use gpu::{BatchDescriptor, GpuBatch, GpuContext, GpuMesh, GpuTessellator};
 pub use mesh::{AnyMesh, Mesh, Mesh32, MeshPart, Polyline, TessOptions, Tolerance, Vertex};
-pub use scene::{Geometry, Item, ItemGroup, Scene, SceneOptions, Tessellator};
+pub use scene::{Dropped, Geometry, Item, ItemGroup, Scene, SceneOptions, Tessellator};

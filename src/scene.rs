@@ -5,7 +5,7 @@
 
 use crate::error::Result;
 use crate::geom::patches::CoonsPatch;
-use crate::geom::{BSplineCurve, BSplineSurface};
+use crate::geom::{BSplineCurve, BSplineSurface, TrimmedSurface};
 use crate::mesh::{GridMesh, Mesh, Mesh32, Polyline, TessOptions};
 
 /// What one item of a scene is.
@@ -17,6 +17,9 @@ pub enum Geometry {
     Coons(Box<CoonsPatch>),
     /// A curve, tessellated into a polyline.
     Curve(BSplineCurve),
+    /// A trimmed face: a surface cut to its loops (IGES 144 and 143), meshed to a tolerance
+    /// by [`crate::plan::plan_trimmed`] and the f64 executor, whichever backend runs.
+    Trimmed(Box<TrimmedSurface>),
 }
 
 impl Geometry {
@@ -26,6 +29,7 @@ impl Geometry {
             Geometry::Surface(s) => s.control_box(),
             Geometry::Coons(p) => p.control_box(),
             Geometry::Curve(c) => c.control_box(),
+            Geometry::Trimmed(face) => face.surface().control_box(),
         }
     }
 }
@@ -55,10 +59,24 @@ impl Item {
     }
 }
 
-/// What a file (or a caller) holds: items in file order.
+/// What a file (or a caller) holds: items in file order, and what the reader left out.
 #[derive(Debug, Clone, Default)]
 pub struct Scene {
     pub items: Vec<Item>,
+    /// Things a reader passed over on purpose, one line each (entity types it does not
+    /// read, approximations it took): worth a warning, not an error.
+    pub notes: Vec<String>,
+    /// Parts of the file that could not be read, each with its reason; the rest was.
+    pub dropped: Vec<Dropped>,
+}
+
+/// A part of a file a reader could not turn into an item, and why.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Dropped {
+    /// What it was, as the file names it (e.g. "entity 144 (directory entry 57)").
+    pub what: String,
+    /// The error, as text.
+    pub reason: String,
 }
 
 /// A named run of consecutive items: one glTF mesh and node, one OBJ group.
@@ -240,7 +258,9 @@ pub trait Tessellator {
     /// else on `defaults`. Parts and polylines come in item order and carry their item's
     /// index ([`crate::MeshPart::item`], [`Polyline::item`]).
     fn tessellate_scene(&self, scene: &Scene, defaults: &SceneOptions) -> Result<Mesh> {
-        check_memory(scene, defaults, F64_VERTEX_BYTES)?;
+        let grid_bytes = check_memory(scene, defaults, F64_VERTEX_BYTES)?;
+        let trimmed =
+            crate::cpu::mesh_trimmed_faces(scene, defaults, grid_bytes, F64_VERTEX_BYTES)?;
         let mut mesh = Mesh::default();
         self.tessellate_each_into(
             &scene.surface_list(),
@@ -249,6 +269,7 @@ pub trait Tessellator {
         )?;
         let (coons, polylines) = patches_and_curves(self, scene, defaults)?;
         mesh.append(coons)?;
+        mesh.append(trimmed)?;
         mesh.polylines = polylines;
         put_in_item_order(scene, &mut mesh);
         Ok(mesh)
@@ -257,7 +278,9 @@ pub trait Tessellator {
     /// As [`Tessellator::tessellate_scene`], into an f32 mesh (the GPU reads back without
     /// widening).
     fn tessellate_scene_f32(&self, scene: &Scene, defaults: &SceneOptions) -> Result<Mesh32> {
-        check_memory(scene, defaults, size_of::<crate::Vertex>() as u64)?;
+        let vertex_bytes = size_of::<crate::Vertex>() as u64;
+        let grid_bytes = check_memory(scene, defaults, vertex_bytes)?;
+        let trimmed = crate::cpu::mesh_trimmed_faces(scene, defaults, grid_bytes, vertex_bytes)?;
         let mut mesh = Mesh32::default();
         self.tessellate_each_into_f32(
             &scene.surface_list(),
@@ -266,6 +289,7 @@ pub trait Tessellator {
         )?;
         let (coons, polylines) = patches_and_curves(self, scene, defaults)?;
         mesh.append(Mesh32::from(coons))?;
+        mesh.append(Mesh32::from(trimmed))?;
         mesh.polylines = polylines;
         put_in_item_order(scene, &mut mesh);
         Ok(mesh)
@@ -299,15 +323,17 @@ pub fn scene_mesh_bytes(scene: &Scene, defaults: &SceneOptions, vertex_bytes: u6
     Ok(vertices * vertex_bytes + indices * 4 + samples * 48)
 }
 
-/// Refuses a scene whose mesh would take more than the budget of `defaults`.
-fn check_memory(scene: &Scene, defaults: &SceneOptions, vertex_bytes: u64) -> Result<()> {
-    if let Some(budget) = defaults.memory_budget {
-        let needed = scene_mesh_bytes(scene, defaults, vertex_bytes)?;
-        if needed > budget {
-            return Err(crate::Error::OverMemoryBudget { needed, budget });
-        }
+/// Refuses a scene whose grids and curves would take more than the budget of `defaults`;
+/// returns the bytes they take (0 with no budget), which trimmed faces add to once planned.
+fn check_memory(scene: &Scene, defaults: &SceneOptions, vertex_bytes: u64) -> Result<u64> {
+    let Some(budget) = defaults.memory_budget else {
+        return Ok(0);
+    };
+    let needed = scene_mesh_bytes(scene, defaults, vertex_bytes)?;
+    if needed > budget {
+        return Err(crate::Error::OverMemoryBudget { needed, budget });
     }
-    Ok(())
+    Ok(needed)
 }
 
 /// The scene's Coons patches (one mesh) and curves (polylines), each kind in item order.
@@ -327,7 +353,7 @@ fn patches_and_curves<T: Tessellator + ?Sized>(
     Ok((coons, polylines))
 }
 
-/// Gives every part (surfaces first, then Coons patches, as tessellated) and every polyline
+/// Gives every part (surfaces first, then Coons patches, then trimmed faces, as tessellated) and every polyline
 /// its item's index, then reorders the parts by item where Coons patches stand between
 /// surfaces (a mesh already in item order is left as it is).
 fn put_in_item_order(scene: &Scene, mesh: &mut impl GridMesh) {
@@ -340,7 +366,8 @@ fn put_in_item_order(scene: &Scene, mesh: &mut impl GridMesh) {
             .map(|(k, _)| k as u32)
     };
     let grid_items = items_of(|g| matches!(g, Geometry::Surface(_)))
-        .chain(items_of(|g| matches!(g, Geometry::Coons(_))));
+        .chain(items_of(|g| matches!(g, Geometry::Coons(_))))
+        .chain(items_of(|g| matches!(g, Geometry::Trimmed(_))));
     let (parts, polylines) = mesh.parts_and_polylines_mut();
     for (part, item) in parts.iter_mut().zip(grid_items) {
         part.item = item;

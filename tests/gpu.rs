@@ -934,6 +934,7 @@ fn repeated_scenes_allocate_nothing_after_the_first_call() {
     // still give what a fresh tessellator gives: bindings cover the contents only.
     let fewer = knotwork::Scene {
         items: scene.items[..22].to_vec(),
+        ..Default::default()
     };
     let reused = tessellator.tessellate_scene_f32(&fewer, &smaller).unwrap();
     assert_eq!(tessellator.buffer_allocations(), allocated);
@@ -1225,6 +1226,7 @@ fn render_draws_coons_patches_and_curves() {
             .filter(|item| wanted(&item.geometry))
             .cloned()
             .collect(),
+        ..Default::default()
     };
     let options = knotwork::render::RenderOptions {
         width: 160,

@@ -1385,7 +1385,7 @@ fn cli_refuses_a_folder_without_surface_files() {
     assert!(!run.status.success());
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(
-        stderr.contains("no surface file (.obj (free-form), .bpt, .json) in this directory")
+        stderr.contains("no surface file (.obj (free-form), .bpt, .json, .igs/.iges) in this directory")
             && stderr.contains("empty-folder"),
         "{stderr}"
     );
@@ -2040,4 +2040,531 @@ fn json_curve_weights_make_them_rational() {
             );
         }
     }
+}
+
+// ---------------------------------------------------------------- IGES
+
+/// One entity for [`iges_file`]: type, form, transformation pointer (0: none) and its
+/// parameters after the type (pointers are directory sequence numbers, 2k + 1 for entity k).
+struct Entity {
+    kind: u32,
+    form: u32,
+    transform: usize,
+    params: Vec<String>,
+}
+
+fn entity(kind: u32, params: &[&str]) -> Entity {
+    Entity {
+        kind,
+        form: 0,
+        transform: 0,
+        params: params.iter().map(|p| p.to_string()).collect(),
+    }
+}
+
+/// A conforming fixed-form IGES file of `entities`, in `unit` (the global section's flag).
+fn iges_file(entities: &[Entity], unit: u32) -> Vec<u8> {
+    let line = |data: &str, letter: char, seq: usize| format!("{data:<72}{letter}{seq:>7}\n");
+    let mut out = line("knotwork test file", 'S', 1);
+    let unit_name = match unit {
+        1 => "2HIN",
+        _ => "2HMM",
+    };
+    let global = format!(
+        "1H,,1H;,4Htest,8Htest.igs,4Htest,4Htest,32,38,6,308,15,4Htest,1.,{unit},{unit_name},1,0.01,13H261202.000000,1E-07,100.,4Htest,4Htest,11,0;"
+    );
+    let global_lines: Vec<String> = global
+        .as_bytes()
+        .chunks(72)
+        .map(|c| String::from_utf8(c.to_vec()).unwrap())
+        .collect();
+    for (k, g) in global_lines.iter().enumerate() {
+        out += &line(g, 'G', k + 1);
+    }
+    let mut directory = String::new();
+    let mut parameters = String::new();
+    let mut p_seq = 1;
+    for (k, e) in entities.iter().enumerate() {
+        let de = 2 * k + 1;
+        let record = format!("{},{};", e.kind, e.params.join(","));
+        // Lines of at most 64 columns, broken after a delimiter.
+        let mut lines = vec![String::new()];
+        for piece in record.split_inclusive(',') {
+            if lines.last().unwrap().len() + piece.len() > 64 {
+                lines.push(String::new());
+            }
+            *lines.last_mut().unwrap() += piece;
+        }
+        let start = p_seq;
+        for l in &lines {
+            parameters += &format!("{l:<64} {de:>7}P{p_seq:>7}\n");
+            p_seq += 1;
+        }
+        directory += &format!(
+            "{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}D{:>7}\n",
+            e.kind, start, 0, 0, 0, 0, e.transform, 0, "00000000", de
+        );
+        directory += &format!(
+            "{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}{:>8}D{:>7}\n",
+            e.kind,
+            0,
+            0,
+            lines.len(),
+            e.form,
+            "",
+            "",
+            "",
+            0,
+            de + 1
+        );
+    }
+    out += &directory;
+    out += &parameters;
+    out += &line(
+        &format!(
+            "S{:>7}G{:>7}D{:>7}P{:>7}",
+            1,
+            global_lines.len(),
+            2 * entities.len(),
+            p_seq - 1
+        ),
+        'T',
+        1,
+    );
+    out.into_bytes()
+}
+
+fn nums(values: &[f64]) -> Vec<String> {
+    values.iter().map(|v| format!("{v:?}")).collect()
+}
+
+/// A 128 plane z = 0 over [x0, x1] × [y0, y1], degree 1, parameters = coordinates.
+fn iges_plane(x0: f64, x1: f64, y0: f64, y1: f64) -> Entity {
+    let mut p: Vec<String> = ["1", "1", "1", "1", "0", "0", "1", "0", "0"]
+        .map(String::from)
+        .to_vec();
+    p.extend(nums(&[x0, x0, x1, x1, y0, y0, y1, y1, 1.0, 1.0, 1.0, 1.0]));
+    p.extend(nums(&[
+        x0, y0, 0.0, x1, y0, 0.0, x0, y1, 0.0, x1, y1, 0.0, x0, x1, y0, y1,
+    ]));
+    Entity {
+        kind: 128,
+        form: 0,
+        transform: 0,
+        params: p,
+    }
+}
+
+fn iges_line(a: [f64; 3], b: [f64; 3]) -> Entity {
+    Entity {
+        kind: 110,
+        form: 0,
+        transform: 0,
+        params: nums(&[a[0], a[1], a[2], b[0], b[1], b[2]]),
+    }
+}
+
+fn iges_scene(entities: &[Entity], unit: u32) -> Scene {
+    knotwork::io::read_iges(&iges_file(entities, unit)).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn trimmed_faces(scene: &Scene) -> Vec<&knotwork::TrimmedSurface> {
+    scene
+        .items
+        .iter()
+        .filter_map(|item| match &item.geometry {
+            knotwork::Geometry::Trimmed(face) => Some(&**face),
+            _ => None,
+        })
+        .collect()
+}
+
+fn mesh_area(mesh: &knotwork::Mesh) -> f64 {
+    mesh.indices
+        .chunks_exact(3)
+        .map(|t| {
+            let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
+            0.5 * (b - a).cross(c - a).length()
+        })
+        .sum()
+}
+
+/// Every triangle's winding agrees with its vertices' normals, and they are unit length.
+fn assert_winding_follows_normals(mesh: &knotwork::Mesh) {
+    for t in mesh.indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
+        let facet = (b - a).cross(c - a);
+        for &k in t {
+            let n = mesh.normals[k as usize];
+            assert!((n.length() - 1.0).abs() < 1e-12, "normal {n}");
+            assert!(
+                facet.dot(n) > 0.0,
+                "triangle {t:?} winds against its normal {n}"
+            );
+        }
+    }
+}
+
+#[test]
+fn iges_teapot_matches_its_bpt_twin() {
+    let iges = read_scene(Path::new("data/teapot_nurbs.igs")).unwrap();
+    let bpt = read_scene(Path::new("data/teapot.bpt")).unwrap();
+    let (a, b) = (iges.surface_list(), bpt.surface_list());
+    assert_eq!(a.len(), 32);
+    for (k, (s, t)) in a.iter().zip(&b).enumerate() {
+        for (u, v) in [(0.0, 0.0), (0.3, 0.7), (1.0, 0.5), (0.25, 1.0)] {
+            let (p, q) = (s.point(u, v), t.point(u, v));
+            assert!(p.distance(q) < 1e-12, "patch {k} at ({u}, {v}): {p} vs {q}");
+        }
+    }
+    // The hand-written file names no unit: kept as written, and said so.
+    assert!(
+        iges.notes.iter().any(|n| n.contains("no unit")),
+        "{:?}",
+        iges.notes
+    );
+    assert!(iges.dropped.is_empty());
+}
+
+/// The exact area of the shipped rounded cube: a 50 mm cube whose edge at x = −25, z = 25
+/// is a quarter cylinder of radius 15 (axis x = −10, z = 10 along y).
+const CUBE_AREA: f64 =
+    15000.0 - 2.0 * 15.0 * 50.0 - 2.0 * (225.0 - 225.0 * std::f64::consts::FRAC_PI_4)
+        + 7.5 * std::f64::consts::PI * 50.0;
+
+/// Distance from `p` to the surface of that rounded cube.
+fn rounded_cube_distance(p: DVec3) -> f64 {
+    let on_fillet_side = p.x <= -10.0 && p.z >= 10.0;
+    let fillet = ((p.x + 10.0).hypot(p.z - 10.0) - 15.0).abs();
+    let faces = [p.x.abs(), p.y.abs(), p.z.abs()]
+        .iter()
+        .map(|&c| (c - 25.0).abs())
+        .fold(f64::INFINITY, f64::min);
+    if on_fillet_side && (p.y.abs() - 25.0).abs() > 1e-9 {
+        fillet
+    } else {
+        faces.min(if on_fillet_side {
+            fillet
+        } else {
+            f64::INFINITY
+        })
+    }
+}
+
+#[test]
+fn iges_rounded_cube_is_meshed_on_the_exact_solid() {
+    let scene = read_scene(Path::new("data/single_rounded_cube.iges")).unwrap();
+    assert_eq!(trimmed_faces(&scene).len(), 7);
+    assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
+    // Every entity is used: no note of anything left out.
+    assert!(scene.notes.is_empty(), "{:?}", scene.notes);
+    for rel in [1e-3, 1e-4] {
+        let defaults = knotwork::SceneOptions {
+            grid: TessOptions::DEFAULT.with_tolerance(knotwork::Tolerance::Relative(rel)),
+            ..Default::default()
+        };
+        let mesh = CpuTessellator.tessellate_scene(&scene, &defaults).unwrap();
+        assert_eq!(mesh.parts.len(), 7);
+        let tolerance = rel * 50.0 * 3f64.sqrt();
+        for p in &mesh.positions {
+            assert!(
+                rounded_cube_distance(*p) < 1e-9 * 50.0,
+                "vertex {p} is off the solid"
+            );
+        }
+        for t in mesh.indices.chunks_exact(3) {
+            let centroid = t.iter().map(|&k| mesh.positions[k as usize]).sum::<DVec3>() / 3.0;
+            assert!(
+                rounded_cube_distance(centroid) <= tolerance,
+                "centroid {centroid}"
+            );
+        }
+        assert_winding_follows_normals(&mesh);
+        let area = mesh_area(&mesh);
+        assert!(
+            (area - CUBE_AREA).abs() <= rel * CUBE_AREA,
+            "area {area} vs {CUBE_AREA} at {rel}"
+        );
+    }
+}
+
+#[test]
+fn iges_classic_surfaces_convert_exactly() {
+    use std::f64::consts::PI;
+    let entities = vec![
+        // 1: axis, 3: generatrix, 5: revolution (half cylinder r = 2, z ∈ [0, 3]).
+        iges_line([0.0, 0.0, 0.0], [0.0, 0.0, 1.0]),
+        iges_line([2.0, 0.0, 0.0], [2.0, 0.0, 3.0]),
+        entity(120, &["1", "3", "0.0", &format!("{PI:?}")]),
+        // 7: arc r = 1 about (5, 0) from 0 to π/2, 9: tabulated cylinder whose generatrix
+        // runs from the arc's start (6, 0, 0) to (6, 0, 2), moved by the translation 11
+        // (+10 in y).
+        entity(100, &["0.0", "5.0", "0.0", "6.0", "0.0", "5.0", "1.0"]),
+        Entity {
+            transform: 11,
+            ..entity(122, &["7", "6.0", "0.0", "2.0"])
+        },
+        entity(
+            124,
+            &[
+                "1.", "0.", "0.", "0.", "0.", "1.", "0.", "10.", "0.", "0.", "1.", "0.",
+            ],
+        ),
+        // 13, 15: two lines, 17: ruled between them, reversed (DIRFLG 1).
+        iges_line([0.0, -5.0, 0.0], [1.0, -5.0, 0.0]),
+        iges_line([1.0, -5.0, 1.0], [0.0, -5.0, 1.0]),
+        entity(118, &["13", "15", "1", "1"]),
+    ];
+    let scene = iges_scene(&entities, 2);
+    assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
+    let surfaces = scene.surface_list();
+    assert_eq!(surfaces.len(), 3, "the curves are parts, not items");
+    let grid = |s: &knotwork::BSplineSurface, check: &dyn Fn(DVec3) -> f64| {
+        for i in 0..=8 {
+            for j in 0..=8 {
+                let (u, v) = (
+                    s.range_u().lerp(f64::from(i) / 8.0),
+                    s.range_v().lerp(f64::from(j) / 8.0),
+                );
+                let p = s.point(u, v);
+                assert!(check(p) < 1e-12, "{p} off by {}", check(p));
+            }
+        }
+    };
+    grid(&surfaces[0], &|p| {
+        (p.truncate().length() - 2.0).abs()
+            + (p.y < -1e-12) as u8 as f64
+            + (p.z < 0.0 || p.z > 3.0) as u8 as f64
+    });
+    grid(&surfaces[1], &|p| {
+        ((p.x - 5.0).hypot(p.y - 10.0) - 1.0).abs()
+            + (p.y < 10.0 - 1e-12 || p.x < 5.0 - 1e-12) as u8 as f64
+            + (p.z < 0.0 || p.z > 2.0) as u8 as f64
+    });
+    // Reversed: the rulings are vertical, from (x, −5, 0) to (x, −5, 1).
+    let ruled = &surfaces[2];
+    for t in [0.0, 0.4, 1.0] {
+        let (bottom, top) = (ruled.point(t, 0.0), ruled.point(t, 1.0));
+        assert!((bottom.x - top.x).abs() < 1e-12 && bottom.z == 0.0 && top.z == 1.0);
+    }
+    // The half cylinder's angle: u runs around the axis from +x to −x.
+    let cylinder = &surfaces[0];
+    let quarter = cylinder.point(cylinder.range_u().lerp(0.5), cylinder.range_v().start);
+    assert!(
+        quarter.distance(DVec3::new(0.0, 2.0, 0.0)) < 1e-12,
+        "{quarter}"
+    );
+}
+
+/// A 10 × 10 plane cut to a disc of radius 4 (a full-circle arc) with a 2 × 2 square hole
+/// (a composite of four lines), as a 144 or a 143 whose hole runs backwards (sense 2).
+fn disc_with_square_hole(bounded: bool) -> Vec<Entity> {
+    let corners = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
+    let mut entities = vec![
+        iges_plane(-5.0, 5.0, -5.0, 5.0),                                // 1
+        entity(100, &["0.0", "0.0", "0.0", "4.0", "0.0", "4.0", "0.0"]), // 3
+    ];
+    for k in 0..4 {
+        let (a, b) = (corners[k], corners[(k + 1) % 4]);
+        entities.push(iges_line([a[0], a[1], 0.0], [b[0], b[1], 0.0])); // 5, 7, 9, 11
+    }
+    entities.push(entity(102, &["4", "5", "7", "9", "11"])); // 13
+    if bounded {
+        entities.push(entity(141, &["1", "1", "1", "1", "0", "1", "1", "3"])); // 15
+        entities.push(entity(141, &["1", "1", "1", "1", "0", "2", "1", "13"])); // 17
+        entities.push(entity(143, &["1", "1", "2", "15", "17"])); // 19
+    } else {
+        entities.push(entity(142, &["0", "1", "3", "0", "1"])); // 15
+        entities.push(entity(142, &["0", "1", "13", "0", "1"])); // 17
+        entities.push(entity(144, &["1", "1", "1", "15", "17"])); // 19
+    }
+    entities
+}
+
+#[test]
+fn iges_trimmed_and_bounded_faces_keep_what_their_loops_enclose() {
+    use std::f64::consts::PI;
+    for bounded in [false, true] {
+        for (unit, scale) in [(2, 1.0), (1, 25.4)] {
+            let scene = iges_scene(&disc_with_square_hole(bounded), unit);
+            assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
+            assert_eq!(scene.items.len(), 1, "the plane is the face's, not an item");
+            let tolerance = 1e-3 * scale;
+            let defaults = knotwork::SceneOptions {
+                grid: TessOptions::DEFAULT.with_tolerance(knotwork::Tolerance::Absolute(tolerance)),
+                ..Default::default()
+            };
+            let mesh = CpuTessellator.tessellate_scene(&scene, &defaults).unwrap();
+            assert_winding_follows_normals(&mesh);
+            let exact = (PI * 16.0 - 4.0) * scale * scale;
+            let area = mesh_area(&mesh);
+            // Inscribed chords lose at most perimeter × tolerance.
+            let perimeter = (2.0 * PI * 4.0 + 8.0) * scale;
+            assert!(
+                area <= exact + 1e-9 * exact && exact - area <= perimeter * tolerance,
+                "bounded {bounded}, unit {unit}: area {area} vs {exact}"
+            );
+            for p in &mesh.positions {
+                let r = p.truncate().length() / scale;
+                let inside_hole =
+                    p.x.abs() < scale * (1.0 - 1e-9) && p.y.abs() < scale * (1.0 - 1e-9);
+                assert!(r <= 4.0 + 1e-9 && !inside_hole && p.z == 0.0, "{p}");
+            }
+        }
+    }
+}
+
+#[test]
+fn iges_bad_files_are_refused_by_line_or_dropped_by_entity() {
+    let cube = std::fs::read("data/single_rounded_cube.iges").unwrap();
+    let text = String::from_utf8(cube.clone()).unwrap();
+    let error = |bytes: &[u8]| knotwork::io::read_iges(bytes).expect_err("must be refused");
+    // A line cut short: its section letter is missing.
+    let short = text.replacen("00000200D      1", "0000", 1);
+    let e = error(short.as_bytes());
+    assert_eq!(e.line(), Some(6), "{e}");
+    assert!(e.to_string().contains("80 columns"), "{e}");
+    // The compressed form, sections out of order, not IGES at all.
+    let compressed = text.replacen("S      1\n", "C      1\n", 1);
+    assert!(
+        error(compressed.as_bytes())
+            .to_string()
+            .contains("compressed")
+    );
+    let mut lines: Vec<&str> = text.lines().collect();
+    lines.swap(5, 300);
+    let e = error(lines.join("\n").as_bytes());
+    assert!(e.to_string().contains("order"), "{e}");
+    assert!(
+        error(b"solid teapot\nendsolid\n")
+            .to_string()
+            .contains("column")
+    );
+
+    // Faces that cannot be read are dropped by entity; the rest of the file is read.
+    let dangling = disc_with_square_hole(false)
+        .into_iter()
+        .map(|mut e| {
+            if e.kind == 144 {
+                e.params[4] = "99".into();
+            }
+            e
+        })
+        .collect::<Vec<_>>();
+    let scene = iges_scene(&dangling, 2);
+    assert!(scene.items.is_empty());
+    let dropped = &scene.dropped[0];
+    assert!(
+        dropped.what.contains("entity 144 (directory entry 19)"),
+        "{dropped:?}"
+    );
+    assert!(dropped.reason.contains("directory entry 99"), "{dropped:?}");
+
+    let cycle = vec![
+        entity(102, &["1", "1"]),
+        entity(142, &["0", "5", "1", "0", "1"]),
+        iges_plane(0.0, 1.0, 0.0, 1.0),
+        entity(144, &["5", "1", "0", "3"]),
+        iges_plane(2.0, 3.0, 0.0, 1.0),
+    ];
+    let scene = iges_scene(&cycle, 2);
+    assert_eq!(
+        scene.surface_list().len(),
+        1,
+        "the free plane still comes in"
+    );
+    assert!(
+        scene.dropped[0].reason.contains("cycle"),
+        "{:?}",
+        scene.dropped
+    );
+
+    // An absurd control-point count is refused from the record's length, before any
+    // allocation it would size.
+    let mut huge = iges_plane(0.0, 1.0, 0.0, 1.0);
+    huge.params[0] = "2000000000".into();
+    let scene = iges_scene(&[huge], 2);
+    assert!(
+        scene.dropped[0].reason.contains("room") || scene.dropped[0].reason.contains("fit"),
+        "{:?}",
+        scene.dropped
+    );
+
+    // A curve on surface with no parameter-space curve, a record of the wrong type, and a
+    // type knotwork does not read.
+    let mut no_pcurve = disc_with_square_hole(false);
+    no_pcurve[7].params[2] = "0".into();
+    let reason = &iges_scene(&no_pcurve, 2).dropped[0].reason;
+    assert!(
+        reason.contains("not supported") && reason.contains("projecting"),
+        "{reason}"
+    );
+    let mut plane = entity(
+        108,
+        &["0.0", "0.0", "1.0", "0.0", "0", "0.0", "0.0", "0.0", "1.0"],
+    );
+    plane.form = 0;
+    let scene = iges_scene(&[plane, iges_plane(0.0, 1.0, 0.0, 1.0)], 2);
+    assert_eq!(scene.surface_list().len(), 1);
+    assert!(
+        scene
+            .notes
+            .iter()
+            .any(|n| n.contains("1 × type 108 (plane)")),
+        "{:?}",
+        scene.notes
+    );
+    let mismatched = String::from_utf8(iges_file(&[iges_plane(0.0, 1.0, 0.0, 1.0)], 2))
+        .unwrap()
+        .replacen("128,1,1", "126,1,1", 1);
+    let scene = knotwork::io::read_iges(mismatched.as_bytes()).unwrap();
+    assert!(
+        scene.dropped[0].reason.contains("entity type 126"),
+        "{:?}",
+        scene.dropped
+    );
+}
+
+#[test]
+fn cli_meshes_iges_files_and_reports_dropped_faces() {
+    let dir = scratch_dir("cli-iges");
+    let out = dir.join("cube.glb");
+    let run = succeeds(&[
+        "tessellate",
+        "data/single_rounded_cube.iges",
+        "-o",
+        out.to_str().unwrap(),
+        "--tolerance-rel",
+        "1e-3",
+        "--backend",
+        "cpu",
+    ]);
+    assert!(String::from_utf8_lossy(&run.stdout).contains("7 surfaces"));
+    assert!(out.exists());
+    // One face dropped: the other comes out, the error names the entity, the status is 1.
+    let mut entities = disc_with_square_hole(false);
+    entities[7].params[2] = "0".into();
+    entities.push(iges_plane(10.0, 11.0, 0.0, 1.0));
+    let input = dir.join("part.igs");
+    std::fs::write(&input, iges_file(&entities, 2)).unwrap();
+    let out = dir.join("part.obj");
+    let run = knotwork(&[
+        "tessellate",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("entity 144 (directory entry 19)"),
+        "{stderr}"
+    );
+    let mesh = std::fs::read_to_string(&out).unwrap();
+    let xs: Vec<f64> = mesh
+        .lines()
+        .filter_map(|l| l.strip_prefix("v "))
+        .map(|l| l.split_whitespace().next().unwrap().parse().unwrap())
+        .collect();
+    assert!(!xs.is_empty() && xs.iter().all(|&x| (10.0..=11.0).contains(&x)));
 }

@@ -250,6 +250,8 @@ struct Tally {
     triangles: usize,
     /// Vertices merged by welding (`None` without `--weld`).
     merged: Option<usize>,
+    /// Faces the reader could not read (reported as they were found).
+    dropped: usize,
 }
 
 impl Tally {
@@ -284,6 +286,17 @@ fn process(
     job: &Job,
 ) -> knotwork::Result<Tally> {
     let scene = knotwork::io::read_scene_as(input, job.input_format)?;
+    for note in &scene.notes {
+        eprintln!("warning: {}: {note}", input.display());
+    }
+    for dropped in &scene.dropped {
+        eprintln!(
+            "error: {}: {} left out: {}",
+            input.display(),
+            dropped.what,
+            dropped.reason
+        );
+    }
     let budget = if job.weld {
         job.memory_budget / 2
     } else {
@@ -325,11 +338,12 @@ fn process(
         (mesh.vertex_count(), mesh.triangle_count())
     };
     Ok(Tally {
-        surfaces: scene.surfaces().count() + scene.coons_patches().count(),
+        surfaces: scene.items.len() - scene.curves().count(),
         curves: scene.curves().count(),
         vertices,
         triangles,
         merged,
+        dropped: scene.dropped.len(),
     })
 }
 
@@ -395,7 +409,7 @@ fn tessellate(
             tessellator.name(),
             output.display()
         );
-        return Ok(true);
+        return Ok(tally.dropped == 0);
     }
     let Inputs { files, skipped } = expand_inputs(inputs)?;
     // Every input's output, checked for collisions before anything is written.
@@ -423,6 +437,7 @@ fn tessellate(
     for (input, result) in &results {
         match result {
             Ok(t) => {
+                failed += usize::from(t.dropped > 0);
                 total.surfaces += t.surfaces;
                 total.curves += t.curves;
                 total.vertices += t.vertices;

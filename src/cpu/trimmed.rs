@@ -1,9 +1,11 @@
 //! Executes the plan of a trimmed face ([`crate::plan::plan_trimmed`]) in f64.
 
-use crate::geom::TrimmedSurface;
-use crate::mesh::{Mesh, MeshPart};
-use crate::plan::TrimmedPlan;
-use glam::DVec2;
+use crate::error::{Error, Result};
+use crate::geom::{SamplingLimits, TrimmedSurface};
+use crate::mesh::{Mesh, MeshPart, TessOptions, Tolerance};
+use crate::plan::{TrimmedPlan, plan_trimmed};
+use crate::scene::{Geometry, Item, Scene, SceneOptions};
+use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
 /// The mesh of one trimmed face from its plan: every vertex evaluated on the surface
@@ -43,4 +45,104 @@ pub fn execute_trimmed(face: &TrimmedSurface, plan: &TrimmedPlan) -> Mesh {
         indices,
         polylines: Vec::new(),
     }
+}
+
+/// Tolerance of trimmed faces whose options set neither a tolerance nor a longest edge (a
+/// grid means nothing to a trimmed face): this fraction of the diagonal of the box around
+/// the control points of every surface and face of the scene.
+pub const TRIMMED_DEFAULT_TOLERANCE_REL: f64 = 1e-3;
+
+/// The trimmed faces of `scene` meshed in f64, in item order (one part each): each planned
+/// to its item's options, else `defaults.grid`'s (see [`TRIMMED_DEFAULT_TOLERANCE_REL`]),
+/// faces in parallel. The plans are checked against `defaults.memory_budget` (with
+/// `grid_bytes` already taken by the rest of the scene, `vertex_bytes` per vertex) before any
+/// vertex is evaluated. Errors name the item. Every backend runs trimmed faces here until the
+/// GPU executes trimmed plans.
+pub fn mesh_trimmed_faces(
+    scene: &Scene,
+    defaults: &SceneOptions,
+    grid_bytes: u64,
+    vertex_bytes: u64,
+) -> Result<Mesh> {
+    let faces: Vec<(usize, &Item, &TrimmedSurface)> = scene
+        .items
+        .iter()
+        .enumerate()
+        .filter_map(|(k, item)| match &item.geometry {
+            Geometry::Trimmed(face) => Some((k, item, &**face)),
+            _ => None,
+        })
+        .collect();
+    if faces.is_empty() {
+        return Ok(Mesh::default());
+    }
+    let diagonal = scene_diagonal(scene);
+    let plans = faces
+        .par_iter()
+        .map(|&(index, item, face)| {
+            trimmed_limits(&item.grid.unwrap_or(defaults.grid), diagonal)
+                .and_then(|limits| plan_trimmed(face, limits))
+                .map_err(|source| Error::InItem {
+                    index,
+                    name: item.name.clone().unwrap_or_else(|| format!("item {index}")),
+                    source: Box::new(source),
+                })
+        })
+        .collect::<Vec<_>>()
+        // In item order, so that the error reported is the first face's.
+        .into_iter()
+        .collect::<Result<Vec<TrimmedPlan>>>()?;
+    if let Some(budget) = defaults.memory_budget {
+        let needed = plans.iter().fold(grid_bytes, |sum, plan| {
+            sum + plan.params.len() as u64 * vertex_bytes + plan.triangles.len() as u64 * 12
+        });
+        if needed > budget {
+            return Err(Error::OverMemoryBudget { needed, budget });
+        }
+    }
+    let mut mesh = Mesh::default();
+    for ((_, _, face), plan) in faces.iter().zip(&plans) {
+        mesh.append(execute_trimmed(face, plan))?;
+    }
+    Ok(mesh)
+}
+
+/// The sampling limits of a trimmed face under `options`, relative tolerances taken of
+/// `diagonal`.
+fn trimmed_limits(options: &TessOptions, diagonal: f64) -> Result<SamplingLimits> {
+    let tolerance = match options.tolerance {
+        Some(Tolerance::Absolute(t)) => t,
+        Some(Tolerance::Relative(r)) => {
+            if !(r.is_finite() && r > 0.0) {
+                return Err(Error::InvalidTolerance { value: r });
+            }
+            r * diagonal
+        }
+        None if options.max_edge.is_some() => f64::INFINITY,
+        None => TRIMMED_DEFAULT_TOLERANCE_REL * diagonal,
+    };
+    if !(tolerance > 0.0 && (tolerance.is_finite() || options.tolerance.is_none())) {
+        return Err(Error::InvalidTolerance { value: tolerance });
+    }
+    let max_edge = options.max_edge.unwrap_or(f64::INFINITY);
+    if !(max_edge > 0.0 && (max_edge.is_finite() || options.max_edge.is_none())) {
+        return Err(Error::InvalidMaxEdge { value: max_edge });
+    }
+    Ok(SamplingLimits {
+        tolerance,
+        max_edge,
+    })
+}
+
+/// The diagonal of the box around the control points of every item of `scene`.
+fn scene_diagonal(scene: &Scene) -> f64 {
+    let (low, high) = scene
+        .items
+        .iter()
+        .map(|item| item.geometry.control_box())
+        .fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(low, high), (a, b)| (low.min(a), high.max(b)),
+        );
+    (high - low).length()
 }

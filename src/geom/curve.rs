@@ -163,4 +163,35 @@ impl BSplineCurve {
     pub fn range(&self) -> Interval {
         self.range
     }
+
+    /// The curve with every Cartesian control point moved by the affine map `f` (weights
+    /// kept): exact, since rational B-splines are affinely invariant.
+    pub fn mapped(&self, f: impl Fn(DVec3) -> DVec3) -> Self {
+        let moved = self
+            .cartesian
+            .iter()
+            .zip(&self.points)
+            .map(|(&c, h)| f(self.origin + c).extend(h.w));
+        let mut curve = Self::from_local(
+            self.knots.clone(),
+            LocalPoints::from_weighted(moved),
+            self.rational,
+        );
+        curve.range = self.range;
+        curve
+    }
+
+    /// The same point set run the other way: t ↦ a + b − t over the knot domain [a, b]
+    /// (knots mirrored, control points in reverse order, the range mirrored with them).
+    pub fn reversed(&self) -> Self {
+        let (a, b) = self.knots.domain();
+        let knots: Vec<f64> = self.knots.knots().iter().rev().map(|t| a + b - t).collect();
+        let mut curve = Self::from_local(
+            KnotVector::try_new(self.degree(), knots).expect("mirrored knots stay valid"),
+            LocalPoints::relative_to(self.origin, self.points.iter().rev().copied().collect()),
+            self.rational,
+        );
+        curve.range = Interval::new(a + b - self.range.end, a + b - self.range.start);
+        curve
+    }
 }

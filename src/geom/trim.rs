@@ -156,6 +156,15 @@ impl TrimmedSurface {
         Ok(face)
     }
 
+    /// The face with its surface's control points moved by the affine map `f` (loops and
+    /// parameters unchanged).
+    pub fn mapped(&self, f: impl Fn(glam::DVec3) -> glam::DVec3) -> Self {
+        TrimmedSurface {
+            surface: self.surface.mapped(f),
+            ..self.clone()
+        }
+    }
+
     /// The whole surface, untrimmed (B-spline form).
     pub fn surface(&self) -> &BSplineSurface {
         &self.surface

@@ -428,12 +428,22 @@ impl GpuBatch {
     }
 
     /// A batch of every item of `scene`: surfaces, Coons patches and curves, each on its own
-    /// grid or sample count where it asks for one, else on `defaults`.
+    /// grid or sample count where it asks for one, else on `defaults`. Trimmed faces are
+    /// refused ([`crate::Error::Unsupported`]).
     pub fn from_scene(
         context: &GpuContext,
         scene: &Scene,
         defaults: &SceneOptions,
     ) -> Result<Self> {
+        if scene
+            .items
+            .iter()
+            .any(|item| matches!(item.geometry, crate::scene::Geometry::Trimmed(_)))
+        {
+            return Err(crate::Error::Unsupported {
+                what: "trimmed faces in a GPU batch (they are meshed on the CPU: tessellate them to a file)".into(),
+            });
+        }
         let (surfaces, coons, curves) = (
             scene.surface_list(),
             scene.coons_patch_list(),

@@ -7,6 +7,7 @@ mod binary_meshes;
 mod bpt;
 #[cfg(feature = "gltf")]
 mod glb;
+mod iges;
 #[cfg(feature = "json")]
 mod json;
 mod obj_freeform;
@@ -16,6 +17,7 @@ pub use binary_meshes::{write_ply, write_stl};
 pub use bpt::read_bpt;
 #[cfg(feature = "gltf")]
 pub use glb::{is_far_from_origin, write_glb};
+pub use iges::read_iges;
 #[cfg(feature = "json")]
 pub use json::read_json_scene;
 pub use obj_freeform::read_obj_freeform;
@@ -52,7 +54,7 @@ pub fn cover_groups(groups: &[ItemGroup], items: impl Iterator<Item = u32>) -> V
 }
 
 /// The input formats, as error messages name them.
-pub const INPUT_FORMATS: &str = ".obj (free-form), .bpt, .json";
+pub const INPUT_FORMATS: &str = ".obj (free-form), .bpt, .json, .igs/.iges";
 const OUTPUT_FORMATS: &str = ".obj, .ply, .stl, .glb";
 
 fn extension(path: &Path) -> String {
@@ -71,15 +73,18 @@ pub enum SceneFormat {
     Bpt,
     /// knotwork's JSON scene format.
     Json,
+    /// IGES 5.3, fixed 80-column ASCII form.
+    Iges,
 }
 
 impl SceneFormat {
-    /// The format a file extension names (`obj`, `bpt`; any case).
+    /// The format a file extension names (`obj`, `bpt`, `json`, `igs`, `iges`; any case).
     pub fn from_extension(extension: &str) -> Option<Self> {
         match extension.to_ascii_lowercase().as_str() {
             "obj" => Some(Self::Obj),
             "bpt" => Some(Self::Bpt),
             "json" => Some(Self::Json),
+            "igs" | "iges" => Some(Self::Iges),
             _ => None,
         }
     }
@@ -94,20 +99,27 @@ pub fn read_scene_as(path: &Path, format: Option<SceneFormat>) -> Result<Scene> 
             path: path.to_path_buf(),
             expected: INPUT_FORMATS,
         })?;
-    let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+    let bytes = std::fs::read(path).map_err(|source| Error::Io {
         path: path.to_path_buf(),
         source,
     })?;
+    let text = |bytes: Vec<u8>| {
+        String::from_utf8(bytes).map_err(|e| Error::Io {
+            path: path.to_path_buf(),
+            source: std::io::Error::new(std::io::ErrorKind::InvalidData, e.utf8_error()),
+        })
+    };
     let scene = match format {
-        SceneFormat::Obj => read_obj_freeform(&text),
-        SceneFormat::Bpt => read_bpt(&text),
+        SceneFormat::Obj => read_obj_freeform(&text(bytes)?),
+        SceneFormat::Bpt => read_bpt(&text(bytes)?),
         #[cfg(feature = "json")]
-        SceneFormat::Json => read_json_scene(&text),
+        SceneFormat::Json => read_json_scene(&text(bytes)?),
         #[cfg(not(feature = "json"))]
         SceneFormat::Json => Err(Error::FeatureDisabled {
             feature: "json",
             what: "JSON scene files",
         }),
+        SceneFormat::Iges => read_iges(&bytes),
     };
     scene.map_err(|e| e.in_file(path))
 }
