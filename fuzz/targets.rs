@@ -5,9 +5,10 @@
 
 use knotwork::cli::{Cli, Command, Job};
 use knotwork::io::{
-    read_bpt, read_json_scene, read_obj_freeform, write_glb, write_obj_mesh, write_ply, write_stl,
+    read_bpt, read_iges, read_json_scene, read_obj_freeform, write_glb, write_obj_mesh, write_ply,
+    write_stl,
 };
-use knotwork::{CpuTessellator, Scene, SceneOptions, TessOptions, Tessellator};
+use knotwork::{CpuTessellator, Scene, SceneOptions, TessOptions, Tessellator, Tolerance};
 use std::path::PathBuf;
 
 /// Memory a fuzzed scene's mesh may take: small, so an input asking for a huge grid is
@@ -43,6 +44,16 @@ pub fn json(data: &[u8]) {
     }
 }
 
+/// Reads IGES bytes; what it accepts is meshed at 5 % of its diagonal (trimmed faces are
+/// always sampled to a tolerance) under [`FUZZ_MEMORY_BUDGET`] and written in every format.
+pub fn iges(data: &[u8]) {
+    if let Ok(scene) = read_iges(data).map_err(|e| e.to_string()) {
+        let _ = scene.dropped.iter().map(|d| d.reason.len()).sum::<usize>();
+        let options = TessOptions::DEFAULT.with_tolerance(Tolerance::Relative(5e-2));
+        tessellate_and_write(&scene, options);
+    }
+}
+
 /// The text through every reader; what each accepts is tessellated on the CPU in f64 and
 /// f32 at a small default grid under [`FUZZ_MEMORY_BUDGET`], and the meshes are written in
 /// every format into memory.
@@ -56,13 +67,13 @@ pub fn scene(data: &[u8]) {
         read_json_scene(text),
     ];
     for scene in read.iter().flatten() {
-        tessellate_and_write(scene);
+        tessellate_and_write(scene, TessOptions::DEFAULT.with_grid(4, 3));
     }
 }
 
-fn tessellate_and_write(scene: &Scene) {
+fn tessellate_and_write(scene: &Scene, options: TessOptions) {
     let defaults = SceneOptions {
-        grid: TessOptions::DEFAULT.with_grid(4, 3),
+        grid: options,
         samples: 5,
         memory_budget: Some(FUZZ_MEMORY_BUDGET),
     };

@@ -52,7 +52,6 @@ deg 3 3
 surf 0.0 1.0 0.0 1.0 13 14 15 16 9 10 11 12 5 6 7 8 1 2 3 4
 parm u 0.00 1.00
 parm v 0.00 1.00
-trim 0.0 2.0 1
 end
 ";
 
@@ -1385,8 +1384,9 @@ fn cli_refuses_a_folder_without_surface_files() {
     assert!(!run.status.success());
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(
-        stderr.contains("no surface file (.obj (free-form), .bpt, .json, .igs/.iges) in this directory")
-            && stderr.contains("empty-folder"),
+        stderr.contains(
+            "no surface file (.obj (free-form), .bpt, .json, .igs/.iges) in this directory"
+        ) && stderr.contains("empty-folder"),
         "{stderr}"
     );
     assert!(!out.exists());
@@ -1833,11 +1833,12 @@ mod fuzz_targets;
 #[test]
 fn fuzz_corpus_replays() {
     type Target = fn(&[u8]);
-    let targets: [(&str, Target); 5] = [
+    let targets: [(&str, Target); 6] = [
         ("obj", fuzz_targets::obj),
         ("bpt", fuzz_targets::bpt),
         ("json", fuzz_targets::json),
         ("scene", fuzz_targets::scene),
+        ("iges", fuzz_targets::iges),
         ("cli_args", fuzz_targets::cli_args),
     ];
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz");
@@ -2381,37 +2382,129 @@ fn disc_with_square_hole(bounded: bool) -> Vec<Entity> {
     entities
 }
 
+/// The face is the disc of radius 4 about the origin (z = 0) less the square |x|, |y| < 1,
+/// in units of `scale`: meshed to 1e-3 (× `scale`), its area is within the chords' loss of
+/// the exact one, every vertex lies in the region and the winding follows the normals.
+fn assert_disc_with_square_hole(scene: &Scene, scale: f64, what: &str) {
+    use std::f64::consts::PI;
+    assert!(scene.dropped.is_empty(), "{what}: {:?}", scene.dropped);
+    assert_eq!(
+        trimmed_faces(scene).len(),
+        1,
+        "{what}: the plane is the face's, not an item"
+    );
+    let tolerance = 1e-3 * scale;
+    let defaults = knotwork::SceneOptions {
+        grid: TessOptions::DEFAULT.with_tolerance(knotwork::Tolerance::Absolute(tolerance)),
+        ..Default::default()
+    };
+    let mesh = CpuTessellator.tessellate_scene(scene, &defaults).unwrap();
+    assert_winding_follows_normals(&mesh);
+    let exact = (PI * 16.0 - 4.0) * scale * scale;
+    let area = mesh_area(&mesh);
+    // Inscribed chords lose at most perimeter × tolerance.
+    let perimeter = (2.0 * PI * 4.0 + 8.0) * scale;
+    assert!(
+        area <= exact + 1e-9 * exact && exact - area <= perimeter * tolerance,
+        "{what}: area {area} vs {exact}"
+    );
+    for p in &mesh.positions {
+        let r = p.truncate().length() / scale;
+        let inside_hole = p.x.abs() < scale * (1.0 - 1e-9) && p.y.abs() < scale * (1.0 - 1e-9);
+        assert!(r <= 4.0 + 1e-9 && !inside_hole && p.z == 0.0, "{what}: {p}");
+    }
+}
+
 #[test]
 fn iges_trimmed_and_bounded_faces_keep_what_their_loops_enclose() {
-    use std::f64::consts::PI;
     for bounded in [false, true] {
         for (unit, scale) in [(2, 1.0), (1, 25.4)] {
             let scene = iges_scene(&disc_with_square_hole(bounded), unit);
-            assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
-            assert_eq!(scene.items.len(), 1, "the plane is the face's, not an item");
-            let tolerance = 1e-3 * scale;
-            let defaults = knotwork::SceneOptions {
-                grid: TessOptions::DEFAULT.with_tolerance(knotwork::Tolerance::Absolute(tolerance)),
-                ..Default::default()
-            };
-            let mesh = CpuTessellator.tessellate_scene(&scene, &defaults).unwrap();
-            assert_winding_follows_normals(&mesh);
-            let exact = (PI * 16.0 - 4.0) * scale * scale;
-            let area = mesh_area(&mesh);
-            // Inscribed chords lose at most perimeter × tolerance.
-            let perimeter = (2.0 * PI * 4.0 + 8.0) * scale;
-            assert!(
-                area <= exact + 1e-9 * exact && exact - area <= perimeter * tolerance,
-                "bounded {bounded}, unit {unit}: area {area} vs {exact}"
-            );
-            for p in &mesh.positions {
-                let r = p.truncate().length() / scale;
-                let inside_hole =
-                    p.x.abs() < scale * (1.0 - 1e-9) && p.y.abs() < scale * (1.0 - 1e-9);
-                assert!(r <= 4.0 + 1e-9 && !inside_hole && p.z == 0.0, "{p}");
-            }
+            assert_disc_with_square_hole(&scene, scale, &format!("bounded {bounded}, unit {unit}"));
         }
     }
+}
+
+/// The same face in OBJ: a degree-1 plane, a rational quadratic full circle (`curv2` over
+/// nine `vp`), a square polyline hole; the hole given as two pieces, one run backwards.
+fn obj_disc_with_square_hole(first: &str) -> String {
+    let w = std::f64::consts::FRAC_1_SQRT_2;
+    format!(
+        "\
+v -5 -5 0
+v 5 -5 0
+v -5 5 0
+v 5 5 0
+vp 4 0 1
+vp 4 4 {w}
+vp 0 4 1
+vp -4 4 {w}
+vp -4 0 1
+vp -4 -4 {w}
+vp 0 -4 1
+vp 4 -4 {w}
+vp 4 0 1
+vp -1 -1
+vp 1 -1
+vp 1 1
+vp -1 1
+vp -1 -1
+cstype rat bspline
+deg 2
+curv2 1 2 3 4 5 6 7 8 9
+parm u 0 0 0 1 1 2 2 3 3 4 4 4
+end
+cstype bspline
+deg 1
+curv2 -5 -4 -3 -2 -1
+parm u 0 0 1 2 3 4 4
+end
+deg 1 1
+surf -5 5 -5 5 1 2 3 4
+parm u -5 -5 5 5
+parm v -5 -5 5 5
+{first}
+end
+"
+    )
+}
+
+#[test]
+fn obj_trim_and_hole_loops_cut_the_surface() {
+    for first in [
+        "trim 0 4 1\nhole 4 2 2 2 0 -1",
+        "hole 0 2 -1 2 4 -1\ntrim 4 0 -2",
+    ] {
+        let scene = obj(&obj_disc_with_square_hole(first));
+        assert_disc_with_square_hole(&scene, 1.0, first);
+    }
+    // Bad loops: an undefined curve, a loop that does not close, trimming a curve.
+    let e = obj_error(&obj_disc_with_square_hole("trim 0 4 3"));
+    assert!(
+        matches!(e.root(), Error::VertexReference { reference: 3, .. }),
+        "{e}"
+    );
+    assert_eq!(e.line(), Some(33));
+    let e = obj_error(&obj_disc_with_square_hole("trim 0 2 1"));
+    assert!(
+        e.to_string().contains("trim loop 0") && e.to_string().contains("close"),
+        "{e}"
+    );
+    assert_eq!(e.line(), Some(30));
+    let e = obj_error(&obj_disc_with_square_hole("trim 0 4").replace(
+        "parm u 0 0 1 2 3 4 4\nend",
+        "parm u 0 0 1 2 3 4 4\ntrim 0 4 1\nend",
+    ));
+    assert!(e.to_string().contains("trimming belongs to `surf`"), "{e}");
+    // Special curves and points are read, and the note says they are not meshed yet.
+    let scene = obj(&obj_disc_with_square_hole(
+        "trim 0 4 1\nhole 0 4 2\nsp 1 2\nscrv 0 1 2",
+    ));
+    assert!(
+        scene.notes.iter().any(|n| n.contains("scrv")),
+        "{:?}",
+        scene.notes
+    );
 }
 
 #[test]

@@ -14,7 +14,7 @@ cd "$(dirname "$0")/../fuzz"
 runs=${1:-10000000}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(obj bpt json scene cli_args)
+[ ${#targets[@]} -gt 0 ] || targets=(obj bpt json scene iges cli_args)
 # Release speed with debug assertions and overflow checks on, as the tests build; no
 # sanitizer: the crate is safe Rust, so what the campaign hunts is panics, hangs and memory
 # growth, which libFuzzer catches itself (its RSS limit) — at 2–3× the speed under ASan.

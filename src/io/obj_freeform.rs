@@ -4,12 +4,17 @@
 //! Rules: `v x y z [w]` is a Cartesian point with a separate weight (default 1); `cstype`
 //! and `deg` are state that carries over to later elements; control-vertex lists run u
 //! fastest and may use negative (relative) references; `parm` values are knots for `bspline`
-//! and global breakpoints for `bezier`; a `\` at the end of a line continues it. Trimming
-//! statements (`trim`, `hole`, `scrv`, `sp`) are read and ignored: surfaces are tessellated over
-//! their whole `surf` range. Polygonal and display statements are ignored.
+//! and global breakpoints for `bezier`; a `\` at the end of a line continues it. Trimming:
+//! `vp u v [w]` parameter vertices, `curv2` parameter-space curves over them, and in a
+//! `surf` body `trim`/`hole` loops of `u0 u1 curv2` triples make a trimmed face (several
+//! `trim` loops are kept as further loops: the face is what an odd number of loops
+//! encloses). `scrv` and `sp` are checked but not yet meshed as constraints (a note says
+//! so). Polygonal and display statements are ignored.
 
 use crate::error::{Error, Result};
-use crate::geom::{BSplineCurve, BSplineSurface, Interval, KnotVector};
+use crate::geom::{
+    BSplineCurve, BSplineSurface, Interval, KnotVector, ParamMap, TrimLoop, TrimmedSurface,
+};
 use crate::scene::{Geometry, Item, Scene};
 use glam::DVec3;
 
@@ -89,8 +94,16 @@ enum Kind {
     Curve {
         range: Interval,
     },
-    /// A parameter-space curve (`curv2`): read and skipped.
-    SpaceCurve,
+    /// A parameter-space curve (`curv2`) over `vp` points, for trimming loops.
+    ParamCurve,
+}
+
+/// A trimming loop of a `surf` body: (u0, u1, `curv2` index) triples, and whether it is a
+/// `hole`.
+struct LoopStatement {
+    hole: bool,
+    line: usize,
+    pieces: Vec<(f64, f64, usize)>,
 }
 
 struct Element {
@@ -101,6 +114,9 @@ struct Element {
     vertices: Vec<usize>,
     parm_u: Option<(usize, Vec<f64>)>,
     parm_v: Option<(usize, Vec<f64>)>,
+    loops: Vec<LoopStatement>,
+    /// `scrv` and `sp` statements seen (not yet meshed as constraints).
+    special: usize,
 }
 
 impl Element {
@@ -108,7 +124,7 @@ impl Element {
         match self.kind {
             Kind::Surface { .. } => "surf",
             Kind::Curve { .. } => "curv",
-            Kind::SpaceCurve => "curv2",
+            Kind::ParamCurve => "curv2",
         }
     }
 }
@@ -120,6 +136,12 @@ struct Reader {
     group: Option<String>,
     /// Cartesian position and weight of every `v`.
     vertices: Vec<(DVec3, f64)>,
+    /// (u, v) and weight of every `vp`.
+    param_vertices: Vec<(DVec3, f64)>,
+    /// Every `curv2`, in file order.
+    param_curves: Vec<BSplineCurve>,
+    /// Whether a note on unmeshed `scrv`/`sp` statements was made.
+    noted_special: bool,
     cstype: Option<CsType>,
     degrees: Option<(usize, Option<usize>)>,
     element: Option<Element>,
@@ -134,6 +156,27 @@ fn number(token: &str) -> Result<f64> {
 
 fn numbers(tokens: &[&str]) -> Result<Vec<f64>> {
     tokens.iter().map(|t| number(t)).collect()
+}
+
+/// Resolves a reference (`v[/vt[/vn]]`, a `vp` or a `curv2` index; negative: counted back)
+/// to a 0-based index among the `available` defined above it.
+fn resolve(reference: &str, available: usize) -> Result<usize> {
+    let head = reference.split('/').next().unwrap_or("");
+    let value: i64 = head
+        .parse()
+        .map_err(|_| Error::syntax(format!("`{reference}` is not a vertex reference")))?;
+    let index = if value > 0 {
+        value - 1
+    } else {
+        available as i64 + value
+    };
+    if value == 0 || index < 0 || index >= available as i64 {
+        return Err(Error::VertexReference {
+            reference: value,
+            available,
+        });
+    }
+    Ok(index as usize)
 }
 
 fn degree(token: &str) -> Result<usize> {
@@ -173,6 +216,19 @@ impl Reader {
                 self.vertices.push((
                     DVec3::new(values[0], values[1], values[2]),
                     values.get(3).copied().unwrap_or(1.0),
+                ));
+            }
+            "vp" => {
+                if !(1..=3).contains(&args.len()) {
+                    return Err(Error::syntax(format!(
+                        "`vp` needs u [v [w]], found {} values",
+                        args.len()
+                    )));
+                }
+                let values = numbers(args)?;
+                self.param_vertices.push((
+                    DVec3::new(values[0], values.get(1).copied().unwrap_or(0.0), 0.0),
+                    values.get(2).copied().unwrap_or(1.0),
                 ));
             }
             "cstype" => {
@@ -228,7 +284,12 @@ impl Reader {
                     &args[2..],
                 )?;
             }
-            "curv2" => self.begin(Kind::SpaceCurve, &[])?,
+            "curv2" => {
+                if args.len() < 2 {
+                    return Err(Error::syntax("`curv2` needs parameter vertices (`vp`)"));
+                }
+                self.begin(Kind::ParamCurve, args)?;
+            }
             "g" => {
                 // A group names the items that follow, until the next `g`.
                 self.group = Some(if args.is_empty() {
@@ -250,9 +311,13 @@ impl Reader {
     }
 
     fn begin(&mut self, kind: Kind, references: &[&str]) -> Result<()> {
+        let available = match kind {
+            Kind::ParamCurve => self.param_vertices.len(),
+            _ => self.vertices.len(),
+        };
         let vertices = references
             .iter()
-            .map(|r| self.resolve(r))
+            .map(|r| resolve(r, available))
             .collect::<Result<Vec<_>>>()?;
         self.element = Some(Element {
             kind,
@@ -262,29 +327,10 @@ impl Reader {
             vertices,
             parm_u: None,
             parm_v: None,
+            loops: Vec::new(),
+            special: 0,
         });
         Ok(())
-    }
-
-    /// Resolves `v[/vt[/vn]]` to a 0-based vertex index.
-    fn resolve(&self, reference: &str) -> Result<usize> {
-        let head = reference.split('/').next().unwrap_or("");
-        let value: i64 = head
-            .parse()
-            .map_err(|_| Error::syntax(format!("`{reference}` is not a vertex reference")))?;
-        let available = self.vertices.len();
-        let index = if value > 0 {
-            value - 1
-        } else {
-            available as i64 + value
-        };
-        if value == 0 || index < 0 || index >= available as i64 {
-            return Err(Error::VertexReference {
-                reference: value,
-                available,
-            });
-        }
-        Ok(index as usize)
     }
 
     fn body_statement(&mut self, keyword: &str, args: &[&str]) -> Result<()> {
@@ -306,7 +352,45 @@ impl Reader {
                     }
                 }
             }
-            "trim" | "hole" | "scrv" | "sp" => {}
+            "trim" | "hole" | "scrv" | "sp" if !matches!(element.kind, Kind::Surface { .. }) => {
+                return Err(Error::syntax(format!(
+                    "`{keyword}` inside a `{}` element: trimming belongs to `surf`",
+                    element.keyword()
+                )));
+            }
+            "trim" | "hole" | "scrv" => {
+                if args.is_empty() || !args.len().is_multiple_of(3) {
+                    return Err(Error::syntax(format!(
+                        "`{keyword}` needs triples u0 u1 curv2d, found {} values",
+                        args.len()
+                    )));
+                }
+                let pieces = args
+                    .chunks_exact(3)
+                    .map(|t| {
+                        Ok((
+                            number(t[0])?,
+                            number(t[1])?,
+                            resolve(t[2], self.param_curves.len())?,
+                        ))
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                if keyword == "scrv" {
+                    element.special += 1;
+                } else {
+                    element.loops.push(LoopStatement {
+                        hole: keyword == "hole",
+                        line,
+                        pieces,
+                    });
+                }
+            }
+            "sp" => {
+                for r in args {
+                    resolve(r, self.param_vertices.len())?;
+                }
+                element.special += 1;
+            }
             "end" => {
                 let element = self.element.take().expect("checked above");
                 self.finish(element)?;
@@ -322,9 +406,6 @@ impl Reader {
     }
 
     fn finish(&mut self, element: Element) -> Result<()> {
-        if let Kind::SpaceCurve = element.kind {
-            return Ok(());
-        }
         let line = element.line;
         let keyword = element.keyword();
         let cstype = element.cstype.ok_or_else(|| {
@@ -346,18 +427,14 @@ impl Reader {
             };
             built.map_err(|e| e.at_line(parm_line))
         };
-        let points: Vec<DVec3> = element
-            .vertices
-            .iter()
-            .map(|&i| self.vertices[i].0)
-            .collect();
-        let weights: Option<Vec<f64>> = cstype.rational.then(|| {
-            element
-                .vertices
-                .iter()
-                .map(|&i| self.vertices[i].1)
-                .collect()
-        });
+        let source = match element.kind {
+            Kind::ParamCurve => &self.param_vertices,
+            _ => &self.vertices,
+        };
+        let points: Vec<DVec3> = element.vertices.iter().map(|&i| source[i].0).collect();
+        let weights: Option<Vec<f64>> = cstype
+            .rational
+            .then(|| element.vertices.iter().map(|&i| source[i].1).collect());
         match element.kind {
             Kind::Surface { range_u, range_v } => {
                 let dv =
@@ -367,7 +444,24 @@ impl Reader {
                 let surface = BSplineSurface::try_new(ku, kv, &points, weights.as_deref())
                     .and_then(|s| s.with_range(range_u, range_v))
                     .map_err(|e| e.at_line(line))?;
-                self.push(Geometry::Surface(surface));
+                if element.special > 0 && !self.noted_special {
+                    self.noted_special = true;
+                    self.scene.notes.push(format!(
+                        "line {line}: special curves and points (`scrv`, `sp`) are not yet kept as mesh edges and vertices"
+                    ));
+                }
+                if element.loops.is_empty() {
+                    self.push(Geometry::Surface(surface));
+                } else {
+                    let face = self.trimmed(surface, element.loops).map_err(|e| {
+                        if e.line().is_some() {
+                            e
+                        } else {
+                            e.at_line(line)
+                        }
+                    })?;
+                    self.push(Geometry::Trimmed(Box::new(face)));
+                }
             }
             Kind::Curve { range } => {
                 let ku = knots(element.parm_u, du, "u")?;
@@ -376,8 +470,50 @@ impl Reader {
                     .map_err(|e| e.at_line(line))?;
                 self.push(Geometry::Curve(curve));
             }
-            Kind::SpaceCurve => unreachable!("returned above"),
+            Kind::ParamCurve => {
+                let ku = knots(element.parm_u, du, "u")?;
+                let curve = BSplineCurve::try_new(ku, &points, weights.as_deref())
+                    .map_err(|e| e.at_line(line))?;
+                self.param_curves.push(curve);
+            }
         }
         Ok(())
+    }
+
+    /// The face `loops` cut from `surface`: the first `trim` loop is its outer loop, the
+    /// other loops (holes, further `trim` loops) its further loops. Each piece is its
+    /// `curv2` over [u0, u1], run backwards where u0 > u1.
+    fn trimmed(
+        &self,
+        surface: BSplineSurface,
+        loops: Vec<LoopStatement>,
+    ) -> Result<TrimmedSurface> {
+        let mut outer = None;
+        let mut others = Vec::new();
+        for statement in loops {
+            let curves = statement
+                .pieces
+                .iter()
+                .map(|&(u0, u1, k)| {
+                    let curve = &self.param_curves[k];
+                    if u0 > u1 {
+                        curve
+                            .clone()
+                            .with_range(Interval::new(u1, u0))
+                            .map(|c| c.reversed())
+                    } else {
+                        curve.clone().with_range(Interval::new(u0, u1))
+                    }
+                })
+                .collect::<Result<Vec<_>>>()
+                .map_err(|e| e.at_line(statement.line))?;
+            let trim_loop = TrimLoop { curves };
+            if !statement.hole && outer.is_none() {
+                outer = Some(trim_loop);
+            } else {
+                others.push(trim_loop);
+            }
+        }
+        TrimmedSurface::try_new(surface, ParamMap::SAME, outer, others)
     }
 }
