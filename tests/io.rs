@@ -2535,6 +2535,39 @@ fn obj_trim_and_hole_loops_cut_the_surface() {
     );
 }
 
+/// The same face in a JSON scene: `trim` an arc, `holes` one square of four Bezier lines.
+const JSON_DISC_WITH_SQUARE_HOLE: &str = r#"{ "surfaces": [
+  { "kind": "bspline", "degree": [1, 1], "knots_u": [-5, -5, 5, 5], "knots_v": [-5, -5, 5, 5],
+    "points": [[-5, -5, 0], [5, -5, 0], [-5, 5, 0], [5, 5, 0]],
+    "trim": [ { "kind": "arc", "centre": [0, 0, 0], "radius": 4, "angles": [0, 360] } ],
+    "holes": [ [ { "kind": "bezier", "points": [[-1, -1, 0], [1, -1, 0]] },
+                 { "kind": "bezier", "points": [[1, -1, 0], [1, 1, 0]] },
+                 { "kind": "bezier", "points": [[1, 1, 0], [-1, 1, 0]] },
+                 { "kind": "bezier", "points": [[-1, 1, 0], [-1, -1, 0]] } ] ] } ] }"#;
+
+#[test]
+fn json_surfaces_take_trim_and_holes() {
+    let scene = knotwork::io::read_json_scene(JSON_DISC_WITH_SQUARE_HOLE).unwrap();
+    assert_disc_with_square_hole(&scene, 1.0, "json");
+    // A hole that does not close is refused naming the surface and the loop.
+    let open =
+        JSON_DISC_WITH_SQUARE_HOLE.replace("[[1, 1, 0], [-1, 1, 0]]", "[[1, 1, 0], [-1, 0.5, 0]]");
+    let e = knotwork::io::read_json_scene(&open).unwrap_err();
+    assert!(
+        e.to_string().contains("surface 0") && e.to_string().contains("trim loop 1"),
+        "{e}"
+    );
+    // A directly evaluated Coons patch is not a B-spline surface: it cannot be trimmed.
+    let coons = r#"{ "surfaces": [ { "kind": "coons", "blend": "cosine",
+        "v0": { "kind": "bezier", "points": [[0, 0, 0], [1, 0, 0]] },
+        "v1": { "kind": "bezier", "points": [[0, 1, 0], [1, 1, 0]] },
+        "u0": { "kind": "bezier", "points": [[0, 0, 0], [0, 1, 0]] },
+        "u1": { "kind": "bezier", "points": [[1, 0, 0], [1, 1, 0]] },
+        "trim": [ { "kind": "arc", "centre": [0.5, 0.5, 0], "radius": 0.1, "angles": [0, 360] } ] } ] }"#;
+    let e = knotwork::io::read_json_scene(coons).unwrap_err();
+    assert!(e.to_string().contains("one B-spline surface"), "{e}");
+}
+
 #[test]
 fn iges_bad_files_are_refused_by_line_or_dropped_by_entity() {
     let cube = std::fs::read("data/single_rounded_cube.iges").unwrap();

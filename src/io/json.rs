@@ -21,12 +21,15 @@
 //! or `tolerance_rel` (of the scene's control-point box diagonal) samples it to a deviation
 //! instead (one of the three), `samples` the polyline length
 //! of a curve; `name` (optional) names its mesh in glTF output. Angles are in degrees. Bezier
-//! breakpoints default to [0, 1].
+//! breakpoints default to [0, 1]. A surface that is one B-spline may be trimmed: `trim` (its
+//! outer loop) and `holes` (loops) are arrays of curve objects whose x and y are (u, v) of
+//! its B-spline form, each starting where the one before ends.
 
 use crate::error::{Error, Result};
 use crate::geom::patches::{self, Blend, CoonsBoundaries, CoonsPatch, HermiteCorners};
 use crate::geom::{
-    BSplineCurve, BSplineSurface, Interval, KnotVector, bezier_curve, curves, shapes,
+    BSplineCurve, BSplineSurface, Interval, KnotVector, ParamMap, TrimLoop, TrimmedSurface,
+    bezier_curve, curves, shapes,
 };
 use crate::mesh::{TessOptions, Tolerance};
 use crate::scene::{Geometry, Item, Scene};
@@ -706,8 +709,17 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
             "surface",
             index,
             line,
-            &["grid", "tolerance", "tolerance_rel", "name"],
+            &[
+                "grid",
+                "tolerance",
+                "tolerance_rel",
+                "name",
+                "trim",
+                "holes",
+            ],
         )?;
+        let trim: Option<Vec<Curve>> = item.field("trim")?;
+        let holes: Option<Vec<Vec<Curve>>> = item.field("holes")?;
         let grid: Option<[u32; 2]> = item.field("grid")?;
         let tolerance: Option<f64> = item.field("tolerance")?;
         let tolerance_rel: Option<f64> = item.field("tolerance_rel")?;
@@ -738,9 +750,39 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
             (.., Some(r)) => Some(sampled_to(Tolerance::Relative(r))?),
             _ => None,
         };
-        let geometries = match shape.build().map_err(in_surface)? {
-            Built::Surfaces(built) => built.into_iter().map(Geometry::Surface).collect(),
-            Built::Coons(patch) => vec![Geometry::Coons(patch)],
+        let built = shape.build().map_err(in_surface)?;
+        let geometries = if trim.is_none() && holes.is_none() {
+            match built {
+                Built::Surfaces(built) => built.into_iter().map(Geometry::Surface).collect(),
+                Built::Coons(patch) => vec![Geometry::Coons(patch)],
+            }
+        } else {
+            let surface = match built {
+                Built::Surfaces(mut surfaces) if surfaces.len() == 1 => surfaces.remove(0),
+                _ => {
+                    return Err(item.error(
+                        "`trim` and `holes` need a kind that is one B-spline surface (not a Coons patch, not a closed quadric made of several)",
+                    ));
+                }
+            };
+            let trim_loop = |curves: Vec<Curve>| -> Result<TrimLoop> {
+                Ok(TrimLoop {
+                    curves: curves
+                        .into_iter()
+                        .map(Curve::build)
+                        .collect::<Result<_>>()?,
+                })
+            };
+            let outer = trim.map(trim_loop).transpose().map_err(in_surface)?;
+            let holes = holes
+                .unwrap_or_default()
+                .into_iter()
+                .map(trim_loop)
+                .collect::<Result<Vec<_>>>()
+                .map_err(in_surface)?;
+            let face = TrimmedSurface::try_new(surface, ParamMap::SAME, outer, holes)
+                .map_err(|e| in_surface(e).at_line(line))?;
+            vec![Geometry::Trimmed(Box::new(face))]
         };
         scene
             .items
