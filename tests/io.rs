@@ -2317,6 +2317,29 @@ fn iges_cad_part_meshes_every_face_to_the_exact_area() {
     }
 }
 
+/// A budget too small for a trimmed face's plan stops the planning at what it could hold
+/// (not at 16 million vertices) and says so.
+#[test]
+fn trimmed_faces_are_planned_within_the_memory_budget() {
+    let scene = read_scene(Path::new("data/single_rounded_cube.iges")).unwrap();
+    let defaults = knotwork::SceneOptions {
+        grid: TessOptions::DEFAULT.with_tolerance(knotwork::Tolerance::Relative(1e-7)),
+        memory_budget: Some(64 << 10),
+        ..Default::default()
+    };
+    let e = CpuTessellator
+        .tessellate_scene(&scene, &defaults)
+        .unwrap_err();
+    assert!(
+        matches!(e.root(), Error::TrimmedTooFine { vertices: 1024, .. }),
+        "{e}"
+    );
+    assert!(
+        e.to_string().contains("trimmed surface D"),
+        "names the face: {e}"
+    );
+}
+
 #[test]
 fn iges_classic_surfaces_convert_exactly() {
     use std::f64::consts::PI;

@@ -3,7 +3,7 @@
 use crate::error::{Error, Result};
 use crate::geom::{SamplingLimits, TrimmedSurface};
 use crate::mesh::{Mesh, MeshPart, TessOptions, Tolerance};
-use crate::plan::{TrimmedPlan, plan_trimmed};
+use crate::plan::{TrimmedPlan, plan_trimmed_within};
 use crate::scene::{Geometry, Item, Scene, SceneOptions};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
@@ -77,11 +77,15 @@ pub fn mesh_trimmed_faces(
         return Ok(Mesh::default());
     }
     let diagonal = scene_diagonal(scene);
+    // Each face's plan stops at what the budget left over could hold.
+    let max_vertices = defaults.memory_budget.map_or(usize::MAX, |budget| {
+        usize::try_from(budget.saturating_sub(grid_bytes) / vertex_bytes).unwrap_or(usize::MAX)
+    });
     let plans = faces
         .par_iter()
         .map(|&(index, item, face)| {
             trimmed_limits(&item.grid.unwrap_or(defaults.grid), diagonal)
-                .and_then(|limits| plan_trimmed(face, limits))
+                .and_then(|limits| plan_trimmed_within(face, limits, max_vertices))
                 .map_err(|source| Error::InItem {
                     index,
                     name: item.name.clone().unwrap_or_else(|| format!("item {index}")),

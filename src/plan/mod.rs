@@ -13,7 +13,7 @@ pub use adaptive::{
     Cell, CellGrid, MAX_CELL_SEGMENTS, MAX_CELLS_PER_SPAN, SEGMENTS_PER_CELL, surface_cells,
 };
 pub use tables::{AxisSamples, BEZIER_DEGREE, BezierSegment, ROW_PADDING, SpanRun};
-pub use trim::{MAX_TRIMMED_VERTICES, TrimmedPlan, plan_trimmed};
+pub use trim::{MAX_TRIMMED_VERTICES, TrimmedPlan, plan_trimmed, plan_trimmed_within};
 
 use tables::AxisCache;
 

@@ -49,6 +49,18 @@ pub struct TrimmedPlan {
 /// sampling errors, [`Error::InvalidTrimLoop`] for a loop that encloses nothing or crosses
 /// itself or another loop, [`Error::TrimmedTooFine`] past [`MAX_TRIMMED_VERTICES`].
 pub fn plan_trimmed(face: &TrimmedSurface, limits: SamplingLimits) -> Result<TrimmedPlan> {
+    plan_trimmed_within(face, limits, MAX_TRIMMED_VERTICES)
+}
+
+/// As [`plan_trimmed`], refused with [`Error::TrimmedTooFine`] as soon as the plan (a loop's
+/// samples, or the vertices) would pass `max_vertices` (at most [`MAX_TRIMMED_VERTICES`]):
+/// a memory budget bounds the work, not only the result.
+pub fn plan_trimmed_within(
+    face: &TrimmedSurface,
+    limits: SamplingLimits,
+    max_vertices: usize,
+) -> Result<TrimmedPlan> {
+    let max_vertices = max_vertices.min(MAX_TRIMMED_VERTICES);
     let surface = face.surface();
     let grid = surface_cells(surface, limits)?;
     let bounds = CellBounds::new(&grid);
@@ -56,7 +68,7 @@ pub fn plan_trimmed(face: &TrimmedSurface, limits: SamplingLimits) -> Result<Tri
         lines: bounds.interior_lines(),
         snap_width: [surface.range_u(), surface.range_v()].map(|r| 1e-12 * r.width()),
     };
-    let mut polylines = loop_polylines(face, &bounds, &lines, limits)?;
+    let mut polylines = loop_polylines(face, &bounds, &lines, limits, max_vertices)?;
     for polyline in &mut polylines {
         *polyline = with_line_crossings(polyline, &lines);
     }
@@ -149,7 +161,7 @@ pub fn plan_trimmed(face: &TrimmedSurface, limits: SamplingLimits) -> Result<Tri
             FixedVertexHandle::from_index(b),
         );
     }
-    let triangles = mesh.refine(&bounds, limits)?;
+    let triangles = mesh.refine(&bounds, limits, max_vertices)?;
     Ok(mesh.collect(&triangles))
 }
 
@@ -274,6 +286,7 @@ impl FaceTriangulation {
         &mut self,
         bounds: &CellBounds,
         limits: SamplingLimits,
+        max_vertices: usize,
     ) -> Result<Vec<([usize; 3], [DVec2; 3])>> {
         loop {
             let triangles = self.triangles();
@@ -288,9 +301,9 @@ impl FaceTriangulation {
                     splits.push((a + b + c) / 3.0);
                 }
             }
-            if self.params.len() + splits.len() > MAX_TRIMMED_VERTICES {
+            if self.params.len() + splits.len() > max_vertices {
                 return Err(Error::TrimmedTooFine {
-                    vertices: MAX_TRIMMED_VERTICES,
+                    vertices: max_vertices,
                     tolerance: limits.tolerance,
                 });
             }
@@ -338,6 +351,7 @@ fn loop_polylines(
     bounds: &CellBounds,
     lines: &CellLines,
     limits: SamplingLimits,
+    max_vertices: usize,
 ) -> Result<Vec<Vec<DVec2>>> {
     let surface = face.surface();
     let (range_u, range_v) = (surface.range_u(), surface.range_v());
@@ -355,6 +369,10 @@ fn loop_polylines(
         let bound = bounds.over(low, high);
         bound.deviation(extent.x, extent.y) <= tolerance
             && bound.edge_length(extent.x, extent.y) <= limits.max_edge
+    };
+    let too_fine = || Error::TrimmedTooFine {
+        vertices: max_vertices,
+        tolerance: limits.tolerance,
     };
     // A piece of a path is kept when its chord follows the path on the surface and its
     // parameter box allows half the tolerance.
@@ -393,7 +411,9 @@ fn loop_polylines(
                 }
             })
             .collect();
-        polylines.push(sample_loop(&sides, lines, &accept, &ear_allows));
+        polylines.push(
+            sample_loop(&sides, lines, &accept, &ear_allows, max_vertices).ok_or_else(too_fine)?,
+        );
     }
     for (loop_index, trim_loop) in face.loops() {
         let paths: Vec<Path> = trim_loop
@@ -405,7 +425,8 @@ fn loop_polylines(
                 minimum: if curve.degree() > 1 { 2 } else { 1 },
             })
             .collect();
-        let mut polyline = sample_loop(&paths, lines, &accept, &ear_allows);
+        let mut polyline =
+            sample_loop(&paths, lines, &accept, &ear_allows, max_vertices).ok_or_else(too_fine)?;
         polyline.dedup();
         if polyline.len() > 1 && polyline.first() == polyline.last() {
             polyline.pop();
@@ -438,21 +459,34 @@ const MAX_EAR_ROUNDS: u32 = 30;
 
 /// Samples a closed loop made of `paths`: each path's pieces bisected until `accept` keeps
 /// them ([`sample_path`]), then the two pieces beside every ear `ear_allows` refuses
-/// bisected until none is left.
+/// bisected until none is left. `None` past `max_samples`.
 fn sample_loop(
     paths: &[Path],
     lines: &CellLines,
     accept: PieceTest,
     ear_allows: &dyn Fn(&[DVec2; 3]) -> bool,
-) -> Vec<DVec2> {
+    max_samples: usize,
+) -> Option<Vec<DVec2>> {
     // (path, parameter, point) of the start of every piece; a piece ends where the next
     // starts, or at its path's end.
     let mut samples: Vec<(usize, f64, DVec2)> = Vec::new();
     for (k, path) in paths.iter().enumerate() {
         let at = |t: f64| lines.snap((path.at)(t));
         let mut pieces = Vec::new();
-        sample_path(&at, &path.breaks, path.minimum, lines, accept, &mut pieces);
+        let room = max_samples - samples.len();
+        sample_path(
+            &at,
+            &path.breaks,
+            path.minimum,
+            lines,
+            accept,
+            room,
+            &mut pieces,
+        )?;
         samples.extend(pieces.into_iter().map(|(t, p)| (k, t, p)));
+        if samples.len() > max_samples {
+            return None;
+        }
     }
     for _ in 0..MAX_EAR_ROUNDS {
         let n = samples.len();
@@ -491,23 +525,27 @@ fn sample_loop(
         if finer.len() == n {
             break;
         }
+        if finer.len() > max_samples {
+            return None;
+        }
         samples = finer;
     }
-    samples.into_iter().map(|(_, _, p)| p).collect()
+    Some(samples.into_iter().map(|(_, _, p)| p).collect())
 }
 
 /// Appends (parameter, point) of the start of every piece of a path (`at` over consecutive
 /// `breaks`), every piece bisected until `accept` keeps it, each span into at least `minimum`
 /// pieces, and cut where it crosses a cell line at the crossing's parameter (found by
-/// bisection; `at` puts points within rounding of a line on it).
+/// bisection; `at` puts points within rounding of a line on it). `None` past `max_pieces`.
 fn sample_path(
     at: &dyn Fn(f64) -> DVec2,
     breaks: &[f64],
     minimum: u32,
     lines: &CellLines,
     accept: PieceTest,
+    max_pieces: usize,
     out: &mut Vec<(f64, DVec2)>,
-) {
+) -> Option<()> {
     for span in breaks.windows(2) {
         let (start, end) = (span[0], span[1]);
         let piece_end = |k: u32| {
@@ -545,10 +583,12 @@ fn sample_path(
                     stack.push((t, p, t1, b, depth + 1));
                     stack.push((t0, a, t, p, depth + 1));
                 }
+                _ if out.len() >= max_pieces => return None,
                 _ => out.push((t0, a)),
             }
         }
     }
+    Some(())
 }
 
 /// The parameter in (t0, t1) where the path crosses `line` of `axis`, to rounding
