@@ -278,9 +278,9 @@ fn perspective(fov_y: f32, aspect: f32, near: f32, far: f32) -> Mat4 {
     )
 }
 
-/// Every vertex the batch's items tessellate to (its surfaces, Coons patches and curve
-/// samples), read back.
-fn tessellated_points(batch: &GpuBatch) -> Result<Vec<Vec3>> {
+/// Every vertex the batch's items tessellate to (its surfaces, Coons patches, trimmed faces
+/// and curve samples), read back.
+fn tessellated_points(context: &GpuContext, batch: &GpuBatch) -> Result<Vec<Vec3>> {
     let mut mesh = crate::Mesh32::default();
     batch.read_into(&mut mesh)?;
     let mut points: Vec<Vec3> = mesh
@@ -290,6 +290,15 @@ fn tessellated_points(batch: &GpuBatch) -> Result<Vec<Vec3>> {
         .collect();
     batch.read_coons_into(&mut mesh)?;
     points.extend(mesh.vertices.iter().map(|v| Vec3::from(v.position)));
+    if let Some(trimmed) = batch.trimmed_mesh() {
+        let vertices = read_buffer(
+            context,
+            &trimmed.vertices,
+            u64::from(trimmed.vertex_count) * size_of::<crate::Vertex>() as u64,
+        )?;
+        let vertices: Vec<crate::Vertex> = bytemuck::pod_collect_to_vec(&vertices);
+        points.extend(vertices.iter().map(|v| Vec3::from(v.position)));
+    }
     for line in batch.read_curves()? {
         points.extend(line.positions.iter().map(|p| p.as_vec3()));
     }
@@ -553,26 +562,37 @@ impl Preview {
                 (lo.as_vec3(), hi.as_vec3())
             });
         let fitted = match self.options.fit {
-            true => frame_fitting(&tessellated_points(batch)?, &self.options),
+            true => frame_fitting(&tessellated_points(context, batch)?, &self.options),
             false => None,
         };
         let frame = fitted.unwrap_or_else(|| frame_for(boxed, &self.options));
-        // The wireframe needs each triangle's edges: read them back before the draw.
-        let wire_indices = match self.options.wireframe {
-            true => Some(wireframe_indices(&read_indices(context, mesh)?)),
-            false => None,
+        // The wireframe needs each triangle's edges (of the surfaces and the trimmed faces):
+        // read them back before the draw.
+        let wired: Vec<&GpuMesh> = match self.options.wireframe {
+            true => std::iter::once(mesh)
+                .chain(batch.trimmed_mesh())
+                .filter(|m| m.index_count > 0)
+                .collect(),
+            false => Vec::new(),
         };
+        let wire_indices = wired
+            .iter()
+            .map(|m| read_indices(context, m).map(|i| wireframe_indices(&i)))
+            .collect::<Result<Vec<_>>>()?;
         scoped(device, || {
             context
                 .queue()
                 .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&frame));
-            let wire = wire_indices.as_ref().map(|edges| {
-                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some("knotwork wireframe"),
-                    contents: bytemuck::cast_slice(edges),
-                    usage: wgpu::BufferUsages::INDEX,
+            let wires: Vec<wgpu::Buffer> = wire_indices
+                .iter()
+                .map(|edges| {
+                    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("knotwork wireframe"),
+                        contents: bytemuck::cast_slice(edges),
+                        usage: wgpu::BufferUsages::INDEX,
+                    })
                 })
-            });
+                .collect();
             let net = if self.options.control_net {
                 control_net_lines(surfaces)
             } else {
@@ -619,7 +639,8 @@ impl Preview {
                     wgpu::IndexFormat::Uint32,
                 );
                 pass.draw_indexed(0..mesh.index_count, 0, 0..1);
-                for coons in batch.coons_meshes() {
+                let drawn = batch.coons_meshes().iter().chain(batch.trimmed_mesh());
+                for coons in drawn.filter(|m| m.index_count > 0) {
                     pass.set_vertex_buffer(0, coons.vertices.slice(coons.vertex_offset..));
                     pass.set_index_buffer(
                         coons.indices.slice(coons.index_offset..),
@@ -634,11 +655,11 @@ impl Preview {
                         pass.draw(first..first + count, 0..1);
                     }
                 }
-                if let Some(wire) = &wire {
-                    pass.set_vertex_buffer(0, mesh.vertices.slice(mesh.vertex_offset..));
+                for (wired, wire) in wired.iter().zip(&wires) {
+                    pass.set_vertex_buffer(0, wired.vertices.slice(wired.vertex_offset..));
                     pass.set_pipeline(&self.edges);
                     pass.set_index_buffer(wire.slice(..), wgpu::IndexFormat::Uint32);
-                    pass.draw_indexed(0..2 * mesh.index_count, 0, 0..1);
+                    pass.draw_indexed(0..2 * wired.index_count, 0, 0..1);
                 }
                 if let Some(net_buffer) = &net_buffer {
                     pass.set_pipeline(&self.nets);
@@ -681,17 +702,22 @@ impl Preview {
 
 /// The index buffer's contents (for the wireframe, which needs each triangle's three edges).
 fn read_indices(context: &GpuContext, mesh: &GpuMesh) -> Result<Vec<u32>> {
-    let bytes = u64::from(mesh.index_count) * 4;
+    let bytes = read_buffer(context, &mesh.indices, u64::from(mesh.index_count) * 4)?;
+    Ok(bytemuck::pod_collect_to_vec(&bytes))
+}
+
+/// The first `bytes` bytes of `buffer` (which has COPY_SRC usage), read back.
+fn read_buffer(context: &GpuContext, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>> {
     let staging = context.device().create_buffer(&wgpu::BufferDescriptor {
-        label: Some("knotwork index readback"),
+        label: Some("knotwork readback"),
         size: bytes.max(4),
         usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     });
     let mut encoder = context.device().create_command_encoder(&Default::default());
-    encoder.copy_buffer_to_buffer(&mesh.indices, 0, &staging, 0, bytes);
+    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, bytes);
     context.queue().submit([encoder.finish()]);
-    map_read(context, &staging).map(|b| bytemuck::cast_slice(&b[..bytes as usize]).to_vec())
+    map_read(context, &staging).map(|b| b[..bytes as usize].to_vec())
 }
 
 /// Maps `buffer` (MAP_READ), waits, and copies its bytes out.

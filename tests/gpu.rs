@@ -691,6 +691,39 @@ fn chunked_curves_match_one_chunk_and_oversized_curves_are_refused() {
 
 /// The teapot's render is not blank: in the middle of the image, where the model is, most
 /// pixels differ from the background; the corners show the background.
+/// A scene's trimmed faces go into its batch (planned and evaluated on the CPU, uploaded):
+/// the same triangles as the CPU mesh of the scene, drawn by the renderer (the fitted view
+/// reads them back) — the rounded cube fills the middle of the image.
+#[test]
+#[cfg(feature = "render")]
+fn trimmed_faces_are_uploaded_and_rendered() {
+    let Some(context) = gpu() else { return };
+    let scene =
+        knotwork::io::read_scene(std::path::Path::new("data/single_rounded_cube.iges")).unwrap();
+    let defaults = knotwork::SceneOptions::default();
+    let batch = GpuBatch::from_scene(context, &scene, &defaults).unwrap();
+    batch.dispatch().unwrap();
+    let cpu = CpuTessellator.tessellate_scene(&scene, &defaults).unwrap();
+    let trimmed = batch.trimmed_mesh().expect("the cube's faces are trimmed");
+    assert_eq!(trimmed.index_count as usize, cpu.indices.len());
+    assert_eq!(trimmed.vertex_count as usize, cpu.positions.len());
+    let items: Vec<u32> = trimmed.parts.iter().map(|p| p.item).collect();
+    assert_eq!(items, (0..7).collect::<Vec<u32>>());
+    let options = knotwork::render::RenderOptions {
+        width: 64,
+        height: 48,
+        fit: true,
+        ..knotwork::render::RenderOptions::DEFAULT
+    };
+    let image = knotwork::render::render(context, &batch, &[], &options).unwrap();
+    let centre = image.get_pixel(32, 24);
+    let corner = image.get_pixel(0, 0);
+    assert!(
+        (0..3).any(|c| centre[c].abs_diff(corner[c]) > 20),
+        "the centre {centre:?} shows the background {corner:?}"
+    );
+}
+
 #[test]
 #[cfg(feature = "cli")]
 fn teapot_render_is_not_blank() {

@@ -13,13 +13,14 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
-/// Tessellates on the GPU and renders the batch's own buffers to a PNG.
+/// Tessellates on the GPU and renders the batch's own buffers to a PNG; returns whether
+/// every part of the file was read.
 fn render(
     input: &Path,
     output: &Path,
     grid: (u32, u32),
     options: &knotwork::render::RenderOptions,
-) -> knotwork::Result<()> {
+) -> knotwork::Result<bool> {
     let start = Instant::now();
     let scene = knotwork::io::read_scene(input)?;
     let context = GpuContext::new()?;
@@ -27,21 +28,23 @@ fn render(
         grid: TessOptions::DEFAULT.with_grid(grid.0, grid.1),
         ..SceneOptions::default()
     };
+    let dropped = report_reading(input, &scene);
     let batch = knotwork::GpuBatch::from_scene(&context, &scene, &defaults)?;
     batch.dispatch()?;
     let surfaces = scene.surface_list();
     let image = knotwork::render::render(&context, &batch, &surfaces, options)?;
     knotwork::render::save_png(output, &image)?;
-    let triangles = batch.mesh().index_count as usize / 3
-        + batch
-            .coons_meshes()
-            .iter()
-            .map(|m| m.index_count as usize / 3)
-            .sum::<usize>();
+    let triangles = batch
+        .coons_meshes()
+        .iter()
+        .chain(batch.trimmed_mesh())
+        .chain([batch.mesh()])
+        .map(|m| m.index_count as usize / 3)
+        .sum::<usize>();
     println!(
         "{}: {}, {}, {} rendered at {}x{} in {:.3} s ({}) -> {}",
         input.display(),
-        count(surfaces.len() + scene.coons_patches().count(), "surface"),
+        count(scene.items.len() - scene.curves().count(), "surface"),
         count(scene.curves().count(), "curve"),
         count(triangles, "triangle"),
         options.width,
@@ -50,7 +53,7 @@ fn render(
         context.adapter_summary(),
         output.display()
     );
-    Ok(())
+    Ok(dropped == 0)
 }
 
 /// Mesa's drivers print "error: XDG_RUNTIME_DIR is invalid or not set in the environment"
@@ -123,7 +126,7 @@ fn main() -> ExitCode {
                 up: up.axis(),
                 fit,
             };
-            render(&input, &output, grid, &options).map(|()| true)
+            render(&input, &output, grid, &options)
         }
         Command::Info => {
             println!("{}", info());
@@ -270,6 +273,23 @@ impl Tally {
     }
 }
 
+/// Prints the reader's notes as warnings and the parts it dropped as errors (on stderr);
+/// returns how many were dropped.
+fn report_reading(input: &Path, scene: &knotwork::Scene) -> usize {
+    for note in &scene.notes {
+        eprintln!("warning: {}: {note}", input.display());
+    }
+    for dropped in &scene.dropped {
+        eprintln!(
+            "error: {}: {} left out: {}",
+            input.display(),
+            dropped.what,
+            dropped.reason
+        );
+    }
+    scene.dropped.len()
+}
+
 /// "1 surface", "2 surfaces", "1 vertex", "3 vertices".
 fn count(n: usize, noun: &str) -> String {
     match (n, noun) {
@@ -286,17 +306,7 @@ fn process(
     job: &Job,
 ) -> knotwork::Result<Tally> {
     let scene = knotwork::io::read_scene_as(input, job.input_format)?;
-    for note in &scene.notes {
-        eprintln!("warning: {}: {note}", input.display());
-    }
-    for dropped in &scene.dropped {
-        eprintln!(
-            "error: {}: {} left out: {}",
-            input.display(),
-            dropped.what,
-            dropped.reason
-        );
-    }
+    let dropped = report_reading(input, &scene);
     let budget = if job.weld {
         job.memory_budget / 2
     } else {
@@ -343,7 +353,7 @@ fn process(
         vertices,
         triangles,
         merged,
-        dropped: scene.dropped.len(),
+        dropped,
     })
 }
 

@@ -213,6 +213,16 @@ pub struct GpuBatch {
     curve_samples: Vec<u32>,
     curve_work: Option<CurveWork>,
     curve_pool: BufferPool,
+    /// Trimmed faces (from [`GpuBatch::from_scene`]), `None` without any.
+    trimmed: Option<TrimmedFaces>,
+}
+
+/// Trimmed faces, planned and evaluated on the CPU (f64, rounded to f32) and uploaded once:
+/// their mesh, and the box of their surfaces' control points.
+#[derive(Debug)]
+struct TrimmedFaces {
+    mesh: GpuMesh,
+    control_box: (glam::DVec3, glam::DVec3),
 }
 
 /// Binds elements `r.origin..r.end` of `buffer`, counted from byte `base` (clipped to the
@@ -419,6 +429,7 @@ impl GpuBatch {
                 curve_samples: descriptor.curve_samples.clone(),
                 curve_work: None,
                 curve_pool: BufferPool::default(),
+                trimmed: None,
             }
         })?;
         batch.load(packed, descriptor.surfaces)?;
@@ -429,21 +440,13 @@ impl GpuBatch {
 
     /// A batch of every item of `scene`: surfaces, Coons patches and curves, each on its own
     /// grid or sample count where it asks for one, else on `defaults`. Trimmed faces are
-    /// refused ([`crate::Error::Unsupported`]).
+    /// planned and evaluated on the CPU ([`crate::cpu::mesh_trimmed_faces`]) and uploaded
+    /// once into [`GpuBatch::trimmed_mesh`]; updates and reloads leave them as they are.
     pub fn from_scene(
         context: &GpuContext,
         scene: &Scene,
         defaults: &SceneOptions,
     ) -> Result<Self> {
-        if scene
-            .items
-            .iter()
-            .any(|item| matches!(item.geometry, crate::scene::Geometry::Trimmed(_)))
-        {
-            return Err(crate::Error::Unsupported {
-                what: "trimmed faces in a GPU batch (they are meshed on the CPU: tessellate them to a file)".into(),
-            });
-        }
         let (surfaces, coons, curves) = (
             scene.surface_list(),
             scene.coons_patch_list(),
@@ -452,7 +455,15 @@ impl GpuBatch {
         let descriptor = BatchDescriptor::each(&surfaces, &scene.surface_grids(defaults.grid))
             .with_coons(&coons, &scene.coons_grids(defaults.grid))
             .with_curves(&curves, &scene.curve_samples(defaults.samples));
-        Self::new(context, &descriptor)
+        let mut batch = Self::new(context, &descriptor)?;
+        batch.trimmed = upload_trimmed(context, scene, defaults)?;
+        Ok(batch)
+    }
+
+    /// The trimmed faces' mesh (positions in f32 world coordinates, one part per face
+    /// carrying its item index), `None` without trimmed faces.
+    pub fn trimmed_mesh(&self) -> Option<&GpuMesh> {
+        self.trimmed.as_ref().map(|t| &t.mesh)
     }
 
     /// Plans and uploads the batch's Coons patches into their pool.
@@ -525,9 +536,11 @@ impl GpuBatch {
         let surfaces = self.shapes.iter().map(BSplineSurface::control_box);
         let coons = self.coons.iter().map(CoonsPatch::control_box);
         let curves = self.curves.iter().map(BSplineCurve::control_box);
+        let trimmed = self.trimmed.iter().map(|t| t.control_box);
         surfaces
             .chain(coons)
             .chain(curves)
+            .chain(trimmed)
             .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))
     }
 
@@ -1008,4 +1021,69 @@ fn bind_chunks(
                 })
         })
         .collect()
+}
+
+/// The trimmed faces of `scene` meshed on the CPU and uploaded (vertex, index, storage and
+/// copy-source usage, like the batch's own outputs); `None` without trimmed faces.
+fn upload_trimmed(
+    context: &GpuContext,
+    scene: &Scene,
+    defaults: &SceneOptions,
+) -> Result<Option<TrimmedFaces>> {
+    use wgpu::util::DeviceExt;
+    let faces: Vec<(u32, &crate::TrimmedSurface)> = scene
+        .items
+        .iter()
+        .enumerate()
+        .filter_map(|(k, item)| match &item.geometry {
+            crate::scene::Geometry::Trimmed(face) => Some((k as u32, &**face)),
+            _ => None,
+        })
+        .collect();
+    if faces.is_empty() {
+        return Ok(None);
+    }
+    let mut mesh = Mesh32::from(crate::cpu::mesh_trimmed_faces(
+        scene,
+        defaults,
+        0,
+        VERTEX_BYTES,
+    )?);
+    for (part, &(item, _)) in mesh.parts.iter_mut().zip(&faces) {
+        part.item = item;
+    }
+    let control_box = faces
+        .iter()
+        .map(|(_, face)| face.surface().control_box())
+        .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))
+        .expect("at least one face");
+    let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+    let device = context.device();
+    let (vertices, indices) = scoped(device, || {
+        (
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("knotwork trimmed vertices"),
+                contents: bytemuck::cast_slice(&mesh.vertices),
+                usage: usage | wgpu::BufferUsages::VERTEX,
+            }),
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("knotwork trimmed indices"),
+                contents: bytemuck::cast_slice(&mesh.indices),
+                usage: usage | wgpu::BufferUsages::INDEX,
+            }),
+        )
+    })?;
+    Ok(Some(TrimmedFaces {
+        mesh: GpuMesh {
+            vertices,
+            indices,
+            vertex_offset: 0,
+            index_offset: 0,
+            base_vertex: 0,
+            vertex_count: mesh.vertices.len() as u32,
+            index_count: mesh.indices.len() as u32,
+            parts: mesh.parts,
+        },
+        control_box,
+    }))
 }
