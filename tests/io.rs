@@ -2617,6 +2617,23 @@ fn iges_bad_files_are_refused_by_line_or_dropped_by_entity() {
             .to_string()
             .contains("column")
     );
+    // A line of 82 columns names its length; a file of curves only has no surface to mesh.
+    let long = text.replacen(
+        "filleted.        S      1",
+        "filleted.          S      1",
+        1,
+    );
+    let e = error(long.as_bytes());
+    assert!(
+        e.to_string().contains("82 columns, not 80") && e.line() == Some(1),
+        "{e}"
+    );
+    let curves = iges_file(&[iges_line([0.0; 3], [1.0, 0.0, 0.0])], 2);
+    let e = error(&curves);
+    assert!(
+        e.to_string().contains("no surface") && e.to_string().contains("1 free-standing"),
+        "{e}"
+    );
 
     // Faces that cannot be read are dropped by entity; the rest of the file is read.
     let dangling = disc_with_square_hole(false)

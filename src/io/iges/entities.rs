@@ -87,6 +87,15 @@ impl<'a> Model<'a> {
             }
         }
         scene.notes = self.left_out(&referenced);
+        if scene.items.is_empty() && scene.dropped.is_empty() {
+            return Err(Error::syntax(format!(
+                "no surface in the file (knotwork meshes surfaces; {})",
+                scene
+                    .notes
+                    .first()
+                    .map_or("it holds no geometry", String::as_str)
+            )));
+        }
         if self.global.unit_to_mm.is_none() {
             scene
                 .notes

@@ -62,8 +62,13 @@ impl<'a> Sections<'a> {
                     .at_line(number));
                 }
                 other => {
+                    let columns = if raw.len() == 80 {
+                        String::new()
+                    } else {
+                        format!(" (the line has {} columns, not 80)", raw.len())
+                    };
                     return Err(Error::syntax(format!(
-                        "column 73 is {:?}: it must name the section (S, G, D, P or T)",
+                        "column 73 is {:?}: it must name the section (S, G, D, P or T){columns}",
                         char::from(other)
                     ))
                     .at_line(number));
