@@ -20,14 +20,16 @@ targets=("$@")
 # growth, which libFuzzer catches itself (its RSS limit) — at 2–3× the speed under ASan.
 build=(-O -a -s none)
 for target in "${targets[@]}"; do
-  seeds=../data
-  [ "$target" = cli_args ] && seeds=seeds/cli_args
+  seeds=(../data)
+  [ "$target" = cli_args ] && seeds=(seeds/cli_args)
+  # The shipped IGES parts pass -max_len: small whole files seed the reader's entities too.
+  [ "$target" = iges ] && seeds=(seeds/iges ../data)
   mkdir -p "corpus/$target"
   start=$(date +%s)
   workers=${FUZZ_WORKERS:-1}
   parallel=()
   [ "$workers" -gt 1 ] && parallel=(-jobs="$workers" -workers="$workers")
-  cargo +nightly fuzz run "${build[@]}" "$target" "corpus/$target" "$seeds" -- \
+  cargo +nightly fuzz run "${build[@]}" "$target" "corpus/$target" "${seeds[@]}" -- \
     -runs=$((runs / workers)) "${parallel[@]}" -timeout=1 -rss_limit_mb=2048 -max_len=8192 \
     -print_final_stats=1 2> "fuzz-$target.log"
   seconds=$(( $(date +%s) - start ))
