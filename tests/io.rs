@@ -2591,6 +2591,69 @@ fn json_surfaces_take_trim_and_holes() {
     assert!(e.to_string().contains("one B-spline surface"), "{e}");
 }
 
+/// Loops given only by their model-space curves (a 142 with no parameter-space curve, a
+/// 141 curve with none) are projected onto the surface: the face is the same. Here model
+/// space is the plane's parameter space, so the projection must reproduce the loops.
+#[test]
+fn iges_loops_without_parameter_curves_are_projected() {
+    let mut trimmed = disc_with_square_hole(false);
+    for k in [7, 8] {
+        let curve = trimmed[k].params[2].clone();
+        trimmed[k].params[2] = "0".into();
+        trimmed[k].params[3] = curve;
+        trimmed[k].params[4] = "2".into();
+    }
+    assert_disc_with_square_hole(&iges_scene(&trimmed, 2), 1.0, "142 model curves");
+    let mut bounded = disc_with_square_hole(true);
+    for k in [7, 8] {
+        // TYPE, PREF, SPTR, N, then the curve: its model curve, sense and no pcurve.
+        let curve = bounded[k].params[7].clone();
+        bounded[k].params.truncate(6);
+        bounded[k].params[4] = curve;
+        bounded[k].params.push("0".into());
+    }
+    assert_disc_with_square_hole(&iges_scene(&bounded, 2), 1.0, "141 model curves");
+    // The rounded cube with its parameter-space curves removed: every loop projected from
+    // its model-space curves — the fillet's over its surface of revolution, one loop edge
+    // lying on its seam (angle 0 = 2π), put on the side its neighbours meet.
+    let cube = std::fs::read_to_string("data/single_rounded_cube.iges").unwrap();
+    let without: Vec<String> = cube
+        .lines()
+        .map(|line| match line.strip_prefix("142,") {
+            Some(rest) if line.as_bytes().get(72) == Some(&b'P') => {
+                let mut fields: Vec<&str> = rest[..60].trim_end().split(',').collect();
+                fields[2] = "0";
+                format!("{:<64}{}", format!("142,{}", fields.join(",")), &line[64..])
+            }
+            _ => line.to_string(),
+        })
+        .collect();
+    let scene = knotwork::io::read_iges(without.join("\n").as_bytes()).unwrap();
+    assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
+    let defaults = knotwork::SceneOptions {
+        grid: TessOptions::DEFAULT.with_tolerance(knotwork::Tolerance::Relative(1e-4)),
+        ..Default::default()
+    };
+    let mesh = CpuTessellator.tessellate_scene(&scene, &defaults).unwrap();
+    assert_eq!(mesh.parts.len(), 7);
+    let area = mesh_area(&mesh);
+    assert!(
+        (area - CUBE_AREA).abs() <= 1e-5 * CUBE_AREA,
+        "area {area} vs {CUBE_AREA}"
+    );
+    for p in &mesh.positions {
+        assert!(
+            rounded_cube_distance(*p) < 1e-9 * 50.0,
+            "vertex {p} is off the solid"
+        );
+    }
+    // A model curve far off the surface is refused by name.
+    let mut off = trimmed;
+    off[1].params[0] = "3.0".into(); // the circle's plane: z = 3
+    let reason = &iges_scene(&off, 2).dropped[0].reason;
+    assert!(reason.contains("off its surface"), "{reason}");
+}
+
 #[test]
 fn iges_bad_files_are_refused_by_line_or_dropped_by_entity() {
     let cube = std::fs::read("data/single_rounded_cube.iges").unwrap();
@@ -2684,15 +2747,12 @@ fn iges_bad_files_are_refused_by_line_or_dropped_by_entity() {
         scene.dropped
     );
 
-    // A curve on surface with no parameter-space curve, a record of the wrong type, and a
-    // type knotwork does not read.
-    let mut no_pcurve = disc_with_square_hole(false);
-    no_pcurve[7].params[2] = "0".into();
-    let reason = &iges_scene(&no_pcurve, 2).dropped[0].reason;
-    assert!(
-        reason.contains("not supported") && reason.contains("projecting"),
-        "{reason}"
-    );
+    // A curve on surface with no curve at all, a record of the wrong type, and a type
+    // knotwork does not read.
+    let mut no_curve = disc_with_square_hole(false);
+    no_curve[7].params[2] = "0".into();
+    let reason = &iges_scene(&no_curve, 2).dropped[0].reason;
+    assert!(reason.contains("neither"), "{reason}");
     let mut plane = entity(
         108,
         &["0.0", "0.0", "1.0", "0.0", "0", "0.0", "0.0", "0.0", "1.0"],

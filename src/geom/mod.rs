@@ -13,6 +13,7 @@ mod eval;
 mod knots;
 pub mod patches;
 mod piecewise;
+pub mod project;
 pub mod shapes;
 mod surface;
 mod trim;

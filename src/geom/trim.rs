@@ -46,6 +46,23 @@ impl AxisMap {
             }
         }
     }
+
+    /// The file's parameter for the B-spline form's `u` (the inverse of [`apply`](Self::apply);
+    /// for an angle, within its sweep).
+    pub fn inverse(&self, u: f64) -> f64 {
+        match *self {
+            AxisMap::Affine { scale, offset } => (u - offset) / scale,
+            AxisMap::Angle { angles } => {
+                let segments = arc_segments(angles.width());
+                let delta = angles.width() / segments as f64;
+                let along = u.clamp(0.0, 1.0) * segments as f64;
+                let segment = (along.floor().max(0.0) as usize).min(segments - 1);
+                let s = along - segment as f64;
+                let phi = 2.0 * ((2.0 * s - 1.0) * (delta / 4.0).tan()).atan();
+                angles.start + (segment as f64 + 0.5) * delta + phi
+            }
+        }
+    }
 }
 
 /// A file's (s, t) parameters to the B-spline form's (u, v): `swap` exchanges s and t first,
@@ -64,6 +81,16 @@ impl ParamMap {
         u: AxisMap::SAME,
         v: AxisMap::SAME,
     };
+
+    /// The file's (s, t) for the surface's (u, v): the inverse of [`apply`](Self::apply).
+    pub fn inverse(&self, uv: DVec2) -> DVec2 {
+        let (a, b) = (self.u.inverse(uv.x), self.v.inverse(uv.y));
+        if self.swap {
+            DVec2::new(b, a)
+        } else {
+            DVec2::new(a, b)
+        }
+    }
 
     /// The surface's (u, v) for the file's (s, t).
     pub fn apply(&self, st: DVec2) -> DVec2 {
@@ -238,6 +265,11 @@ mod tests {
                 assert!(
                     error < 1e-13,
                     "angle {angle}: the arc is at {reached} (t = {t})"
+                );
+                let back = AxisMap::Angle { angles }.inverse(t);
+                assert!(
+                    (back - angle).abs() < 1e-13,
+                    "angle {angle} comes back as {back}"
                 );
             }
         }

@@ -6,7 +6,7 @@ use super::file::{DirectoryEntry, Global, Record, Sections, USE_PARAMETRIC};
 use crate::error::{Error, Result};
 use crate::geom::{
     AxisMap, BSplineCurve, BSplineSurface, Interval, KnotVector, LOOP_GAP, ParamMap, TrimLoop,
-    TrimmedSurface, curves, patches, shapes,
+    TrimmedSurface, curves, patches, project, shapes,
 };
 use crate::scene::{Dropped, Geometry, Item, Scene};
 use glam::{DAffine3, DMat3, DVec3};
@@ -82,7 +82,11 @@ impl<'a> Model<'a> {
                 }),
                 Err(error) => scene.dropped.push(Dropped {
                     what: format!("entity {} (directory entry {})", entry.kind, entry.sequence),
-                    reason: error.to_string(),
+                    // The entity is in `what`: its own wrapper is not repeated.
+                    reason: match error {
+                        Error::InEntity { source, .. } => source.to_string(),
+                        other => other.to_string(),
+                    },
                 }),
             }
         }
@@ -425,18 +429,20 @@ impl<'a> Model<'a> {
     /// A trimmed (144) or bounded (143) surface.
     fn trimmed(&self, entry: &DirectoryEntry) -> Result<TrimmedSurface> {
         self.within(entry, 0, |r| {
-            let (surface_field, outer, holes) = if entry.kind == 144 {
+            let surface_field = if entry.kind == 144 { 1 } else { 2 };
+            let base = self.surface(self.pointed(r, surface_field)?, 1)?;
+            let (outer, holes) = if entry.kind == 144 {
                 let has_outer = r.integer(2)? != 0;
                 let hole_count = r.count(3, r.len().saturating_sub(5))?;
                 let outer = if has_outer {
-                    Some(self.curve_on_surface(self.pointed(r, 4)?)?)
+                    Some(self.curve_on_surface(self.pointed(r, 4)?, &base)?)
                 } else {
                     None
                 };
                 let holes = (0..hole_count)
-                    .map(|k| self.curve_on_surface(self.pointed(r, 5 + k)?))
+                    .map(|k| self.curve_on_surface(self.pointed(r, 5 + k)?, &base))
                     .collect::<Result<Vec<_>>>()?;
-                (1, outer, holes)
+                (outer, holes)
             } else {
                 if r.integer(1)? == 0 {
                     return Err(Error::Unsupported {
@@ -445,27 +451,18 @@ impl<'a> Model<'a> {
                 }
                 let count = r.count(3, r.len().saturating_sub(4))?;
                 let mut loops = (0..count)
-                    .map(|k| self.boundary(self.pointed(r, 4 + k)?))
+                    .map(|k| self.boundary(self.pointed(r, 4 + k)?, &base))
                     .collect::<Result<Vec<_>>>()?;
                 if loops.is_empty() {
                     return Err(Error::syntax("the bounded surface has no boundaries"));
                 }
                 let outer = loops.remove(0);
-                (2, Some(outer), loops)
+                (Some(outer), loops)
             };
-            let base = self.surface(self.pointed(r, surface_field)?, 1)?;
             let map = match base.map {
                 Some(map) => map,
                 None if outer.is_none() && holes.is_empty() => ParamMap::SAME,
-                None => {
-                    return Err(Error::Unsupported {
-                        what: format!(
-                            "parameter-space curves on this {} (type {}): its curves are not parametrized the way the file's parameters assume",
-                            type_name(base.kind),
-                            base.kind
-                        ),
-                    });
-                }
+                None => return Err(unparametrized(&base)),
             };
             let surface = match self.transform(entry, 0)? {
                 Some(t) => base.surface.mapped(|p| t.transform_point3(p)),
@@ -475,8 +472,9 @@ impl<'a> Model<'a> {
         })
     }
 
-    /// The loop a curve on surface (142) gives by its parameter-space curve.
-    fn curve_on_surface(&self, entry: &DirectoryEntry) -> Result<TrimLoop> {
+    /// The loop a curve on surface (142) gives: its parameter-space curve, else its
+    /// model-space curve projected onto `base`.
+    fn curve_on_surface(&self, entry: &DirectoryEntry, base: &Surface) -> Result<TrimLoop> {
         if entry.kind != 142 {
             return Err(Error::syntax(format!(
                 "a trimming loop is an entity of type {}, not a curve on surface (142)",
@@ -484,20 +482,25 @@ impl<'a> Model<'a> {
             )));
         }
         self.within(entry, 1, |r| {
-            if r.integer(3)? == 0 {
-                return Err(Error::Unsupported {
-                    what: "a curve on surface with no parameter-space curve: projecting its model-space curve onto the surface".into(),
-                });
-            }
-            let chain = self.curve_chain(self.pointed(r, 3)?, 2)?;
+            let curves = if r.integer(3)? != 0 {
+                let chain = self.curve_chain(self.pointed(r, 3)?, 2)?;
+                chain.into_iter().map(|c| c.curve).collect()
+            } else if r.integer(4)? != 0 {
+                self.projected(self.pointed(r, 4)?, base)?
+            } else {
+                return Err(Error::syntax(
+                    "the curve on surface names neither a parameter-space nor a model-space curve",
+                ));
+            };
             Ok(TrimLoop {
-                curves: oriented(chain.into_iter().map(|c| c.curve).collect()),
+                curves: oriented(curves),
             })
         })
     }
 
-    /// The loop a boundary (141) gives by its curves' parameter-space curves.
-    fn boundary(&self, entry: &DirectoryEntry) -> Result<TrimLoop> {
+    /// The loop a boundary (141) gives by its curves' parameter-space curves (a curve with
+    /// none: its model-space curve projected onto `base`).
+    fn boundary(&self, entry: &DirectoryEntry, base: &Surface) -> Result<TrimLoop> {
         if entry.kind != 141 {
             return Err(Error::syntax(format!(
                 "a boundary is an entity of type {}, not 141",
@@ -511,12 +514,10 @@ impl<'a> Model<'a> {
             for _ in 0..count {
                 let reversed = r.integer(at + 1)? == 2;
                 let pcurves = r.count(at + 2, r.len().saturating_sub(at + 3))?;
-                if pcurves == 0 {
-                    return Err(Error::Unsupported {
-                        what: "a boundary curve with no parameter-space curve: projecting its model-space curve onto the surface".into(),
-                    });
-                }
                 let mut piece = Vec::new();
+                if pcurves == 0 {
+                    piece = self.projected(self.pointed(r, at)?, base)?;
+                }
                 for k in 0..pcurves {
                     let chain = self.curve_chain(self.pointed(r, at + 3 + k)?, 2)?;
                     piece.extend(chain.into_iter().map(|c| c.curve));
@@ -531,6 +532,39 @@ impl<'a> Model<'a> {
                 curves: oriented(curves),
             })
         })
+    }
+
+    /// The model-space curves of `entry` projected onto `base` as polylines in the file's
+    /// parameters, to 1e-5 of the surface's size; a curve farther than 1e-3 of it from the
+    /// surface is refused.
+    fn projected(&self, entry: &DirectoryEntry, base: &Surface) -> Result<Vec<BSplineCurve>> {
+        let map = base.map.ok_or_else(|| unparametrized(base))?;
+        let (low, high) = base.surface.control_box();
+        let size = (high - low).length();
+        let curves: Vec<BSplineCurve> = self
+            .curve_chain(entry, 2)?
+            .into_iter()
+            .map(|c| c.curve)
+            .collect();
+        project::project_chain(
+            &base.surface,
+            map,
+            &oriented(curves),
+            1e-5 * size,
+            1e-3 * size,
+        )
+    }
+}
+
+/// The error for parameter-space curves on a surface whose parameters knotwork's form does
+/// not keep.
+fn unparametrized(base: &Surface) -> Error {
+    Error::Unsupported {
+        what: format!(
+            "parameter-space curves on this {} (type {}): its curves are not parametrized the way the file's parameters assume",
+            type_name(base.kind),
+            base.kind
+        ),
     }
 }
 

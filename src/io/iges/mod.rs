@@ -3,7 +3,8 @@
 //!
 //! Read: 128 (rational B-spline surface), 118 (ruled), 120 (revolution), 122 (tabulated
 //! cylinder) — converted exactly to B-spline form —, 144 (trimmed surface) and 143/141
-//! (bounded surface) with their 142 curves on surface (their parameter-space curves), the
+//! (bounded surface) with their 142 curves on surface (their parameter-space curves, else
+//! their model-space curves projected onto the surface), the
 //! curves 100, 102, 104 (ellipses), 106 (polylines), 110, 112 and 126, and 124
 //! transformations (composed down each reference). Every surface no other read entity
 //! refers to becomes an item; curves only as parts of surfaces. Attributes (314 colour and

@@ -1,0 +1,256 @@
+//! Curves in model space taken into a surface's parameters: the parameter-space curve a CAD
+//! file leaves out (an IGES 142 with only its model-space curve), by point inversion.
+
+use super::{BSplineCurve, BSplineSurface, KnotVector, ParamMap};
+use crate::error::{Error, Result};
+use glam::{DVec2, DVec3};
+
+/// Newton steps per inversion.
+const NEWTON_STEPS: usize = 32;
+/// Deepest bisection of a piece of the curve (2¹⁶ pieces per knot span).
+const MAX_DEPTH: u32 = 16;
+
+/// The (u, v) within the surface's range whose point is nearest `target`, searched from
+/// `start` by Newton's method on the squared distance (full second derivatives, steps
+/// clamped to the range); returns it and its distance.
+pub fn invert(surface: &BSplineSurface, target: DVec3, start: DVec2) -> (DVec2, f64) {
+    let (ru, rv) = (surface.range_u(), surface.range_v());
+    let clamp = |p: DVec2| DVec2::new(p.x.clamp(ru.start, ru.end), p.y.clamp(rv.start, rv.end));
+    let mut p = clamp(start);
+    for _ in 0..NEWTON_STEPS {
+        let s = surface.evaluate(p.x, p.y);
+        let r = s.position - target;
+        let gradient = DVec2::new(s.du.dot(r), s.dv.dot(r));
+        let (a, b, c) = (
+            s.du.dot(s.du) + s.duu.dot(r),
+            s.du.dot(s.dv) + s.duv.dot(r),
+            s.dv.dot(s.dv) + s.dvv.dot(r),
+        );
+        let determinant = a * c - b * b;
+        // Where the Hessian is not positive definite, a gradient step scaled by the first
+        // fundamental form's diagonal.
+        let step = if determinant > 0.0 && a > 0.0 {
+            DVec2::new(
+                c * gradient.x - b * gradient.y,
+                a * gradient.y - b * gradient.x,
+            ) / determinant
+        } else {
+            DVec2::new(
+                gradient.x / s.du.length_squared().max(f64::MIN_POSITIVE),
+                gradient.y / s.dv.length_squared().max(f64::MIN_POSITIVE),
+            )
+        };
+        let next = clamp(p - step);
+        if next == p {
+            break;
+        }
+        p = next;
+    }
+    (p, surface.point(p.x, p.y).distance(target))
+}
+
+/// The parameters nearest `target` over a grid of the surface (8 per knot span each way, at
+/// most 64), refined by [`invert`].
+fn invert_from_grid(surface: &BSplineSurface, target: DVec3) -> (DVec2, f64) {
+    let (ru, rv) = (surface.range_u(), surface.range_v());
+    let count = |spans: usize| (8 * spans).clamp(8, 64);
+    let (nu, nv) = (
+        count(surface.count_u() - surface.degree_u()),
+        count(surface.count_v() - surface.degree_v()),
+    );
+    let mut best = (DVec2::new(ru.start, rv.start), f64::INFINITY);
+    for j in 0..=nv {
+        for i in 0..=nu {
+            let p = DVec2::new(ru.lerp(i as f64 / nu as f64), rv.lerp(j as f64 / nv as f64));
+            let d = surface.point(p.x, p.y).distance(target);
+            if d < best.1 {
+                best = (p, d);
+            }
+        }
+    }
+    invert(surface, target, best.0)
+}
+
+/// `curve` (model space) as a polyline in a file's parameters of the surface (degree 1,
+/// z = 0; `map` takes them to the surface's (u, v)): its points inverted onto the surface,
+/// pieces bisected until the surface at the middle of each chord (in the file's parameters)
+/// is within `tolerance` of the curve's middle. Fails when the curve strays from the
+/// surface by more than `off_surface`, or its inversion jumps across more than half the
+/// surface's range (a seam).
+fn project_points(
+    surface: &BSplineSurface,
+    map: ParamMap,
+    curve: &BSplineCurve,
+    tolerance: f64,
+    off_surface: f64,
+) -> Result<(Vec<f64>, Vec<DVec2>)> {
+    let (ru, rv) = (surface.range_u(), surface.range_v());
+    let on_surface = |st: DVec2| {
+        let uv = map.apply(st);
+        surface.point(uv.x, uv.y)
+    };
+    let check = |t: f64, (p, d): (DVec2, f64)| -> Result<DVec2> {
+        if d > off_surface {
+            return Err(Error::Unsupported {
+                what: format!(
+                    "a model-space trimming curve {d:e} off its surface at parameter {t}: it cannot be projected"
+                ),
+            });
+        }
+        Ok(p)
+    };
+    // On a surface closed in u (or v), a point on the seam has two parameters: the one
+    // nearer the point before it is taken.
+    let size = (surface.control_box().1 - surface.control_box().0).length();
+    let closed = |along_u: bool| {
+        [0.0, 0.5, 1.0].iter().all(|&f| {
+            let (a, b) = if along_u {
+                let v = rv.lerp(f);
+                (surface.point(ru.start, v), surface.point(ru.end, v))
+            } else {
+                let u = ru.lerp(f);
+                (surface.point(u, rv.start), surface.point(u, rv.end))
+            };
+            a.distance(b) <= 1e-9 * size
+        })
+    };
+    let (closed_u, closed_v) = (closed(true), closed(false));
+    let unwrap = |p: DVec2, near: DVec2| {
+        let twin = |x: f64, range: super::Interval| {
+            let seam = 1e-9 * range.width();
+            if (x - range.start).abs() <= seam {
+                range.end
+            } else if (x - range.end).abs() <= seam {
+                range.start
+            } else {
+                x
+            }
+        };
+        let mut q = p;
+        if closed_u && (twin(p.x, ru) - near.x).abs() < (p.x - near.x).abs() {
+            q.x = twin(p.x, ru);
+        }
+        if closed_v && (twin(p.y, rv) - near.y).abs() < (p.y - near.y).abs() {
+            q.y = twin(p.y, rv);
+        }
+        q
+    };
+    let breaks = curve.span_breaks();
+    let start = breaks[0];
+    let mut points = vec![check(start, invert_from_grid(surface, curve.point(start)))?];
+    let mut params = vec![start];
+    for span in breaks.windows(2) {
+        // Depth-first, left first: (t0, p0, t1, p1, depth).
+        let mut stack = Vec::new();
+        let pieces = 4;
+        let at = |k: usize| span[0] + (span[1] - span[0]) * k as f64 / pieces as f64;
+        let mut previous = *points.last().expect("started");
+        let mut ends = Vec::with_capacity(pieces);
+        for k in 1..=pieces {
+            let t = at(k);
+            let p = unwrap(
+                check(t, nearest(surface, curve.point(t), previous, tolerance))?,
+                previous,
+            );
+            ends.push((t, p));
+            previous = p;
+        }
+        // The span's start on the side of its first piece's end (a loop's start may sit on
+        // a seam, where only what follows tells its side).
+        let first = ends[0].1;
+        let start = points.last_mut().expect("started");
+        *start = unwrap(*start, first);
+        for k in (0..pieces).rev() {
+            let (t0, p0) = if k == 0 {
+                (span[0], *points.last().expect("started"))
+            } else {
+                ends[k - 1]
+            };
+            let (t1, p1) = ends[k];
+            stack.push((t0, p0, t1, p1, 0));
+        }
+        while let Some((t0, p0, t1, p1, depth)) = stack.pop() {
+            let tm = 0.5 * (t0 + t1);
+            let target = curve.point(tm);
+            let chord = map.apply(0.5 * (map.inverse(p0) + map.inverse(p1)));
+            if depth < MAX_DEPTH && on_surface(map.inverse(chord)).distance(target) > tolerance {
+                let pm = unwrap(check(tm, nearest(surface, target, chord, tolerance))?, p0);
+                stack.push((tm, pm, t1, p1, depth + 1));
+                stack.push((t0, p0, tm, pm, depth + 1));
+                continue;
+            }
+            let last = *points.last().expect("started");
+            if (p1.x - last.x).abs() > 0.5 * ru.width() || (p1.y - last.y).abs() > 0.5 * rv.width()
+            {
+                return Err(Error::Unsupported {
+                    what: "a model-space trimming curve across its surface's seam: it cannot be projected".into(),
+                });
+            }
+            points.push(p1);
+            params.push(t1);
+        }
+    }
+    Ok((params, points))
+}
+
+/// A closed chain of model-space `curves` (a trimming loop) as polylines in a file's
+/// parameters of the surface, each by [`project_points`] (see there for the tolerances and
+/// failures). A curve lying wholly on a seam of a closed surface (its two parameter values
+/// there give the same points) is put on the side where its neighbours meet it.
+pub fn project_chain(
+    surface: &BSplineSurface,
+    map: ParamMap,
+    curves: &[BSplineCurve],
+    tolerance: f64,
+    off_surface: f64,
+) -> Result<Vec<BSplineCurve>> {
+    let mut projected = curves
+        .iter()
+        .map(|c| project_points(surface, map, c, tolerance, off_surface))
+        .collect::<Result<Vec<_>>>()?;
+    let n = projected.len();
+    let ranges = [surface.range_u(), surface.range_v()];
+    for k in 0..n {
+        for axis in 0..2 {
+            let range = ranges[axis];
+            let seam = 1e-9 * range.width();
+            let on = |x: f64, side: f64| (x - side).abs() <= seam;
+            let points = &projected[k].1;
+            let side = [range.start, range.end]
+                .into_iter()
+                .find(|&side| points.iter().all(|p| on(p[axis], side)));
+            let Some(side) = side else { continue };
+            if n == 1 {
+                continue;
+            }
+            let before = *projected[(k + n - 1) % n].1.last().expect("points");
+            let after = projected[(k + 1) % n].1[0];
+            let other = range.start + range.end - side;
+            let gap = |x: f64| (before[axis] - x).abs() + (after[axis] - x).abs();
+            if gap(other) < gap(side) {
+                for p in &mut projected[k].1 {
+                    p[axis] = other;
+                }
+            }
+        }
+    }
+    projected
+        .into_iter()
+        .map(|(params, points)| {
+            let knots = KnotVector::from_breakpoints(1, &params)?;
+            let points: Vec<DVec3> = points.iter().map(|&p| map.inverse(p).extend(0.0)).collect();
+            BSplineCurve::try_new(knots, &points, None)
+        })
+        .collect()
+}
+
+/// [`invert`] from `guess`; where that lands farther than `tolerance` from the target, the
+/// grid search too, and the nearer of the two.
+fn nearest(surface: &BSplineSurface, target: DVec3, guess: DVec2, tolerance: f64) -> (DVec2, f64) {
+    let local = invert(surface, target, guess);
+    if local.1 <= tolerance {
+        return local;
+    }
+    let global = invert_from_grid(surface, target);
+    if global.1 < local.1 { global } else { local }
+}
