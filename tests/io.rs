@@ -2794,7 +2794,12 @@ fn cli_meshes_iges_files_and_reports_dropped_faces() {
         "cpu",
     ]);
     assert!(String::from_utf8_lossy(&run.stdout).contains("7 surfaces"));
-    assert!(out.exists());
+    // One glTF node per face, named by its entity; the Khronos validator accepts it.
+    validate_with_khronos(&out);
+    let gltf = gltf::Gltf::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let names: Vec<&str> = gltf.nodes().filter_map(|n| n.name()).collect();
+    assert_eq!(names.len(), 7);
+    assert!(names.contains(&"trimmed surface D203"), "{names:?}");
     // One face dropped: the other comes out, the error names the entity, the status is 1.
     let mut entities = disc_with_square_hole(false);
     entities[7].params[2] = "0".into();
