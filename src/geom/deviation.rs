@@ -192,16 +192,87 @@ impl BezierPatch {
         let (d_v, w_v) = (scale_v * first_v.0, scale_v * first_v.1);
         let g_u = (d_u + w_u * radius) / least_weight;
         let g_v = (d_v + w_v * radius) / least_weight;
+        let general_uv =
+            (scale_uv * second_uv.0 + w_u * g_v + w_v * g_u + scale_uv * second_uv.1 * radius)
+                / least_weight;
         DerivativeBound {
             u: g_u,
             v: g_v,
             uu: (scale_uu * second_uu.0 + 2.0 * w_u * g_u + scale_uu * second_uu.1 * radius)
                 / least_weight,
-            uv: (scale_uv * second_uv.0 + w_u * g_v + w_v * g_u + scale_uv * second_uv.1 * radius)
-                / least_weight,
+            uv: general_uv.min(self.ruled_uv_bound().unwrap_or(f64::INFINITY)),
             vv: (scale_vv * second_vv.0 + 2.0 * w_v * g_v + scale_vv * second_vv.1 * radius)
                 / least_weight,
         }
+    }
+
+    /// A bound on |S_uv| for a patch ruled in one direction: degree 1 in v with weights
+    /// equal along v (or the same with u and v exchanged), as cylinders, cones and
+    /// extrusions of rational curves are. Then S = C₀(u) + t·D(u) with t = (v − v₀)/Δv and
+    /// D = C₁ − C₀ the rational curve of the differences of the two rows over the same
+    /// weights, so S_uv = D′(u)/Δv, bounded like a first derivative (see
+    /// [`derivative_bound`](Self::derivative_bound)) — where the general bound's quotient
+    /// rule terms W_u·G_v would not cancel (a cylinder's S_uv is 0). `None` otherwise.
+    fn ruled_uv_bound(&self) -> Option<f64> {
+        let (p, q) = (self.degree_u, self.degree_v);
+        let row = p + 1;
+        let at = |i: usize, j: usize| self.points[j * row + i];
+        // (weights, row differences, degree and widths) along the curved direction.
+        let (weights, differences, degree, along, across) =
+            if q == 1 && (0..=p).all(|i| at(i, 0).w == at(i, 1).w) {
+                let d: Vec<(f64, DVec3)> = (0..=p)
+                    .map(|i| {
+                        (
+                            at(i, 0).w,
+                            (at(i, 1).truncate() - at(i, 0).truncate()) / at(i, 0).w,
+                        )
+                    })
+                    .collect();
+                (
+                    d.iter().map(|x| x.0).collect::<Vec<_>>(),
+                    d.iter().map(|x| x.1).collect::<Vec<_>>(),
+                    p,
+                    self.range_u.width(),
+                    self.range_v.width(),
+                )
+            } else if p == 1 && (0..=q).all(|j| at(0, j).w == at(1, j).w) {
+                let d: Vec<(f64, DVec3)> = (0..=q)
+                    .map(|j| {
+                        (
+                            at(0, j).w,
+                            (at(1, j).truncate() - at(0, j).truncate()) / at(0, j).w,
+                        )
+                    })
+                    .collect();
+                (
+                    d.iter().map(|x| x.0).collect(),
+                    d.iter().map(|x| x.1).collect(),
+                    q,
+                    self.range_v.width(),
+                    self.range_u.width(),
+                )
+            } else {
+                return None;
+            };
+        let (low, high) = differences.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(low, high), &x| (low.min(x), high.max(x)),
+        );
+        let centre = 0.5 * (low + high);
+        let radius = differences
+            .iter()
+            .map(|&x| (x - centre).length())
+            .fold(0.0, f64::max);
+        let scale = degree as f64 / along;
+        let (mut d_first, mut w_first) = (0.0f64, 0.0f64);
+        for k in 0..degree {
+            let next = weights[k + 1] * (differences[k + 1] - centre);
+            let this = weights[k] * (differences[k] - centre);
+            d_first = d_first.max((next - this).length());
+            w_first = w_first.max((weights[k + 1] - weights[k]).abs());
+        }
+        let least_weight = weights.iter().copied().fold(f64::INFINITY, f64::min);
+        Some(scale * (d_first + w_first * radius) / least_weight / across)
     }
 
     /// The patch restricted to the parameters between fractions `from` and `to` (0 ≤ from <
