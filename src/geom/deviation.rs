@@ -217,40 +217,25 @@ impl BezierPatch {
         let (p, q) = (self.degree_u, self.degree_v);
         let row = p + 1;
         let at = |i: usize, j: usize| self.points[j * row + i];
-        // (weights, row differences, degree and widths) along the curved direction.
+        // The two rows' homogeneous points `first(k)` and `second(k)`, k = 0..=degree along
+        // the curved direction: their weights, and the differences of their points.
+        let rows = |degree: usize,
+                    first: &dyn Fn(usize) -> DVec4,
+                    second: &dyn Fn(usize) -> DVec4|
+         -> Option<(Vec<f64>, Vec<DVec3>)> {
+            (0..=degree)
+                .map(|k| {
+                    let (a, b) = (first(k), second(k));
+                    (a.w == b.w).then(|| (a.w, (b.truncate() - a.truncate()) / a.w))
+                })
+                .collect::<Option<Vec<_>>>()
+                .map(|pairs| pairs.into_iter().unzip())
+        };
         let (weights, differences, degree, along, across) =
-            if q == 1 && (0..=p).all(|i| at(i, 0).w == at(i, 1).w) {
-                let d: Vec<(f64, DVec3)> = (0..=p)
-                    .map(|i| {
-                        (
-                            at(i, 0).w,
-                            (at(i, 1).truncate() - at(i, 0).truncate()) / at(i, 0).w,
-                        )
-                    })
-                    .collect();
-                (
-                    d.iter().map(|x| x.0).collect::<Vec<_>>(),
-                    d.iter().map(|x| x.1).collect::<Vec<_>>(),
-                    p,
-                    self.range_u.width(),
-                    self.range_v.width(),
-                )
-            } else if p == 1 && (0..=q).all(|j| at(0, j).w == at(1, j).w) {
-                let d: Vec<(f64, DVec3)> = (0..=q)
-                    .map(|j| {
-                        (
-                            at(0, j).w,
-                            (at(1, j).truncate() - at(0, j).truncate()) / at(0, j).w,
-                        )
-                    })
-                    .collect();
-                (
-                    d.iter().map(|x| x.0).collect(),
-                    d.iter().map(|x| x.1).collect(),
-                    q,
-                    self.range_v.width(),
-                    self.range_u.width(),
-                )
+            if let (1, Some((w, d))) = (q, rows(p, &|i| at(i, 0), &|i| at(i, 1))) {
+                (w, d, p, self.range_u.width(), self.range_v.width())
+            } else if let (1, Some((w, d))) = (p, rows(q, &|j| at(0, j), &|j| at(1, j))) {
+                (w, d, q, self.range_v.width(), self.range_u.width())
             } else {
                 return None;
             };
