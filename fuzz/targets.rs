@@ -76,6 +76,8 @@ fn tessellate_and_write(scene: &Scene, options: TessOptions) {
         grid: options,
         samples: 5,
         memory_budget: Some(FUZZ_MEMORY_BUDGET),
+        // As the command line runs: a face that cannot be planned is left out.
+        skip_failed_faces: true,
     };
     let groups = scene.groups();
     if let Ok(mesh) = CpuTessellator.tessellate_scene(scene, &defaults) {

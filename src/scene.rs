@@ -96,6 +96,10 @@ pub struct SceneOptions {
     /// Bytes the output mesh may take in memory; a scene needing more is refused before
     /// anything is allocated for it ([`crate::Error::OverMemoryBudget`]). `None`: no limit.
     pub memory_budget: Option<u64>,
+    /// Trimmed faces whose plan fails (loops crossing, a tolerance too fine for the budget)
+    /// are left out — no part for their item — instead of failing the whole scene;
+    /// [`crate::cpu::trimmed_face_plan`] tells why. `false` by default.
+    pub skip_failed_faces: bool,
 }
 
 impl Default for SceneOptions {
@@ -104,6 +108,7 @@ impl Default for SceneOptions {
             grid: TessOptions::DEFAULT,
             samples: 65,
             memory_budget: None,
+            skip_failed_faces: false,
         }
     }
 }
@@ -353,7 +358,8 @@ fn patches_and_curves<T: Tessellator + ?Sized>(
     Ok((coons, polylines))
 }
 
-/// Gives every part (surfaces first, then Coons patches, then trimmed faces, as tessellated) and every polyline
+/// Gives every part (surfaces first, then Coons patches, as tessellated; trimmed faces'
+/// parts, last, carry theirs) and every polyline
 /// its item's index, then reorders the parts by item where Coons patches stand between
 /// surfaces (a mesh already in item order is left as it is).
 fn put_in_item_order(scene: &Scene, mesh: &mut impl GridMesh) {
@@ -365,9 +371,9 @@ fn put_in_item_order(scene: &Scene, mesh: &mut impl GridMesh) {
             .filter(move |(_, item)| wanted(&item.geometry))
             .map(|(k, _)| k as u32)
     };
+    // Trimmed faces' parts come last and already carry their items (a skipped face has none).
     let grid_items = items_of(|g| matches!(g, Geometry::Surface(_)))
-        .chain(items_of(|g| matches!(g, Geometry::Coons(_))))
-        .chain(items_of(|g| matches!(g, Geometry::Trimmed(_))));
+        .chain(items_of(|g| matches!(g, Geometry::Coons(_))));
     let (parts, polylines) = mesh.parts_and_polylines_mut();
     for (part, item) in parts.iter_mut().zip(grid_items) {
         part.item = item;

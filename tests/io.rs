@@ -2654,6 +2654,68 @@ fn iges_loops_without_parameter_curves_are_projected() {
     assert!(reason.contains("off its surface"), "{reason}");
 }
 
+/// A face whose plan fails — two holes that cross, which only the triangulation finds —
+/// fails the scene naming the item, or with `skip_failed_faces` is left out while the rest
+/// is meshed; `trimmed_face_plan` tells why. The command line skips it, names it and exits 1.
+#[test]
+fn faces_that_cannot_be_planned_are_skipped_and_named() {
+    let mut entities = disc_with_square_hole(false);
+    let corners = [[-0.5, -0.5], [1.5, -0.5], [1.5, 1.5], [-0.5, 1.5]];
+    for k in 0..4 {
+        let (a, b) = (corners[k], corners[(k + 1) % 4]);
+        entities.push(iges_line([a[0], a[1], 0.0], [b[0], b[1], 0.0])); // 21, 23, 25, 27
+    }
+    entities.push(entity(102, &["4", "21", "23", "25", "27"])); // 29
+    entities.push(entity(142, &["0", "1", "29", "0", "1"])); // 31
+    entities[9].params = ["1", "1", "2", "15", "17", "31"].map(String::from).to_vec();
+    entities.push(iges_plane(10.0, 11.0, 0.0, 1.0)); // 33, free
+    let scene = iges_scene(&entities, 2);
+    assert!(scene.dropped.is_empty(), "the loops are valid one by one");
+    let strict = knotwork::SceneOptions {
+        grid: TessOptions::DEFAULT.with_tolerance(knotwork::Tolerance::Absolute(1e-2)),
+        ..Default::default()
+    };
+    let e = CpuTessellator
+        .tessellate_scene(&scene, &strict)
+        .unwrap_err();
+    assert!(e.to_string().contains("crosses"), "{e}");
+    let lenient = knotwork::SceneOptions {
+        skip_failed_faces: true,
+        ..strict
+    };
+    let mesh = CpuTessellator.tessellate_scene(&scene, &lenient).unwrap();
+    let items: Vec<u32> = mesh.parts.iter().map(|p| p.item).collect();
+    let face = scene
+        .items
+        .iter()
+        .position(|i| matches!(i.geometry, knotwork::Geometry::Trimmed(_)))
+        .unwrap();
+    assert_eq!(items.len(), 1);
+    assert_ne!(items[0] as usize, face);
+    let why = knotwork::cpu::trimmed_face_plan(&scene, &lenient, face).unwrap_err();
+    assert!(why.to_string().contains("crosses"), "{why}");
+
+    let dir = scratch_dir("cli-unplannable");
+    let input = dir.join("part.igs");
+    std::fs::write(&input, iges_file(&entities, 2)).unwrap();
+    let out = dir.join("part.obj");
+    let run = knotwork(&[
+        "tessellate",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("face left out") && stderr.contains("crosses"),
+        "{stderr}"
+    );
+    assert!(out.exists(), "the rest of the file is written");
+}
+
 #[test]
 fn iges_bad_files_are_refused_by_line_or_dropped_by_entity() {
     let cube = std::fs::read("data/single_rounded_cube.iges").unwrap();

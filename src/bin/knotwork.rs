@@ -290,6 +290,31 @@ fn report_reading(input: &Path, scene: &knotwork::Scene) -> usize {
     scene.dropped.len()
 }
 
+/// Prints why each trimmed face that has no part among `items` (its plan failed and it was
+/// skipped) was left out; returns how many.
+fn report_skipped(
+    input: &Path,
+    scene: &knotwork::Scene,
+    defaults: &SceneOptions,
+    items: impl Iterator<Item = u32>,
+) -> usize {
+    let meshed: std::collections::HashSet<u32> = items.collect();
+    let mut skipped = 0;
+    for (index, item) in scene.items.iter().enumerate() {
+        if matches!(item.geometry, knotwork::Geometry::Trimmed(_))
+            && !meshed.contains(&(index as u32))
+        {
+            skipped += 1;
+            let reason = match knotwork::cpu::trimmed_face_plan(scene, defaults, index) {
+                Err(error) => error.to_string(),
+                Ok(_) => format!("item {index}: meshing it took more memory than was left"),
+            };
+            eprintln!("error: {}: face left out: {reason}", input.display());
+        }
+    }
+    skipped
+}
+
 /// "1 surface", "2 surfaces", "1 vertex", "3 vertices".
 fn count(n: usize, noun: &str) -> String {
     match (n, noun) {
@@ -316,6 +341,7 @@ fn process(
         grid: job.options,
         samples: job.samples,
         memory_budget: Some(budget),
+        skip_failed_faces: true,
     };
     // Binary formats carry f32: an f32 mesh goes to them without widening and narrowing
     // (from the GPU, straight from its buffers); OBJ and welding take the f64 mesh, and so
@@ -334,18 +360,20 @@ fn process(
     let groups = scene.groups();
     let mut merged = None;
     let f64_mesh = matches!(format, Some(MeshFormat::Obj) | None) || job.weld || far_glb;
-    let (vertices, triangles) = if f64_mesh {
+    let (vertices, triangles, skipped) = if f64_mesh {
         let mut mesh = tessellator.tessellate_scene(&scene, &defaults)?;
+        let skipped = report_skipped(input, &scene, &defaults, mesh.parts.iter().map(|p| p.item));
         if job.weld {
             let (welded, report) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
             (mesh, merged) = (welded, Some(report.merged_vertices));
         }
         knotwork::io::write_mesh_as(output, &mesh, &groups, job.format)?;
-        (mesh.vertex_count(), mesh.triangle_count())
+        (mesh.vertex_count(), mesh.triangle_count(), skipped)
     } else {
         let mesh = tessellator.tessellate_scene_f32(&scene, &defaults)?;
+        let skipped = report_skipped(input, &scene, &defaults, mesh.parts.iter().map(|p| p.item));
         knotwork::io::write_mesh_as(output, &mesh, &groups, job.format)?;
-        (mesh.vertex_count(), mesh.triangle_count())
+        (mesh.vertex_count(), mesh.triangle_count(), skipped)
     };
     Ok(Tally {
         surfaces: scene.items.len() - scene.curves().count(),
@@ -353,7 +381,7 @@ fn process(
         vertices,
         triangles,
         merged,
-        dropped,
+        dropped: dropped + skipped,
     })
 }
 

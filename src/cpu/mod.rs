@@ -9,7 +9,9 @@ mod trimmed;
 pub use crate::geom::SurfaceSample;
 pub use coons::{execute_coons, tessellate_coons_into};
 pub use grid::{evaluate_grid_into, execute_surfaces, execute_surfaces_f32, tessellate_grid_into};
-pub use trimmed::{TRIMMED_DEFAULT_TOLERANCE_REL, execute_trimmed, mesh_trimmed_faces};
+pub use trimmed::{
+    TRIMMED_DEFAULT_TOLERANCE_REL, execute_trimmed, mesh_trimmed_faces, trimmed_face_plan,
+};
 
 use crate::Tessellator;
 use crate::error::Result;

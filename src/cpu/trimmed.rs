@@ -4,7 +4,7 @@ use crate::error::{Error, Result};
 use crate::geom::{SamplingLimits, TrimmedSurface};
 use crate::mesh::{Mesh, MeshPart, TessOptions, Tolerance};
 use crate::plan::{TrimmedPlan, plan_trimmed_within};
-use crate::scene::{Geometry, Item, Scene, SceneOptions};
+use crate::scene::{Geometry, Scene, SceneOptions};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
@@ -52,52 +52,46 @@ pub fn execute_trimmed(face: &TrimmedSurface, plan: &TrimmedPlan) -> Mesh {
 /// the control points of every surface and face of the scene.
 pub const TRIMMED_DEFAULT_TOLERANCE_REL: f64 = 1e-3;
 
-/// The trimmed faces of `scene` meshed in f64, in item order (one part each): each planned
-/// to its item's options, else `defaults.grid`'s (see [`TRIMMED_DEFAULT_TOLERANCE_REL`]),
-/// faces in parallel. The plans are checked against `defaults.memory_budget` (with
-/// `grid_bytes` already taken by the rest of the scene, `vertex_bytes` per vertex) before any
-/// vertex is evaluated. Errors name the item. Every backend runs trimmed faces here until the
-/// GPU executes trimmed plans.
+/// The trimmed faces of `scene` meshed in f64, in item order (one part each, carrying its
+/// item's index): each planned to its item's options, else `defaults.grid`'s (see
+/// [`TRIMMED_DEFAULT_TOLERANCE_REL`]), faces in parallel. The plans are checked against
+/// `defaults.memory_budget` (with `grid_bytes` already taken by the rest of the scene,
+/// `vertex_bytes` per vertex) before any vertex is evaluated. A face whose plan fails fails
+/// the call, naming the item — or, with `defaults.skip_failed_faces`, is left out. Every
+/// backend runs trimmed faces here until the GPU executes trimmed plans.
 pub fn mesh_trimmed_faces(
     scene: &Scene,
     defaults: &SceneOptions,
     grid_bytes: u64,
     vertex_bytes: u64,
 ) -> Result<Mesh> {
-    let faces: Vec<(usize, &Item, &TrimmedSurface)> = scene
+    let faces: Vec<(usize, &TrimmedSurface)> = scene
         .items
         .iter()
         .enumerate()
         .filter_map(|(k, item)| match &item.geometry {
-            Geometry::Trimmed(face) => Some((k, item, &**face)),
+            Geometry::Trimmed(face) => Some((k, &**face)),
             _ => None,
         })
         .collect();
     if faces.is_empty() {
         return Ok(Mesh::default());
     }
-    let diagonal = scene_diagonal(scene);
-    // Each face's plan stops at what the budget left over could hold.
-    let max_vertices = defaults.memory_budget.map_or(usize::MAX, |budget| {
-        usize::try_from(budget.saturating_sub(grid_bytes) / vertex_bytes).unwrap_or(usize::MAX)
-    });
-    let plans = faces
+    let planned = faces
         .par_iter()
-        .map(|&(index, item, face)| {
-            trimmed_limits(&item.grid.unwrap_or(defaults.grid), diagonal)
-                .and_then(|limits| plan_trimmed_within(face, limits, max_vertices))
-                .map_err(|source| Error::InItem {
-                    index,
-                    name: item.name.clone().unwrap_or_else(|| format!("item {index}")),
-                    source: Box::new(source),
-                })
-        })
-        .collect::<Vec<_>>()
-        // In item order, so that the error reported is the first face's.
-        .into_iter()
-        .collect::<Result<Vec<TrimmedPlan>>>()?;
+        .map(|&(index, _)| plan_face(scene, defaults, index, grid_bytes, vertex_bytes))
+        .collect::<Vec<_>>();
+    let mut plans = Vec::with_capacity(faces.len());
+    // In item order, so that the error reported is the first face's.
+    for (&(index, face), plan) in faces.iter().zip(planned) {
+        match plan {
+            Ok(plan) => plans.push((index, face, plan)),
+            Err(_) if defaults.skip_failed_faces => {}
+            Err(error) => return Err(error),
+        }
+    }
     if let Some(budget) = defaults.memory_budget {
-        let needed = plans.iter().fold(grid_bytes, |sum, plan| {
+        let needed = plans.iter().fold(grid_bytes, |sum, (_, _, plan)| {
             sum + plan.params.len() as u64 * vertex_bytes + plan.triangles.len() as u64 * 12
         });
         if needed > budget {
@@ -105,10 +99,56 @@ pub fn mesh_trimmed_faces(
         }
     }
     let mut mesh = Mesh::default();
-    for ((_, _, face), plan) in faces.iter().zip(&plans) {
-        mesh.append(execute_trimmed(face, plan))?;
+    for (index, face, plan) in &plans {
+        let mut part = execute_trimmed(face, plan);
+        for p in &mut part.parts {
+            p.item = *index as u32;
+        }
+        mesh.append(part)?;
     }
     Ok(mesh)
+}
+
+/// The plan of the trimmed face that is item `index` of `scene`, as [`mesh_trimmed_faces`]
+/// makes it (with the whole memory budget): what tells why a skipped face failed. Errors
+/// name the item; an item that is no trimmed face is [`Error::IndexOutOfRange`].
+pub fn trimmed_face_plan(
+    scene: &Scene,
+    defaults: &SceneOptions,
+    index: usize,
+) -> Result<TrimmedPlan> {
+    plan_face(scene, defaults, index, 0, F64_VERTEX_BYTES)
+}
+
+/// Bytes per vertex of an f64 mesh (position, normal, uv).
+const F64_VERTEX_BYTES: u64 = 64;
+
+fn plan_face(
+    scene: &Scene,
+    defaults: &SceneOptions,
+    index: usize,
+    grid_bytes: u64,
+    vertex_bytes: u64,
+) -> Result<TrimmedPlan> {
+    let item = scene.items.get(index);
+    let Some((item, Geometry::Trimmed(face))) = item.map(|i| (i, &i.geometry)) else {
+        return Err(Error::IndexOutOfRange {
+            what: "trimmed face",
+            index,
+            count: scene.items.len(),
+        });
+    };
+    // The plan stops at what the budget left over could hold.
+    let max_vertices = defaults.memory_budget.map_or(usize::MAX, |budget| {
+        usize::try_from(budget.saturating_sub(grid_bytes) / vertex_bytes).unwrap_or(usize::MAX)
+    });
+    trimmed_limits(&item.grid.unwrap_or(defaults.grid), scene_diagonal(scene))
+        .and_then(|limits| plan_trimmed_within(face, limits, max_vertices))
+        .map_err(|source| Error::InItem {
+            index,
+            name: item.name.clone().unwrap_or_else(|| format!("item {index}")),
+            source: Box::new(source),
+        })
 }
 
 /// The sampling limits of a trimmed face under `options`, relative tolerances taken of

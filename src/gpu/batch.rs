@@ -1031,30 +1031,26 @@ fn upload_trimmed(
     defaults: &SceneOptions,
 ) -> Result<Option<TrimmedFaces>> {
     use wgpu::util::DeviceExt;
-    let faces: Vec<(u32, &crate::TrimmedSurface)> = scene
+    let faces: Vec<&crate::TrimmedSurface> = scene
         .items
         .iter()
-        .enumerate()
-        .filter_map(|(k, item)| match &item.geometry {
-            crate::scene::Geometry::Trimmed(face) => Some((k as u32, &**face)),
+        .filter_map(|item| match &item.geometry {
+            crate::scene::Geometry::Trimmed(face) => Some(&**face),
             _ => None,
         })
         .collect();
     if faces.is_empty() {
         return Ok(None);
     }
-    let mut mesh = Mesh32::from(crate::cpu::mesh_trimmed_faces(
+    let mesh = Mesh32::from(crate::cpu::mesh_trimmed_faces(
         scene,
         defaults,
         0,
         VERTEX_BYTES,
     )?);
-    for (part, &(item, _)) in mesh.parts.iter_mut().zip(&faces) {
-        part.item = item;
-    }
     let control_box = faces
         .iter()
-        .map(|(_, face)| face.surface().control_box())
+        .map(|face| face.surface().control_box())
         .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))
         .expect("at least one face");
     let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
