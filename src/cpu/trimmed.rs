@@ -77,9 +77,10 @@ pub fn mesh_trimmed_faces(
     if faces.is_empty() {
         return Ok(Mesh::default());
     }
+    let diagonal = scene_diagonal(scene);
     let planned = faces
         .par_iter()
-        .map(|&(index, _)| plan_face(scene, defaults, index, grid_bytes, vertex_bytes))
+        .map(|&(index, _)| plan_face(scene, defaults, diagonal, index, grid_bytes, vertex_bytes))
         .collect::<Vec<_>>();
     let mut plans = Vec::with_capacity(faces.len());
     // In item order, so that the error reported is the first face's.
@@ -117,15 +118,25 @@ pub fn trimmed_face_plan(
     defaults: &SceneOptions,
     index: usize,
 ) -> Result<TrimmedPlan> {
-    plan_face(scene, defaults, index, 0, F64_VERTEX_BYTES)
+    plan_face(
+        scene,
+        defaults,
+        scene_diagonal(scene),
+        index,
+        0,
+        F64_VERTEX_BYTES,
+    )
 }
 
 /// Bytes per vertex of an f64 mesh (position, normal, uv).
 const F64_VERTEX_BYTES: u64 = 64;
 
+/// The plan of item `index`, relative tolerances taken of `diagonal` (the scene's, computed
+/// once per scene).
 fn plan_face(
     scene: &Scene,
     defaults: &SceneOptions,
+    diagonal: f64,
     index: usize,
     grid_bytes: u64,
     vertex_bytes: u64,
@@ -142,7 +153,7 @@ fn plan_face(
     let max_vertices = defaults.memory_budget.map_or(usize::MAX, |budget| {
         usize::try_from(budget.saturating_sub(grid_bytes) / vertex_bytes).unwrap_or(usize::MAX)
     });
-    trimmed_limits(&item.grid.unwrap_or(defaults.grid), scene_diagonal(scene))
+    trimmed_limits(&item.grid.unwrap_or(defaults.grid), diagonal)
         .and_then(|limits| plan_trimmed_within(face, limits, max_vertices))
         .map_err(|source| Error::InItem {
             index,

@@ -134,15 +134,7 @@ impl BezierPatch {
         let (p, q) = (self.degree_u, self.degree_v);
         let row = p + 1;
         let cartesian: Vec<DVec3> = self.points.iter().map(|h| h.truncate() / h.w).collect();
-        let (low, high) = cartesian.iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(low, high), &x| (low.min(x), high.max(x)),
-        );
-        let centre = 0.5 * (low + high);
-        let radius = cartesian
-            .iter()
-            .map(|&x| (x - centre).length())
-            .fold(0.0, f64::max);
+        let (centre, radius) = box_centre_and_radius(&cartesian);
         // (w·(P − C), w) for every control point.
         let net: Vec<DVec4> = self
             .points
@@ -239,15 +231,7 @@ impl BezierPatch {
             } else {
                 return None;
             };
-        let (low, high) = differences.iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(low, high), &x| (low.min(x), high.max(x)),
-        );
-        let centre = 0.5 * (low + high);
-        let radius = differences
-            .iter()
-            .map(|&x| (x - centre).length())
-            .fold(0.0, f64::max);
+        let (centre, radius) = box_centre_and_radius(&differences);
         let scale = degree as f64 / along;
         let (mut d_first, mut w_first) = (0.0f64, 0.0f64);
         for k in 0..degree {
@@ -310,4 +294,19 @@ fn restrict(points: &[DVec4], from: f64, to: f64) -> Vec<DVec4> {
     } else {
         tail
     }
+}
+
+/// The centre C of the bounding box of `points` and the largest |P − C| (the reference point
+/// and radius the derivative bounds are taken relative to).
+fn box_centre_and_radius(points: &[DVec3]) -> (DVec3, f64) {
+    let (low, high) = points.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(low, high), &x| (low.min(x), high.max(x)),
+    );
+    let centre = 0.5 * (low + high);
+    let radius = points
+        .iter()
+        .map(|&x| (x - centre).length())
+        .fold(0.0, f64::max);
+    (centre, radius)
 }
