@@ -109,6 +109,13 @@ pub enum Error {
         "{what} cannot be sampled to a tolerance yet: give them a grid (JSON \"grid\" or --grid)"
     )]
     NoToleranceFor { what: &'static str },
+    #[error(
+        "view-dependent options: {cells_per_span} cells per knot span (1..=16 allowed) and at most {max_segments} segments per cell (1..=256 allowed)"
+    )]
+    InvalidViewOptions {
+        cells_per_span: u32,
+        max_segments: u32,
+    },
     #[error("{found} sets of tessellation options for {expected} surfaces")]
     OptionsCount { expected: usize, found: usize },
     #[error("{found} sample counts for {expected} curves")]

@@ -744,35 +744,6 @@ fn validate_with_khronos(path: &Path) {
     }
 }
 
-/// Edges used by exactly one triangle, and the number of pieces connected through shared
-/// edges (a single shared vertex — the handle's lower end touches the body at one point —
-/// does not join two pieces of surface).
-fn open_edges_and_pieces(mesh: &knotwork::Mesh) -> (usize, usize) {
-    use std::collections::HashMap;
-    fn find(parent: &mut [usize], x: usize) -> usize {
-        let mut root = x;
-        while parent[root] != root {
-            root = parent[root];
-        }
-        parent[x] = root;
-        root
-    }
-    let triangles: Vec<&[u32]> = mesh.indices.chunks_exact(3).collect();
-    let mut parent: Vec<usize> = (0..triangles.len()).collect();
-    let mut edges: HashMap<(u32, u32), (usize, usize)> = HashMap::new();
-    for (t, tri) in triangles.iter().enumerate() {
-        for (a, b) in [(tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])] {
-            let entry = edges.entry((a.min(b), a.max(b))).or_insert((t, 0));
-            entry.1 += 1;
-            let (ra, rb) = (find(&mut parent, entry.0), find(&mut parent, t));
-            parent[ra] = rb;
-        }
-    }
-    let roots: std::collections::HashSet<usize> =
-        (0..triangles.len()).map(|t| find(&mut parent, t)).collect();
-    (edges.values().filter(|e| e.1 == 1).count(), roots.len())
-}
-
 /// Sampled to a tolerance, the teapot's patches share their seams by index: before any
 /// welding it is the same 4 pieces, and a weld finds nothing left to merge but the
 /// vertices of its two poles (the lid's knob and the bottom's centre, where patch sides
@@ -788,7 +759,7 @@ fn adaptive_teapot_is_closed_by_shared_indices() {
     let mesh = CpuTessellator
         .tessellate(&scene.surface_list(), &options)
         .unwrap();
-    let (_, pieces) = open_edges_and_pieces(&mesh);
+    let (_, pieces) = common::open_edges_and_pieces(&mesh);
     assert_eq!(pieces, 4, "body (with rim and bottom), lid, handle, spout");
     let mut directed = std::collections::HashSet::new();
     for t in mesh.indices.chunks(3) {
@@ -812,7 +783,7 @@ fn adaptive_teapot_is_closed_by_shared_indices() {
     // two pieces meeting in a point.
     assert_eq!(report.merged_vertices, 1, "{report:?}");
     assert_eq!(pole_vertices, 2);
-    assert_eq!(open_edges_and_pieces(&welded).1, 4);
+    assert_eq!(common::open_edges_and_pieces(&welded).1, 4);
     // The true boundary, from a fine grid welded: its open edges' vertices.
     let grid = teapot_mesh(65);
     let (grid, _) = grid.weld(knotwork::mesh::WELD_REL_TOLERANCE * grid.bounding_box_diagonal());
@@ -857,12 +828,12 @@ fn adaptive_teapot_is_closed_by_shared_indices() {
 fn welded_teapot_is_four_pieces_with_sixteen_open_patch_edges() {
     let n = 9;
     let mesh = teapot_mesh(n);
-    let (unwelded_open, unwelded_pieces) = open_edges_and_pieces(&mesh);
+    let (unwelded_open, unwelded_pieces) = common::open_edges_and_pieces(&mesh);
     assert_eq!(unwelded_pieces, 32, "every patch apart before welding");
     assert!(unwelded_open > 0);
     let (welded, report) =
         mesh.weld(knotwork::mesh::WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
-    let (open, pieces) = open_edges_and_pieces(&welded);
+    let (open, pieces) = common::open_edges_and_pieces(&welded);
     assert_eq!(pieces, 4, "body (with rim and bottom), lid, handle, spout");
     assert_eq!(
         open,

@@ -5,6 +5,7 @@ mod coons;
 mod grid;
 mod lanes;
 mod trimmed;
+mod view;
 
 pub use crate::geom::SurfaceSample;
 pub use coons::{execute_coons, tessellate_coons_into};
@@ -12,6 +13,7 @@ pub use grid::{evaluate_grid_into, execute_surfaces, execute_surfaces_f32, tesse
 pub use trimmed::{
     TRIMMED_DEFAULT_TOLERANCE_REL, execute_trimmed, mesh_trimmed_faces, trimmed_face_plan,
 };
+pub use view::execute_view;
 
 use crate::Tessellator;
 use crate::error::Result;

@@ -298,7 +298,7 @@ fn restrict(points: &[DVec4], from: f64, to: f64) -> Vec<DVec4> {
 
 /// The centre C of the bounding box of `points` and the largest |P − C| (the reference point
 /// and radius the derivative bounds are taken relative to).
-fn box_centre_and_radius(points: &[DVec3]) -> (DVec3, f64) {
+pub(crate) fn box_centre_and_radius(points: &[DVec3]) -> (DVec3, f64) {
     let (low, high) = points.iter().fold(
         (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
         |(low, high), &x| (low.min(x), high.max(x)),

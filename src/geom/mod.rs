@@ -24,6 +24,7 @@ pub use bezier::{
     piecewise_bezier_surface,
 };
 pub use curve::BSplineCurve;
+pub(crate) use deviation::box_centre_and_radius;
 pub use deviation::{DerivativeBound, SamplingLimits};
 pub(crate) use eval::Rail;
 pub use eval::{DEGENERATE_EPSILONS, SurfaceSample, cross_scale, degenerate_cross_sq};

@@ -36,6 +36,7 @@ mod export;
 mod readback;
 mod surfaces;
 pub mod tessellator;
+pub mod view;
 
 pub use batch::{BatchDescriptor, BufferSlice, GpuBatch, GpuMesh, OutputTargets};
 pub use context::{GpuContext, headless_instance};
@@ -45,6 +46,7 @@ pub use export::{
 };
 pub use surfaces::{Limits, VERTEX_BYTES};
 pub use tessellator::GpuTessellator;
+pub use view::{ViewBatch, ViewFrame};
 
 /// The WGSL source of the tessellation kernels (with the shared grid rules prepended).
 pub const TESSELLATE_WGSL: &str = concat!(

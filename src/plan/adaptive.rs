@@ -521,15 +521,14 @@ pub(crate) fn sample_fraction(range: Interval, piece: Interval, s: u32, segments
 /// polygon's vertices lie on the sides of a rectangle): one triangle at c00, then advancing
 /// the chain that is behind, then one at c11 — counter-clockwise, none with three vertices
 /// on one side of the rectangle, so none degenerate.
-fn zip_chains(a: &[u32], b: &[u32], out: &mut Vec<u32>) {
+pub(crate) fn zip_chains(a: &[u32], b: &[u32], out: &mut Vec<u32>) {
     let (last_a, last_b) = (a.len() - 1, b.len() - 1);
     out.extend_from_slice(&[a[0], a[1], b[1]]);
     let (mut i, mut j) = (1, 1);
-    // Progress of a chain position toward c11, 0..=1, by position in the chain.
-    let progress = |k: usize, last: usize| k as f64 / last as f64;
+    // Progress toward c11 by position in the chain, (i + 1) / last_a against (j + 1) /
+    // last_b, compared in integers (as the view kernel does).
     while i + 1 < last_a || j + 1 < last_b {
-        let advance_a = j + 1 == last_b
-            || (i + 1 < last_a && progress(i + 1, last_a) <= progress(j + 1, last_b));
+        let advance_a = j + 1 == last_b || (i + 1 < last_a && (i + 1) * last_b <= (j + 1) * last_a);
         if advance_a {
             out.extend_from_slice(&[a[i], a[i + 1], b[j]]);
             i += 1;

@@ -8,6 +8,7 @@ mod adaptive;
 mod seams;
 mod tables;
 mod trim;
+pub mod view;
 
 pub use adaptive::{
     Cell, CellGrid, MAX_CELL_SEGMENTS, MAX_CELLS_PER_SPAN, SEGMENTS_PER_CELL, surface_cells,

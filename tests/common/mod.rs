@@ -175,3 +175,32 @@ pub fn worst_deviation(surfaces: &[BSplineSurface], mesh: &knotwork::Mesh) -> f6
     }
     worst
 }
+
+/// Edges used by exactly one triangle, and the number of pieces connected through shared
+/// edges (a single shared vertex — the handle's lower end touches the body at one point —
+/// does not join two pieces of surface).
+pub fn open_edges_and_pieces(mesh: &knotwork::Mesh) -> (usize, usize) {
+    use std::collections::HashMap;
+    fn find(parent: &mut [usize], x: usize) -> usize {
+        let mut root = x;
+        while parent[root] != root {
+            root = parent[root];
+        }
+        parent[x] = root;
+        root
+    }
+    let triangles: Vec<&[u32]> = mesh.indices.chunks_exact(3).collect();
+    let mut parent: Vec<usize> = (0..triangles.len()).collect();
+    let mut edges: HashMap<(u32, u32), (usize, usize)> = HashMap::new();
+    for (t, tri) in triangles.iter().enumerate() {
+        for (a, b) in [(tri[0], tri[1]), (tri[1], tri[2]), (tri[2], tri[0])] {
+            let entry = edges.entry((a.min(b), a.max(b))).or_insert((t, 0));
+            entry.1 += 1;
+            let (ra, rb) = (find(&mut parent, entry.0), find(&mut parent, t));
+            parent[ra] = rb;
+        }
+    }
+    let roots: std::collections::HashSet<usize> =
+        (0..triangles.len()).map(|t| find(&mut parent, t)).collect();
+    (edges.values().filter(|e| e.1 == 1).count(), roots.len())
+}

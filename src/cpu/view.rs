@@ -1,0 +1,69 @@
+//! The f64 executor of a view plan's frame: every vertex the frame's layout names, evaluated
+//! on its surface where [`ViewPlan::vertex_samples`] puts it, with the plan's triangles — the
+//! mesh the GPU draws for that frame, in f64.
+
+use crate::error::{Error, Result};
+use crate::geom::BSplineSurface;
+use crate::mesh::{Mesh, MeshPart};
+use crate::plan::view::{Rate, ViewPlan};
+use glam::DVec2;
+use rayon::prelude::*;
+
+/// The frame of `plan` (made for `surfaces`) at `rates` (one per cell, as
+/// [`ViewPlan::rates`] gives them or as a GPU frame chose them), as one mesh part holding
+/// every surface.
+pub fn execute_view(plan: &ViewPlan, surfaces: &[BSplineSurface], rates: &[Rate]) -> Result<Mesh> {
+    if let Some(cell) = plan
+        .cells
+        .iter()
+        .find(|c| c.surface as usize >= surfaces.len())
+    {
+        return Err(Error::PlanMismatch {
+            planned: cell.surface as usize + 1,
+            given: surfaces.len(),
+        });
+    }
+    if rates.len() != plan.cells.len() {
+        return Err(Error::BufferLength {
+            expected: plan.cells.len(),
+            found: rates.len(),
+        });
+    }
+    let layout = plan.layout(rates);
+    let samples = plan.vertex_samples(rates, &layout);
+    let evaluated: Vec<_> = samples
+        .par_iter()
+        .map(|&(c, s, t)| {
+            let cell = &plan.cells[c as usize];
+            let patch = &cell.patch;
+            let sample = surfaces[cell.surface as usize]
+                .evaluate(patch.range_u.lerp(s), patch.range_v.lerp(t));
+            (
+                sample.position,
+                sample.normal,
+                cell.uv_start + DVec2::new(s, t) * cell.uv_size,
+            )
+        })
+        .collect();
+    let indices = plan.triangles(rates, &layout);
+    let part = MeshPart {
+        item: 0,
+        grid_u: 0,
+        grid_v: 0,
+        first_vertex: 0,
+        vertex_count: layout.vertex_count,
+        first_index: 0,
+        index_count: indices.len() as u32,
+    };
+    let mut mesh = Mesh {
+        indices,
+        parts: vec![part],
+        ..Mesh::default()
+    };
+    for (position, normal, uv) in evaluated {
+        mesh.positions.push(position);
+        mesh.normals.push(normal);
+        mesh.uvs.push(uv);
+    }
+    Ok(mesh)
+}

@@ -1,0 +1,435 @@
+//! The GPU executor of a [`ViewPlan`]: every frame, one submission re-plans and fills the
+//! renderer's buffers — rates from the view (`cell_rates`), vertex counts (`edge_counts`)
+//! and their prefix sums (`scan_vertices`), triangle counts (`row_counts`) and theirs
+//! (`scan_triangles`, which also writes the indirect draw), then vertices (`corner_vertices`, `edge_vertices`,
+//! `interior_vertices`) and indices (`row_indices`). Nothing travels through the CPU.
+//!
+//! The output buffers are sized once for every cell at its most segments
+//! ([`ViewPlan::capacity`]), so a frame never reallocates; draw them with
+//! `draw_indexed_indirect(indirect, 0)` and [`GpuMesh::vertex_buffer_layout`].
+
+use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped};
+use super::readback::{BufferPool, copy_out, mapped};
+use super::{GpuMesh, VERTEX_BYTES};
+use crate::error::{Error, Result};
+use crate::geom::{cross_scale, degenerate_cross_sq};
+use crate::mesh::Vertex;
+use crate::plan::view::{Rate, VIEW_TOLERANCE_MARGIN, View, ViewPlan};
+use bytemuck::{Pod, Zeroable};
+
+/// The WGSL source of the view-dependent kernels (with the shared grid rules prepended).
+pub const VIEW_WGSL: &str = concat!(
+    include_str!("../../shaders/grid_common.wgsl"),
+    include_str!("../../shaders/view.wgsl")
+);
+
+/// Words of a cell record in the plan buffer (CELL_WORDS in view.wgsl).
+const CELL_WORDS: usize = 24;
+/// Words of an edge record (EDGE_WORDS in view.wgsl).
+const EDGE_WORDS: usize = 5;
+
+/// The kernels in dispatch order, with what each runs over.
+const PASSES: [(&str, Over); 9] = [
+    ("cell_rates", Over::Cells),
+    ("edge_counts", Over::Edges),
+    // Before the triangles are counted: counting drops pole triangles by comparing vertex
+    // indices, which need the vertex layout.
+    ("scan_vertices", Over::One),
+    ("row_counts", Over::Rows),
+    ("scan_triangles", Over::One),
+    ("corner_vertices", Over::Corners),
+    ("edge_vertices", Over::EdgeSamples),
+    ("interior_vertices", Over::Rows),
+    ("row_indices", Over::Rows),
+];
+
+#[derive(Clone, Copy)]
+enum Over {
+    Cells,
+    Edges,
+    Rows,
+    Corners,
+    EdgeSamples,
+    One,
+}
+
+/// The frame uniform (`Frame` in view.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub(crate) struct FrameParams {
+    view_projection: [f32; 16],
+    viewport: [f32; 2],
+    tolerance_px: f32,
+    margin: f32,
+    cells: u32,
+    edges: u32,
+    corners: u32,
+    max_segments: u32,
+    edge_words: u32,
+    corner_words: u32,
+    pad: [u32; 2],
+}
+
+/// A view plan on the device, with the buffers a renderer draws: re-planned for a new view
+/// by [`ViewBatch::encode`] or [`ViewBatch::dispatch`].
+#[derive(Debug)]
+pub struct ViewBatch {
+    context: GpuContext,
+    pipelines: Vec<wgpu::ComputePipeline>,
+    bind_group: wgpu::BindGroup,
+    uniform: wgpu::Buffer,
+    work: wgpu::Buffer,
+    mesh: GpuMesh,
+    indirect: wgpu::Buffer,
+    counts: FrameParams,
+    pool: BufferPool,
+}
+
+/// A frame read back: the rates the GPU chose and the mesh it wrote.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ViewFrame {
+    pub rates: Vec<Rate>,
+    pub vertices: Vec<Vertex>,
+    pub indices: Vec<u32>,
+}
+
+impl ViewBatch {
+    /// Uploads `plan` and allocates buffers for its largest frame; compiles the view kernels
+    /// on the context's device. Fails if a buffer would exceed the device's limits.
+    pub fn new(context: &GpuContext, plan: &ViewPlan) -> Result<Self> {
+        let device = &context.device;
+        let (max_vertices, max_indices) = plan.capacity();
+        let limits = context.limits();
+        let max_segments = plan.options.max_segments;
+        let cells = plan.cells.len();
+        let work_words = 2 * cells + plan.edges.len() + cells + cells * max_segments as usize + 2;
+        for (what, bytes) in [
+            ("the view's vertex buffer", max_vertices * VERTEX_BYTES),
+            ("the view's index buffer", max_indices * 4),
+            ("the view's per-frame counts", work_words as u64 * 4),
+        ] {
+            if bytes > limits.binding_bytes {
+                return Err(Error::GpuJobTooLarge {
+                    what,
+                    bytes,
+                    limit: limits.binding_bytes,
+                });
+            }
+        }
+        let (words, points) = pack(plan);
+        let counts = FrameParams {
+            view_projection: [0.0; 16],
+            viewport: [0.0; 2],
+            tolerance_px: 0.0,
+            margin: VIEW_TOLERANCE_MARGIN,
+            cells: cells as u32,
+            edges: plan.edges.len() as u32,
+            corners: plan.corners.len() as u32,
+            max_segments,
+            edge_words: (cells * CELL_WORDS) as u32,
+            corner_words: (cells * CELL_WORDS + plan.edges.len() * EDGE_WORDS) as u32,
+            pad: [0; 2],
+        };
+        scoped(device, || {
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("knotwork view.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(VIEW_WGSL.into()),
+            });
+            let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Storage { read_only },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            };
+            let mut entries = vec![wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }];
+            entries.extend([storage(1, true), storage(2, true)]);
+            entries.extend((3..=6).map(|b| storage(b, false)));
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("knotwork view"),
+                entries: &entries,
+            });
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("knotwork view"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let pipelines = PASSES
+                .iter()
+                .map(|(entry, _)| {
+                    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some(entry),
+                        layout: Some(&pipeline_layout),
+                        module: &module,
+                        entry_point: Some(entry),
+                        compilation_options: Default::default(),
+                        cache: None,
+                    })
+                })
+                .collect::<Vec<_>>();
+            let buffer = |label: &str, bytes: u64, usage: wgpu::BufferUsages| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: bytes.max(16).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT),
+                    usage,
+                    mapped_at_creation: false,
+                })
+            };
+            use wgpu::BufferUsages as U;
+            let uniform = buffer(
+                "knotwork view frame",
+                size_of::<FrameParams>() as u64,
+                U::UNIFORM | U::COPY_DST,
+            );
+            let plan_bytes: &[u8] = bytemuck::cast_slice(&words);
+            let point_bytes: &[u8] = bytemuck::cast_slice(&points);
+            let plan_buffer = buffer(
+                "knotwork view plan",
+                plan_bytes.len() as u64,
+                U::STORAGE | U::COPY_DST,
+            );
+            let point_buffer = buffer(
+                "knotwork view points",
+                point_bytes.len() as u64,
+                U::STORAGE | U::COPY_DST,
+            );
+            context.queue.write_buffer(&plan_buffer, 0, plan_bytes);
+            context.queue.write_buffer(&point_buffer, 0, point_bytes);
+            let work = buffer(
+                "knotwork view work",
+                work_words as u64 * 4,
+                U::STORAGE | U::COPY_SRC,
+            );
+            let vertices = buffer(
+                "knotwork view vertices",
+                max_vertices * VERTEX_BYTES,
+                U::STORAGE | U::VERTEX | U::COPY_SRC,
+            );
+            let indices = buffer(
+                "knotwork view indices",
+                max_indices * 4,
+                U::STORAGE | U::INDEX | U::COPY_SRC,
+            );
+            let indirect = buffer(
+                "knotwork view indirect",
+                20,
+                U::STORAGE | U::INDIRECT | U::COPY_SRC,
+            );
+            let bind_group = bind_buffers(
+                context,
+                &layout,
+                &[
+                    (&uniform, size_of::<FrameParams>() as u64),
+                    (&plan_buffer, plan_bytes.len() as u64),
+                    (&point_buffer, point_bytes.len() as u64),
+                    (&work, work_words as u64 * 4),
+                    (&vertices, max_vertices * VERTEX_BYTES),
+                    (&indices, max_indices * 4),
+                    (&indirect, 20),
+                ],
+            );
+            Self {
+                context: context.clone(),
+                pipelines,
+                bind_group,
+                uniform,
+                work,
+                mesh: GpuMesh {
+                    vertices,
+                    indices,
+                    vertex_offset: 0,
+                    index_offset: 0,
+                    base_vertex: 0,
+                    vertex_count: max_vertices as u32,
+                    index_count: max_indices as u32,
+                    // One frame's counts are on the device (the indirect arguments).
+                    parts: Vec::new(),
+                },
+                indirect,
+                counts,
+                pool: BufferPool::default(),
+            }
+        })
+    }
+
+    /// Records the frame's re-planning into `encoder` (and writes the view to the frame
+    /// uniform through the queue: submit `encoder` before encoding another view).
+    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder, view: &View) {
+        let params = FrameParams {
+            view_projection: view.view_projection.to_cols_array(),
+            viewport: view.viewport.to_array(),
+            tolerance_px: view.tolerance_px,
+            ..self.counts
+        };
+        self.context
+            .queue
+            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&params));
+        let rows = u64::from(self.counts.cells) * u64::from(self.counts.max_segments);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("knotwork view"),
+            timestamp_writes: None,
+        });
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        for (pipeline, (_, over)) in self.pipelines.iter().zip(&PASSES) {
+            pass.set_pipeline(pipeline);
+            let items = match over {
+                Over::Cells => u64::from(self.counts.cells),
+                Over::Edges => u64::from(self.counts.edges),
+                Over::Rows => rows,
+                Over::Corners => u64::from(self.counts.corners),
+                Over::EdgeSamples => {
+                    u64::from(self.counts.edges) * 2 * u64::from(self.counts.max_segments)
+                }
+                Over::One => {
+                    pass.dispatch_workgroups(1, 1, 1);
+                    continue;
+                }
+            };
+            if items > 0 {
+                dispatch_flat(&mut pass, items, 64);
+            }
+        }
+    }
+
+    /// Re-plans for `view` in one submission of its own.
+    pub fn dispatch(&self, view: &View) -> Result<()> {
+        let device = &self.context.device;
+        scoped(device, || {
+            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("knotwork view"),
+            });
+            self.encode(&mut encoder, view);
+            self.context.queue.submit([encoder.finish()]);
+        })
+    }
+
+    /// The vertex and index buffers (sized for the largest frame; the frame's counts are in
+    /// [`ViewBatch::indirect`]).
+    pub fn mesh(&self) -> &GpuMesh {
+        &self.mesh
+    }
+
+    /// The frame's `DrawIndexedIndirect` arguments at offset 0: index count, 1 instance,
+    /// first index 0, base vertex 0, first instance 0.
+    pub fn indirect(&self) -> &wgpu::Buffer {
+        &self.indirect
+    }
+
+    /// Reads the last frame back (for checks and headless use): its rates, vertices and
+    /// indices.
+    pub fn read_frame(&self) -> Result<ViewFrame> {
+        let cells = self.counts.cells as usize;
+        let edges = self.counts.edges as usize;
+        let rows = cells * self.counts.max_segments as usize;
+        let totals_at = (2 * cells + edges + cells + rows) as u64 * 4;
+        let work: Vec<u32> = self.pool.read(
+            &self.context,
+            &[(&self.work, 0, totals_at + 8)],
+            |buffers| Ok(bytemuck::cast_slice(&mapped(&buffers[0], totals_at + 8)?).to_vec()),
+        )?;
+        let (vertex_count, triangle_count) = (work[work.len() - 2], work[work.len() - 1]);
+        let rates = (0..cells)
+            .map(|c| Rate {
+                u: work[2 * c],
+                v: work[2 * c + 1] & 0xffff,
+                met: work[2 * c + 1] & 0x10000 == 0,
+            })
+            .collect();
+        let vertex_bytes = u64::from(vertex_count) * VERTEX_BYTES;
+        let index_bytes = u64::from(triangle_count) * 12;
+        self.pool.read(
+            &self.context,
+            &[
+                (&self.mesh.vertices, 0, vertex_bytes.max(4)),
+                (&self.mesh.indices, 0, index_bytes.max(4)),
+            ],
+            |buffers| {
+                let mut frame = ViewFrame {
+                    rates,
+                    ..ViewFrame::default()
+                };
+                copy_out(&mapped(&buffers[0], vertex_bytes)?, &mut frame.vertices);
+                copy_out(&mapped(&buffers[1], index_bytes)?, &mut frame.indices);
+                Ok(frame)
+            },
+        )
+    }
+}
+
+/// The plan as the kernels read it: cell, edge and corner records as u32 words (floats by
+/// their bits), and each cell's homogeneous control points relative to its centre, weights
+/// scaled to a largest of 1.
+fn pack(plan: &ViewPlan) -> (Vec<u32>, Vec<[f32; 4]>) {
+    let mut words = Vec::with_capacity(
+        plan.cells.len() * CELL_WORDS + plan.edges.len() * EDGE_WORDS + 2 * plan.corners.len(),
+    );
+    let mut points = Vec::new();
+    for cell in &plan.cells {
+        let patch = &cell.patch;
+        let first_point = points.len() as u32;
+        let largest = patch.points.iter().map(|h| h.w).fold(0.0, f64::max);
+        let (low, high) = patch.points.iter().fold(
+            (
+                glam::DVec3::splat(f64::INFINITY),
+                glam::DVec3::splat(f64::NEG_INFINITY),
+            ),
+            |(low, high), h| (low.min(h.truncate() / h.w), high.max(h.truncate() / h.w)),
+        );
+        for h in &patch.points {
+            let w = h.w / largest;
+            let local = (h.truncate() / h.w - cell.centre) * w;
+            points.push([local.x as f32, local.y as f32, local.z as f32, w as f32]);
+        }
+        let size = (high - low).length();
+        let degenerate = degenerate_cross_sq(cross_scale(size, 1.0, 1.0), f64::from(f32::EPSILON));
+        let f = |x: f64| (x as f32).to_bits();
+        let centre = cell.centre.as_vec3();
+        words.extend([centre.x.to_bits(), centre.y.to_bits(), centre.z.to_bits()]);
+        words.push(crate::plan::view::round_up_f32(cell.radius).to_bits());
+        words.extend(
+            cell.deviation
+                .map(|x| crate::plan::view::round_up_f32(x).to_bits()),
+        );
+        words.push(f(degenerate));
+        words.extend([
+            f(cell.uv_start.x),
+            f(cell.uv_start.y),
+            f(cell.uv_size.x),
+            f(cell.uv_size.y),
+        ]);
+        words.extend([patch.degree_u as u32, patch.degree_v as u32, first_point]);
+        let aligned = cell
+            .sides
+            .iter()
+            .enumerate()
+            .fold(0u32, |bits, (k, &(_, a))| bits | (u32::from(a) << k));
+        words.push(aligned);
+        words.extend(cell.sides.map(|(edge, _)| edge));
+        words.extend(cell.corners);
+    }
+    for edge in &plan.edges {
+        words.extend([
+            edge.owner,
+            edge.owner_side as u32,
+            edge.other,
+            edge.other_side as u32,
+            u32::from(edge.pole),
+        ]);
+    }
+    for &(cell, corner) in &plan.corners {
+        words.extend([cell, corner]);
+    }
+    (words, points)
+}
