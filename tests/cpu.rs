@@ -2285,3 +2285,105 @@ fn ruled_rational_patches_bound_their_twist_by_the_rows_difference() {
         }
     }
 }
+
+// ---------------------------------------------------------------- view-dependent frames
+
+/// View-dependent frames at the rates the kernels decide (computed on the host in the
+/// kernels' f32) and evaluated in f64: at every triangle's centroid and edge midpoints
+/// whose surface point is in view, the projected surface lies within the pixel tolerance of
+/// the projected triangle — on the teapot (seams, poles) and the ducky (rational, weights
+/// 0.5..1), near and far. Prints how tight the bound is (worst / tolerance).
+#[test]
+fn view_frames_stay_within_their_pixel_tolerance() {
+    use glam::camera::rh::{proj::directx::perspective, view::look_at_mat4};
+    use glam::{DVec4, Vec2, Vec3};
+    use knotwork::plan::view::{View, ViewOptions, ViewPlan};
+    let models = [
+        (
+            "data/teapot.bpt",
+            Vec3::new(0.2, 0.0, 1.2),
+            [Vec3::new(2.5, -4.0, 2.5), Vec3::new(12.0, -18.0, 10.0)],
+        ),
+        (
+            "data/ducky.obj",
+            Vec3::new(1.5, 0.0, 1.0),
+            [Vec3::new(5.0, -6.0, 4.0), Vec3::new(15.0, -20.0, 12.0)],
+        ),
+    ];
+    for (path, target, eyes) in models {
+        let surfaces = knotwork::io::read_scene(std::path::Path::new(path))
+            .unwrap()
+            .surface_list();
+        let plan = ViewPlan::new(&surfaces, ViewOptions::default()).unwrap();
+        for eye in eyes {
+            for tolerance_px in [0.25f32, 1.0] {
+                let viewport = Vec2::new(800.0, 600.0);
+                let matrix =
+                    perspective(0.8, 4.0 / 3.0, 0.05, 500.0) * look_at_mat4(eye, target, Vec3::Z);
+                let view = View {
+                    view_projection: matrix,
+                    viewport,
+                    tolerance_px,
+                };
+                let m = matrix.as_dmat4();
+                // Pixels of a point, if it is inside the view volume.
+                let pixels = |p: DVec3| -> Option<glam::DVec2> {
+                    let c: DVec4 = m * p.extend(1.0);
+                    let inside = c.w > 0.0
+                        && c.x.abs() <= c.w
+                        && c.y.abs() <= c.w
+                        && c.z >= 0.0
+                        && c.z <= c.w;
+                    inside.then(|| {
+                        glam::DVec2::new(c.x / c.w + 1.0, c.y / c.w + 1.0)
+                            * 0.5
+                            * viewport.as_dvec2()
+                    })
+                };
+                let rates = plan.rates(&view);
+                assert!(
+                    rates.iter().all(|r| r.met),
+                    "{path}: every cell meets the tolerance"
+                );
+                let mesh = knotwork::cpu::execute_view(&plan, &surfaces, &rates).unwrap();
+                let layout = plan.layout(&rates);
+                let (mut worst, mut measured) = (0.0f64, 0usize);
+                for (c, corners) in plan.placed_triangles(&rates, &layout) {
+                    let cell = &plan.cells[c as usize];
+                    let surface = &surfaces[cell.surface as usize];
+                    let positions = corners.map(|(v, _)| mesh.positions[v as usize]);
+                    let params = corners.map(|(_, st)| st);
+                    for weights in [
+                        [1.0 / 3.0; 3],
+                        [0.5, 0.5, 0.0],
+                        [0.0, 0.5, 0.5],
+                        [0.5, 0.0, 0.5],
+                    ] {
+                        let st = params[0] * weights[0]
+                            + params[1] * weights[1]
+                            + params[2] * weights[2];
+                        let on_surface = surface
+                            .point(cell.patch.range_u.lerp(st.x), cell.patch.range_v.lerp(st.y));
+                        let on_mesh = positions[0] * weights[0]
+                            + positions[1] * weights[1]
+                            + positions[2] * weights[2];
+                        if let (Some(a), Some(b)) = (pixels(on_surface), pixels(on_mesh)) {
+                            worst = worst.max((a - b).length());
+                            measured += 1;
+                        }
+                    }
+                }
+                println!(
+                    "{path} from {eye} at {tolerance_px} px: {} triangles, {measured} points in view, worst {worst:.3} px ({:.2} of the tolerance)",
+                    mesh.indices.len() / 3,
+                    worst / f64::from(tolerance_px)
+                );
+                assert!(measured > 1000, "{path}: the model is in view");
+                assert!(
+                    worst <= f64::from(tolerance_px),
+                    "{path}: {worst} px over {tolerance_px}"
+                );
+            }
+        }
+    }
+}
