@@ -130,5 +130,65 @@ fn bench_gpu(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_gpu);
+/// The view-dependent mode on the teapot at 1 px on a 1280 × 720 viewport, from three
+/// distances: one frame = one submission re-planning and filling the buffers, waited for;
+/// beside it the host's plan of the same frame (rates, layout, triangles) and its f64
+/// execution on every core.
+fn bench_view(c: &mut Criterion) {
+    use glam::camera::rh::{proj::directx::perspective, view::look_at_mat4};
+    use glam::{Vec2, Vec3};
+    use knotwork::gpu::ViewBatch;
+    use knotwork::plan::view::{View, ViewOptions, ViewPlan};
+    let context =
+        GpuContext::new().expect("a GPU adapter (install mesa-vulkan-drivers for lavapipe)");
+    let surfaces = knotwork::io::read_scene(Path::new("data/teapot.bpt"))
+        .expect("bench input")
+        .surface_list();
+    let plan = ViewPlan::new(&surfaces, ViewOptions::default()).expect("plans");
+    let batch = ViewBatch::new(&context, &plan).expect("fits the adapter");
+    let mut group = c.benchmark_group("view");
+    group.sample_size(20);
+    for (name, eye) in [
+        ("near", Vec3::new(2.5, -4.0, 2.5)),
+        ("middle", Vec3::new(6.0, -9.0, 5.0)),
+        ("far", Vec3::new(30.0, -45.0, 25.0)),
+    ] {
+        let view = View {
+            view_projection: perspective(0.8, 16.0 / 9.0, 0.1, 200.0)
+                * look_at_mat4(eye, Vec3::new(0.2, 0.0, 1.2), Vec3::Z),
+            viewport: Vec2::new(1280.0, 720.0),
+            tolerance_px: 1.0,
+        };
+        batch.dispatch(&view).expect("dispatch");
+        let frame = batch.read_frame().expect("reads back");
+        println!(
+            "teapot {name}: {} triangles, {} vertices, {} cells",
+            frame.indices.len() / 3,
+            frame.vertices.len(),
+            frame.rates.len()
+        );
+        group.throughput(Throughput::Elements((frame.indices.len() / 3) as u64));
+        group.bench_function(format!("gpu frame, teapot {name}"), |b| {
+            b.iter(|| {
+                let submission = batch.dispatch(&view).expect("dispatch");
+                context
+                    .device()
+                    .poll(wgpu::PollType::Wait {
+                        submission_index: Some(submission),
+                        timeout: None,
+                    })
+                    .expect("completes");
+            })
+        });
+        group.bench_function(format!("cpu frame, teapot {name}"), |b| {
+            b.iter(|| {
+                let rates = plan.rates(&view);
+                knotwork::cpu::execute_view(&plan, &surfaces, &rates).expect("executes")
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_gpu, bench_view);
 criterion_main!(benches);

@@ -1,16 +1,21 @@
 //! What a renderer embedding knotwork does: it owns the device and its own render pipeline;
 //! knotwork fills vertex and index buffers on that device, and the renderer draws them with
-//! `GpuMesh::vertex_buffer_layout()` — the mesh never travels through the CPU. Every frame
-//! the teapot's lid is lifted a little: knotwork re-uploads only those patches' control
-//! points and re-evaluates into the same buffers. Frames are read back only to save them
-//! (binary PPM, so the example needs no image crate).
+//! `GpuMesh::vertex_buffer_layout()` — the mesh never travels through the CPU. Here the
+//! camera flies in toward the teapot and knotwork re-plans the tessellation every frame for
+//! the view (one pixel of tolerance): the rates, the vertices, the indices and the indirect
+//! draw's arguments are all computed on the GPU, in the same command encoder as the
+//! renderer's own pass. Frames are read back only to save them (binary PPM, so the example
+//! needs no image crate).
 //!
-//! `cargo run --release --example embed` writes `embed_frames/frame_00.ppm` … `_07.ppm`.
+//! `cargo run --release --example embed` writes `embed_frames/frame_00.ppm` … `_07.ppm` and
+//! prints each frame's triangles and milliseconds.
 
 use knotwork::glam::camera::rh::{proj::directx::perspective, view::look_at_mat4};
-use knotwork::glam::{DVec3, Vec3};
+use knotwork::glam::{Mat4, Vec2, Vec3};
+use knotwork::gpu::ViewBatch;
+use knotwork::plan::view::{View, ViewOptions, ViewPlan};
 use knotwork::wgpu;
-use knotwork::{BSplineSurface, BatchDescriptor, GpuBatch, GpuContext, GpuMesh, TessOptions};
+use knotwork::{GpuContext, GpuMesh};
 use std::path::Path;
 
 const WIDTH: u32 = 320;
@@ -37,23 +42,31 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let instance = knotwork::gpu::headless_instance();
     let adapter = pollster::block_on(instance.request_adapter(&Default::default()))?;
     let (device, queue) = pollster::block_on(adapter.request_device(&Default::default()))?;
-    // knotwork works on them.
+    // knotwork works on them: the teapot's cells are planned once, re-sampled every frame.
     let context = GpuContext::from_device(device.clone(), queue.clone())?;
     let surfaces = knotwork::io::read_scene(Path::new("data/teapot.bpt"))?.surface_list();
-    let grid = TessOptions::DEFAULT.with_grid(24, 24);
-    let mut batch = GpuBatch::new(&context, &BatchDescriptor::new(&surfaces, &grid))?;
+    let plan = ViewPlan::new(&surfaces, ViewOptions::default())?;
+    let batch = ViewBatch::new(&context, &plan)?;
 
     let renderer = Renderer::new(&device);
     let frames = Path::new("embed_frames");
     std::fs::create_dir_all(frames)?;
-    let lid = 20..28; // patches 21–28: the lid and its knob
     for frame in 0..8 {
-        let lift = DVec3::new(0.0, 0.0, 0.12 * f64::from(frame));
-        for index in lid.clone() {
-            batch.update_surface(index, &translated(&surfaces[index], lift)?)?;
-        }
-        batch.dispatch()?;
-        let pixels = renderer.draw(&device, &queue, batch.mesh())?;
+        // The camera circles the teapot and closes in.
+        let angle = -1.0 + 0.25 * frame as f32;
+        let distance = 24.0 / (1.0 + 0.3 * frame as f32);
+        let eye = Vec3::new(angle.cos(), angle.sin(), 0.55) * distance;
+        let view_projection = perspective(0.6, WIDTH as f32 / HEIGHT as f32, 0.1, 100.0)
+            * look_at_mat4(eye, Vec3::new(0.2, 0.0, 1.4), Vec3::Z);
+        let view = View {
+            view_projection,
+            viewport: Vec2::new(WIDTH as f32, HEIGHT as f32),
+            tolerance_px: 1.0,
+        };
+        let started = std::time::Instant::now();
+        let pixels = renderer.draw(&device, &queue, &batch, &view)?;
+        let milliseconds = started.elapsed().as_secs_f64() * 1e3;
+        let (_, triangles) = batch.read_counts()?;
         let path = frames.join(format!("frame_{frame:02}.ppm"));
         let mut ppm = format!("P6\n{WIDTH} {HEIGHT}\n255\n").into_bytes();
         ppm.extend(
@@ -62,7 +75,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .flat_map(|rgba| [rgba[0], rgba[1], rgba[2]]),
         );
         std::fs::write(&path, ppm)?;
-        println!("{}", path.display());
+        println!(
+            "{}: camera {distance:.1} away, {triangles} triangles, {milliseconds:.1} ms (re-plan, draw, read the picture back)",
+            path.display()
+        );
     }
     Ok(())
 }
@@ -71,6 +87,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 /// to read the picture back.
 struct Renderer {
     pipeline: wgpu::RenderPipeline,
+    camera: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
     colour: wgpu::Texture,
     depth: wgpu::TextureView,
@@ -88,13 +105,11 @@ impl Renderer {
             label: Some("renderer"),
             source: wgpu::ShaderSource::Wgsl(SHADER.into()),
         });
-        let view = look_at_mat4(Vec3::new(6.0, -8.0, 5.5), Vec3::new(0.0, 0.0, 1.4), Vec3::Z);
-        // WebGPU's clip space is DirectX's: y up, depth 0..1.
-        let projection = perspective(0.6, WIDTH as f32 / HEIGHT as f32, 0.1, 100.0);
+        // WebGPU's clip space is DirectX's: y up, depth 0..1. Written every frame.
         let camera = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("camera"),
-            contents: bytemuck::cast_slice(&(projection * view).to_cols_array()),
-            usage: wgpu::BufferUsages::UNIFORM,
+            contents: bytemuck::cast_slice(&Mat4::IDENTITY.to_cols_array()),
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: None,
@@ -179,6 +194,7 @@ impl Renderer {
         });
         Renderer {
             pipeline,
+            camera,
             bind_group,
             colour,
             depth,
@@ -186,14 +202,23 @@ impl Renderer {
         }
     }
 
-    /// Draws knotwork's buffers as they are and returns the RGBA picture.
+    /// Has knotwork re-plan `batch` for `view` and draws its buffers with the indirect
+    /// arguments it wrote, in one submission; returns the RGBA picture.
     fn draw(
         &self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-        mesh: &GpuMesh,
+        batch: &ViewBatch,
+        view: &View,
     ) -> Result<Vec<u8>, Box<dyn std::error::Error>> {
+        queue.write_buffer(
+            &self.camera,
+            0,
+            bytemuck::cast_slice(&view.view_projection.to_cols_array()),
+        );
         let mut encoder = device.create_command_encoder(&Default::default());
+        batch.encode(&mut encoder, view);
+        let mesh: &GpuMesh = batch.mesh();
         {
             let view = self.colour.create_view(&Default::default());
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -226,7 +251,7 @@ impl Renderer {
                 mesh.indices.slice(mesh.index_offset..),
                 wgpu::IndexFormat::Uint32,
             );
-            pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+            pass.draw_indexed_indirect(batch.indirect(), 0);
         }
         encoder.copy_texture_to_buffer(
             self.colour.as_image_copy(),
@@ -254,22 +279,4 @@ impl Renderer {
         self.readback.unmap();
         Ok(pixels)
     }
-}
-
-/// `surface` with every control point moved by `offset` (same knots, same weights).
-fn translated(surface: &BSplineSurface, offset: DVec3) -> knotwork::Result<BSplineSurface> {
-    let (nu, nv) = (surface.count_u(), surface.count_v());
-    let cells = || (0..nv).flat_map(move |j| (0..nu).map(move |i| (i, j)));
-    let points: Vec<DVec3> = cells()
-        .map(|(i, j)| surface.control_point(i, j) + offset)
-        .collect();
-    let weights: Vec<f64> = cells().map(|(i, j)| surface.weight(i, j)).collect();
-    let rational = surface.is_rational().then_some(&weights[..]);
-    BSplineSurface::try_new(
-        surface.knots_u().clone(),
-        surface.knots_v().clone(),
-        &points,
-        rational,
-    )?
-    .with_range(surface.range_u(), surface.range_v())
 }

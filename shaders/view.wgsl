@@ -1,6 +1,8 @@
 // View-dependent tessellation, re-planned every frame in one submission: rates → vertex
-// counts → their prefix sums → triangle counts (which compare vertex indices, so after the
-// vertex layout) → theirs, and the indirect draw → vertices → indices. The host mirror of every rule
+// counts → their prefix sums (and each cell's first grid row) → triangle counts per grid row
+// (which compare vertex indices, so after the vertex layout) → theirs, and the indirect
+// draw → vertices → indices. The vertex and row kernels are dispatched indirectly over the
+// frame's own vertices and rows, with the workgroup counts the scans write. The host mirror of every rule
 // here is src/plan/view.rs (ViewPlan::rates, layout, vertex_samples, triangles); the
 // buffer order is the same. grid_common.wgsl is prepended (the limit normal).
 
@@ -25,14 +27,18 @@ struct Frame {
 @group(0) @binding(1) var<storage, read> plan: array<u32>;
 // Each cell's homogeneous control points (w·(P − centre), w), u fastest.
 @group(0) @binding(2) var<storage, read> points: array<vec4<f32>>;
-// Per frame: rates (2 words per cell), vertex counts (edges, then cells), triangle counts
-// (max_segments per cell, one per grid row), then the two totals.
+// Per frame: rates (2 words per cell), vertex counts (edges, then cells), rows (one word per
+// cell), triangle counts (one per grid row of the frame, at most max_segments per cell),
+// then the totals (vertices, triangles, rows).
 @group(0) @binding(3) var<storage, read_write> work: array<u32>;
 // Vertices: position, normal, uv — 8 floats each.
 @group(0) @binding(4) var<storage, read_write> vertices: array<f32>;
 @group(0) @binding(5) var<storage, read_write> indices: array<u32>;
 // DrawIndexedIndirect: index count, instance count, first index, base vertex, first instance.
 @group(0) @binding(6) var<storage, read_write> indirect: array<u32>;
+// The workgroup counts of the indirect dispatches: over the vertices (0..3), over the rows
+// (3..6). Bound (group 1) only while the scans write them.
+@group(1) @binding(0) var<storage, read_write> dispatch: array<u32>;
 
 const CELL_WORDS: u32 = 24u;
 const EDGE_WORDS: u32 = 5u;
@@ -56,7 +62,8 @@ fn edge_u32(e: u32, word: u32) -> u32 { return plan[frame.edge_words + e * EDGE_
 // ---- work layout ----
 
 fn vertex_counts() -> u32 { return 2u * frame.cells; }
-fn triangle_counts() -> u32 { return vertex_counts() + frame.edges + frame.cells; }
+fn row_firsts() -> u32 { return vertex_counts() + frame.edges + frame.cells; }
+fn triangle_counts() -> u32 { return row_firsts() + frame.cells; }
 fn totals() -> u32 { return triangle_counts() + frame.cells * frame.max_segments; }
 fn rate(c: u32) -> vec2<u32> { return vec2<u32>(work[2u * c], work[2u * c + 1u] & 0xffffu); }
 fn side_rate(c: u32, side: u32) -> u32 {
@@ -160,6 +167,24 @@ fn cell_rates(@builtin(global_invocation_id) gid: vec3<u32>,
     work[2u * c + 1u] = r.y;
     let n = r.y & 0xffffu;
     work[vertex_counts() + frame.edges + c] = (r.x - 1u) * (n - 1u);
+    work[row_firsts() + c] = n;
+}
+
+// The last x in [0, n) with work[start + x] ≤ value, for ascending entries with
+// work[start] ≤ value: the entry whose range holds `value` (empty ranges are skipped, their
+// successor starting where they do).
+fn last_at_most(start: u32, n: u32, value: u32) -> u32 {
+    var low = 0u;
+    var high = n;
+    while (high - low > 1u) {
+        let middle = (low + high) / 2u;
+        if (work[start + middle] <= value) {
+            low = middle;
+        } else {
+            high = middle;
+        }
+    }
+    return low;
 }
 
 // ---- edges ----
@@ -254,8 +279,11 @@ struct Extras {
 }
 
 fn extras(c: u32, side: u32, k: u32, on: bool) -> Extras {
+    if (!on) {
+        return Extras(0u, 0u);
+    }
     let e = side_edge(c, side);
-    if (!on || edge_u32(e, 4u) != 0u || edge_u32(e, 2u) == NO_CELL) {
+    if (edge_u32(e, 4u) != 0u || edge_u32(e, 2u) == NO_CELL) {
         return Extras(0u, 0u);
     }
     let n = side_rate(c, side);
@@ -322,7 +350,18 @@ fn emit(write: bool, base: u32, count: ptr<function, u32>, a: u32, b: u32, d: u3
 fn row_triangles(c: u32, j: u32, write: bool, base: u32) -> u32 {
     let r = rate(c);
     var count = 0u;
+    // Rows whose grid cells' corners are all inside the cell, but at the ends: the grid rule
+    // on interior vertices, numbered row by row from the cell's first.
+    let inner_row = j >= 1u && j + 2u <= r.y;
+    let first = cell_first(c);
+    let stride = r.x - 1u;
     for (var i = 0u; i < r.x; i++) {
+        if (inner_row && i >= 1u && i + 2u <= r.x) {
+            let a = first + (j - 1u) * stride + (i - 1u);
+            emit(write, base, &count, a, a + 1u, a + stride + 1u);
+            emit(write, base, &count, a, a + stride + 1u, a + stride);
+            continue;
+        }
         let q00 = grid_vertex(c, i, j);
         let q10 = grid_vertex(c, i + 1u, j);
         let q11 = grid_vertex(c, i + 1u, j + 1u);
@@ -368,35 +407,46 @@ fn row_triangles(c: u32, j: u32, write: bool, base: u32) -> u32 {
     return count;
 }
 
+// The cell and grid row of frame row r.
+fn row_of(r: u32) -> vec2<u32> {
+    let c = last_at_most(row_firsts(), frame.cells, r);
+    return vec2<u32>(c, r - work[row_firsts() + c]);
+}
+
 @compute @workgroup_size(64)
 fn row_counts(@builtin(global_invocation_id) gid: vec3<u32>,
               @builtin(num_workgroups) groups: vec3<u32>) {
-    let slot = flat_index(gid, groups);
-    if (slot >= frame.cells * frame.max_segments) {
+    let r = flat_index(gid, groups);
+    if (r >= work[totals() + 2u]) {
         return;
     }
-    let c = slot / frame.max_segments;
-    let j = slot % frame.max_segments;
-    var count = 0u;
-    if (j < rate(c).y) {
-        count = row_triangles(c, j, false, 0u);
-    }
-    work[triangle_counts() + slot] = count;
+    let row = row_of(r);
+    work[triangle_counts() + r] = row_triangles(row.x, row.y, false, 0u);
 }
 
 // ---- prefix sums (one workgroup) ----
 
 var<workgroup> partial: array<u32, SCAN_GROUP>;
+var<workgroup> scan_count: u32;
 
 // Exclusive prefix sums of work[start .. start + count] in place, from `offset`; returns the
-// total (offset included) in every invocation.
-fn scan(start: u32, count: u32, offset: u32, lid: u32) -> u32 {
+// total (offset included) in every invocation. Called in uniform control flow; `count` is
+// made uniform through workgroup memory, so every loop around a barrier has uniform bounds
+// (WebGPU's uniformity rules).
+fn scan(start: u32, count_in: u32, offset: u32, lid: u32) -> u32 {
+    // `partial` and `scan_count` may still be read by a previous scan.
+    workgroupBarrier();
+    if (lid == 0u) {
+        scan_count = count_in;
+    }
+    let count = workgroupUniformLoad(&scan_count);
     let chunk = (count + SCAN_GROUP - 1u) / SCAN_GROUP;
-    let lo = min(lid * chunk, count);
-    let hi = min(lo + chunk, count);
     var sum = 0u;
-    for (var k = lo; k < hi; k++) {
-        sum += work[start + k];
+    for (var k = 0u; k < chunk; k++) {
+        let x = lid * chunk + k;
+        if (x < count) {
+            sum += work[start + x];
+        }
     }
     partial[lid] = sum;
     workgroupBarrier();
@@ -410,25 +460,42 @@ fn scan(start: u32, count: u32, offset: u32, lid: u32) -> u32 {
         workgroupBarrier();
     }
     var run = offset + partial[lid] - sum;
-    for (var k = lo; k < hi; k++) {
-        let x = work[start + k];
-        work[start + k] = run;
-        run += x;
+    for (var k = 0u; k < chunk; k++) {
+        let x = lid * chunk + k;
+        if (x < count) {
+            let value = work[start + x];
+            work[start + x] = run;
+            run += value;
+        }
     }
     return offset + partial[SCAN_GROUP - 1u];
 }
 
+// Workgroups of 64 covering `items` invocations, folded into two dimensions past 65535
+// (as flat_index unfolds them), at dispatch[at..at + 3].
+fn write_dispatch(at: u32, items: u32) {
+    let groups = (items + 63u) / 64u;
+    let x = min(groups, 65535u);
+    dispatch[at] = x;
+    dispatch[at + 1u] = select(0u, (groups + x - 1u) / max(x, 1u), groups > 0u);
+    dispatch[at + 2u] = 1u;
+}
+
 @compute @workgroup_size(256)
 fn scan_vertices(@builtin(local_invocation_index) lid: u32) {
-    let total = scan(vertex_counts(), frame.edges + frame.cells, frame.corners, lid);
+    let vertices = scan(vertex_counts(), frame.edges + frame.cells, frame.corners, lid);
+    let rows = scan(row_firsts(), frame.cells, 0u, lid);
     if (lid == 0u) {
-        work[totals()] = total;
+        work[totals()] = vertices;
+        work[totals() + 2u] = rows;
+        write_dispatch(0u, vertices);
+        write_dispatch(3u, rows);
     }
 }
 
 @compute @workgroup_size(256)
 fn scan_triangles(@builtin(local_invocation_index) lid: u32) {
-    let total = scan(triangle_counts(), frame.cells * frame.max_segments, 0u, lid);
+    let total = scan(triangle_counts(), work[totals() + 2u], 0u, lid);
     if (lid == 0u) {
         work[totals() + 1u] = total;
         indirect[0] = 3u * total;
@@ -441,8 +508,8 @@ fn scan_triangles(@builtin(local_invocation_index) lid: u32) {
 
 // ---- vertices ----
 
-// Bernstein values, first and second derivatives of degree n at x, in x, y, z.
-fn bernstein(n: u32, x: f32) -> array<vec3<f32>, 16> {
+// Bernstein values, first and second derivatives of degree n at x, in x, y, z, into `out`.
+fn bernstein(n: u32, x: f32, out: ptr<function, array<vec3<f32>, 16>>) {
     var b: array<f32, 16>;
     var lower1: array<f32, 16>;
     var lower2: array<f32, 16>;
@@ -467,7 +534,6 @@ fn bernstein(n: u32, x: f32) -> array<vec3<f32>, 16> {
         lower2[0] = 1.0;
     }
     let nf = f32(n);
-    var out: array<vec3<f32>, 16>;
     for (var i = 0u; i <= n; i++) {
         var first = 0.0;
         if (i < n) {
@@ -488,9 +554,8 @@ fn bernstein(n: u32, x: f32) -> array<vec3<f32>, 16> {
                 second += lower2[i - 2u];
             }
         }
-        out[i] = vec3<f32>(b[i], nf * first, nf * (nf - 1.0) * second);
+        (*out)[i] = vec3<f32>(b[i], nf * first, nf * (nf - 1.0) * second);
     }
-    return out;
 }
 
 // Evaluates cell c at local (s, t) into vertex `index`.
@@ -498,8 +563,10 @@ fn write_vertex(index: u32, c: u32, s: f32, t: f32) {
     let p = cell_u32(c, 12u);
     let q = cell_u32(c, 13u);
     let first = cell_u32(c, 14u);
-    let bu = bernstein(p, s);
-    let bv = bernstein(q, t);
+    var bu: array<vec3<f32>, 16>;
+    var bv: array<vec3<f32>, 16>;
+    bernstein(p, s, &bu);
+    bernstein(q, t, &bv);
     var h = vec4<f32>(0.0);
     var hu = vec4<f32>(0.0);
     var hv = vec4<f32>(0.0);
@@ -557,64 +624,44 @@ fn on_side(side: u32, f: f32) -> vec2<f32> {
     }
 }
 
+// Vertex v of the frame: a corner, an edge's sample, or a cell's interior vertex.
 @compute @workgroup_size(64)
-fn corner_vertices(@builtin(global_invocation_id) gid: vec3<u32>,
-                   @builtin(num_workgroups) groups: vec3<u32>) {
-    let k = flat_index(gid, groups);
-    if (k >= frame.corners) {
-        return;
-    }
-    let c = plan[frame.corner_words + 2u * k];
-    let corner = plan[frame.corner_words + 2u * k + 1u];
-    let st = vec2<f32>(select(0.0, 1.0, corner == 1u || corner == 2u),
-                       select(0.0, 1.0, corner >= 2u));
-    write_vertex(k, c, st.x, st.y);
-}
-
-@compute @workgroup_size(64)
-fn edge_vertices(@builtin(global_invocation_id) gid: vec3<u32>,
-                 @builtin(num_workgroups) groups: vec3<u32>) {
-    let slot = flat_index(gid, groups);
-    let per_edge = 2u * frame.max_segments;
-    if (slot >= frame.edges * per_edge) {
-        return;
-    }
-    let e = slot / per_edge;
-    let k = slot % per_edge;
-    if (k >= edge_samples(e)) {
-        return;
-    }
-    let owner = edge_u32(e, 0u);
-    let side = edge_u32(e, 1u);
-    let n_a = side_rate(owner, side);
-    var f: f32;
-    if (k < n_a - 1u) {
-        f = f32(k + 1u) / f32(n_a);
-    } else {
-        let n_b = side_rate(edge_u32(e, 2u), edge_u32(e, 3u));
-        f = f32(other_sample(k - (n_a - 1u), n_a, n_b)) / f32(n_b);
-    }
-    let st = on_side(side, f);
-    write_vertex(edge_first(e) + k, owner, st.x, st.y);
-}
-
-@compute @workgroup_size(64)
-fn interior_vertices(@builtin(global_invocation_id) gid: vec3<u32>,
+fn evaluate_vertices(@builtin(global_invocation_id) gid: vec3<u32>,
                      @builtin(num_workgroups) groups: vec3<u32>) {
-    let slot = flat_index(gid, groups);
-    if (slot >= frame.cells * frame.max_segments) {
+    let v = flat_index(gid, groups);
+    if (v >= work[totals()]) {
         return;
     }
-    let c = slot / frame.max_segments;
-    let j = slot % frame.max_segments;
+    if (v < frame.corners) {
+        let c = plan[frame.corner_words + 2u * v];
+        let corner = plan[frame.corner_words + 2u * v + 1u];
+        write_vertex(v, c, select(0.0, 1.0, corner == 1u || corner == 2u),
+                     select(0.0, 1.0, corner >= 2u));
+        return;
+    }
+    let x = last_at_most(vertex_counts(), frame.edges + frame.cells, v);
+    let k = v - work[vertex_counts() + x];
+    if (x < frame.edges) {
+        let e = x;
+        let owner = edge_u32(e, 0u);
+        let side = edge_u32(e, 1u);
+        let n_a = side_rate(owner, side);
+        var f: f32;
+        if (k < n_a - 1u) {
+            f = f32(k + 1u) / f32(n_a);
+        } else {
+            let n_b = side_rate(edge_u32(e, 2u), edge_u32(e, 3u));
+            f = f32(other_sample(k - (n_a - 1u), n_a, n_b)) / f32(n_b);
+        }
+        let st = on_side(side, f);
+        write_vertex(v, owner, st.x, st.y);
+        return;
+    }
+    let c = x - frame.edges;
     let r = rate(c);
-    if (j == 0u || j >= r.y) {
-        return;
-    }
-    let first = cell_first(c) + (j - 1u) * (r.x - 1u);
-    for (var i = 1u; i < r.x; i++) {
-        write_vertex(first + i - 1u, c, f32(i) / f32(r.x), f32(j) / f32(r.y));
-    }
+    let i = k % (r.x - 1u) + 1u;
+    let j = k / (r.x - 1u) + 1u;
+    write_vertex(v, c, f32(i) / f32(r.x), f32(j) / f32(r.y));
 }
 
 // ---- indices ----
@@ -622,14 +669,10 @@ fn interior_vertices(@builtin(global_invocation_id) gid: vec3<u32>,
 @compute @workgroup_size(64)
 fn row_indices(@builtin(global_invocation_id) gid: vec3<u32>,
                @builtin(num_workgroups) groups: vec3<u32>) {
-    let slot = flat_index(gid, groups);
-    if (slot >= frame.cells * frame.max_segments) {
+    let r = flat_index(gid, groups);
+    if (r >= work[totals() + 2u]) {
         return;
     }
-    let c = slot / frame.max_segments;
-    let j = slot % frame.max_segments;
-    if (j >= rate(c).y) {
-        return;
-    }
-    row_triangles(c, j, true, work[triangle_counts() + slot]);
+    let row = row_of(r);
+    row_triangles(row.x, row.y, true, work[triangle_counts() + r]);
 }

@@ -1,8 +1,10 @@
 //! The GPU executor of a [`ViewPlan`]: every frame, one submission re-plans and fills the
 //! renderer's buffers — rates from the view (`cell_rates`), vertex counts (`edge_counts`)
-//! and their prefix sums (`scan_vertices`), triangle counts (`row_counts`) and theirs
-//! (`scan_triangles`, which also writes the indirect draw), then vertices (`corner_vertices`, `edge_vertices`,
-//! `interior_vertices`) and indices (`row_indices`). Nothing travels through the CPU.
+//! and their prefix sums with each cell's first grid row (`scan_vertices`, which also
+//! writes the workgroup counts of the indirect dispatches), triangle counts per grid row
+//! (`row_counts`) and theirs (`scan_triangles`, which also writes the indirect draw), then
+//! vertices (`evaluate_vertices`) and indices (`row_indices`), each dispatched indirectly
+//! over the frame's own vertices and rows. Nothing travels through the CPU.
 //!
 //! The output buffers are sized once for every cell at its most segments
 //! ([`ViewPlan::capacity`]), so a frame never reallocates; draw them with
@@ -29,28 +31,31 @@ const CELL_WORDS: usize = 24;
 const EDGE_WORDS: usize = 5;
 
 /// The kernels in dispatch order, with what each runs over.
-const PASSES: [(&str, Over); 9] = [
+const PASSES: [(&str, Over); 7] = [
     ("cell_rates", Over::Cells),
     ("edge_counts", Over::Edges),
     // Before the triangles are counted: counting drops pole triangles by comparing vertex
     // indices, which need the vertex layout.
-    ("scan_vertices", Over::One),
-    ("row_counts", Over::Rows),
+    ("scan_vertices", Over::Scan),
+    ("row_counts", Over::Indirect(ROW_DISPATCH)),
     ("scan_triangles", Over::One),
-    ("corner_vertices", Over::Corners),
-    ("edge_vertices", Over::EdgeSamples),
-    ("interior_vertices", Over::Rows),
-    ("row_indices", Over::Rows),
+    ("evaluate_vertices", Over::Indirect(VERTEX_DISPATCH)),
+    ("row_indices", Over::Indirect(ROW_DISPATCH)),
 ];
+
+/// Byte offsets of the indirect dispatches' workgroup counts (`dispatch` in view.wgsl).
+const VERTEX_DISPATCH: u64 = 0;
+const ROW_DISPATCH: u64 = 12;
 
 #[derive(Clone, Copy)]
 enum Over {
     Cells,
     Edges,
-    Rows,
-    Corners,
-    EdgeSamples,
+    /// One workgroup, with the dispatch arguments bound for writing.
+    Scan,
     One,
+    /// The workgroup counts at this offset of the dispatch arguments.
+    Indirect(u64),
 }
 
 /// The frame uniform (`Frame` in view.wgsl).
@@ -77,6 +82,11 @@ pub struct ViewBatch {
     context: GpuContext,
     pipelines: Vec<wgpu::ComputePipeline>,
     bind_group: wgpu::BindGroup,
+    /// Group 1: the dispatch arguments (for the scan that writes them), or a stand-in (while
+    /// they are read as indirect arguments, which a writable binding may not alias).
+    dispatch_args: wgpu::Buffer,
+    write_args: wgpu::BindGroup,
+    no_args: wgpu::BindGroup,
     uniform: wgpu::Buffer,
     work: wgpu::Buffer,
     mesh: GpuMesh,
@@ -102,7 +112,8 @@ impl ViewBatch {
         let limits = context.limits();
         let max_segments = plan.options.max_segments;
         let cells = plan.cells.len();
-        let work_words = 2 * cells + plan.edges.len() + cells + cells * max_segments as usize + 2;
+        let work_words =
+            2 * cells + plan.edges.len() + 2 * cells + cells * max_segments as usize + 3;
         for (what, bytes) in [
             ("the view's vertex buffer", max_vertices * VERTEX_BYTES),
             ("the view's index buffer", max_indices * 4),
@@ -161,9 +172,13 @@ impl ViewBatch {
                 label: Some("knotwork view"),
                 entries: &entries,
             });
+            let args_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("knotwork view dispatch"),
+                entries: &[storage(0, false)],
+            });
             let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some("knotwork view"),
-                bind_group_layouts: &[Some(&layout)],
+                bind_group_layouts: &[Some(&layout), Some(&args_layout)],
                 immediate_size: 0,
             });
             let pipelines = PASSES
@@ -240,10 +255,21 @@ impl ViewBatch {
                     (&indirect, 20),
                 ],
             );
+            let dispatch_args = buffer(
+                "knotwork view dispatch",
+                24,
+                U::STORAGE | U::INDIRECT | U::COPY_SRC,
+            );
+            let stand_in = buffer("knotwork view dispatch stand-in", 24, U::STORAGE);
+            let write_args = bind_buffers(context, &args_layout, &[(&dispatch_args, 24)]);
+            let no_args = bind_buffers(context, &args_layout, &[(&stand_in, 24)]);
             Self {
                 context: context.clone(),
                 pipelines,
                 bind_group,
+                dispatch_args,
+                write_args,
+                no_args,
                 uniform,
                 work,
                 mesh: GpuMesh {
@@ -276,7 +302,6 @@ impl ViewBatch {
         self.context
             .queue
             .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&params));
-        let rows = u64::from(self.counts.cells) * u64::from(self.counts.max_segments);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("knotwork view"),
             timestamp_writes: None,
@@ -284,34 +309,32 @@ impl ViewBatch {
         pass.set_bind_group(0, &self.bind_group, &[]);
         for (pipeline, (_, over)) in self.pipelines.iter().zip(&PASSES) {
             pass.set_pipeline(pipeline);
-            let items = match over {
-                Over::Cells => u64::from(self.counts.cells),
-                Over::Edges => u64::from(self.counts.edges),
-                Over::Rows => rows,
-                Over::Corners => u64::from(self.counts.corners),
-                Over::EdgeSamples => {
-                    u64::from(self.counts.edges) * 2 * u64::from(self.counts.max_segments)
-                }
-                Over::One => {
-                    pass.dispatch_workgroups(1, 1, 1);
-                    continue;
-                }
+            let args = if matches!(over, Over::Scan) {
+                &self.write_args
+            } else {
+                &self.no_args
             };
-            if items > 0 {
-                dispatch_flat(&mut pass, items, 64);
+            pass.set_bind_group(1, args, &[]);
+            match over {
+                Over::Cells => dispatch_flat(&mut pass, u64::from(self.counts.cells), 64),
+                Over::Edges => dispatch_flat(&mut pass, u64::from(self.counts.edges), 64),
+                Over::Scan | Over::One => pass.dispatch_workgroups(1, 1, 1),
+                Over::Indirect(offset) => {
+                    pass.dispatch_workgroups_indirect(&self.dispatch_args, *offset)
+                }
             }
         }
     }
 
-    /// Re-plans for `view` in one submission of its own.
-    pub fn dispatch(&self, view: &View) -> Result<()> {
+    /// Re-plans for `view` in one submission of its own (not waited for).
+    pub fn dispatch(&self, view: &View) -> Result<wgpu::SubmissionIndex> {
         let device = &self.context.device;
         scoped(device, || {
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("knotwork view"),
             });
             self.encode(&mut encoder, view);
-            self.context.queue.submit([encoder.finish()]);
+            self.context.queue.submit([encoder.finish()])
         })
     }
 
@@ -327,13 +350,29 @@ impl ViewBatch {
         &self.indirect
     }
 
+    /// The last frame's vertex and triangle counts (a small read back, for statistics).
+    pub fn read_counts(&self) -> Result<(u32, u32)> {
+        let at = self.totals_offset();
+        self.pool
+            .read(&self.context, &[(&self.work, at, 8)], |buffers| {
+                let words: Vec<u32> = bytemuck::cast_slice(&mapped(&buffers[0], 8)?).to_vec();
+                Ok((words[0], words[1]))
+            })
+    }
+
+    /// Byte offset of the frame's totals (vertices, triangles, grid rows) in the work
+    /// buffer.
+    fn totals_offset(&self) -> u64 {
+        let cells = u64::from(self.counts.cells);
+        let rows = cells * u64::from(self.counts.max_segments);
+        (2 * cells + u64::from(self.counts.edges) + 2 * cells + rows) * 4
+    }
+
     /// Reads the last frame back (for checks and headless use): its rates, vertices and
     /// indices.
     pub fn read_frame(&self) -> Result<ViewFrame> {
         let cells = self.counts.cells as usize;
-        let edges = self.counts.edges as usize;
-        let rows = cells * self.counts.max_segments as usize;
-        let totals_at = (2 * cells + edges + cells + rows) as u64 * 4;
+        let totals_at = self.totals_offset();
         let work: Vec<u32> = self.pool.read(
             &self.context,
             &[(&self.work, 0, totals_at + 8)],
