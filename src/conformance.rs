@@ -247,6 +247,7 @@ pub fn export_suite(dir: &Path) -> Result<usize> {
         std::fs::write(&path, bytes).map_err(|e| io(&path, e))
     };
     write("tessellate.wgsl", crate::gpu::TESSELLATE_WGSL.as_bytes())?;
+    write("view.wgsl", crate::gpu::view::VIEW_WGSL.as_bytes())?;
     let mut cases_json = Vec::new();
     let cases = suite();
     // Cases sampled to a tolerance run the same kernels on cell grids; their triangles and
@@ -376,7 +377,7 @@ pub fn export_suite(dir: &Path) -> Result<usize> {
         ));
     }
     let manifest = format!(
-        "{{\"entry_points\": {:?}, \"uniform_stride\": {}, \"vertex_bytes\": {}, \"bars\": {{\"position_rel\": {:e}, \"f32_rounding\": {:e}, \"normal\": {:e}, \"degenerate_normal\": {:e}, \"uv\": {:e}, \"tangent_rel\": {:e}}}, \"cases\": [\n{}\n], \"curve_entry_point\": {:?}, \"sample_bytes\": {}, \"curve_cases\": [\n{}\n], \"coons_entry_point\": {:?}, \"coons_cases\": [\n{}\n]}}\n",
+        "{{\"entry_points\": {:?}, \"uniform_stride\": {}, \"vertex_bytes\": {}, \"bars\": {{\"position_rel\": {:e}, \"f32_rounding\": {:e}, \"normal\": {:e}, \"degenerate_normal\": {:e}, \"uv\": {:e}, \"tangent_rel\": {:e}}}, \"cases\": [\n{}\n], \"curve_entry_point\": {:?}, \"sample_bytes\": {}, \"curve_cases\": [\n{}\n], \"coons_entry_point\": {:?}, \"coons_cases\": [\n{}\n], \"view_entry_points\": {:?}}}\n",
         KernelInputs::ENTRY_POINTS,
         KernelInputs::UNIFORM_STRIDE,
         KernelInputs::VERTEX_BYTES,
@@ -391,7 +392,8 @@ pub fn export_suite(dir: &Path) -> Result<usize> {
         CurveInputs::SAMPLE_BYTES,
         curve_cases_json.join(",\n"),
         CoonsInputs::ENTRY_POINT,
-        coons_cases_json.join(",\n")
+        coons_cases_json.join(",\n"),
+        crate::gpu::view::ENTRY_POINTS
     );
     write("manifest.json", manifest.as_bytes())?;
     Ok(cases_json.len() + curve_cases.len() + coons_cases.len())

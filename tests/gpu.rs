@@ -1736,6 +1736,13 @@ fn chromium_webgpu_runs_the_kernels_within_the_bars() {
         passed && report.contains(&format!("verdict: all {cases} cases conform")),
         "Chromium's WebGPU does not conform"
     );
+    assert!(
+        report.contains(&format!(
+            "view.wgsl: compiled, {} pipelines made",
+            knotwork::gpu::view::ENTRY_POINTS.len()
+        )),
+        "Tint refuses view.wgsl"
+    );
     // One uploaded weight 2 % off (the w of control point `point` in `file`) must fail.
     let perturb_and_fail = |prefix: String, file: String, point: usize| {
         let path = dir.join(file);

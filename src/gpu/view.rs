@@ -43,6 +43,17 @@ const PASSES: [(&str, Over); 7] = [
     ("row_indices", Over::Indirect(ROW_DISPATCH)),
 ];
 
+/// The kernels' entry points, in dispatch order.
+pub const ENTRY_POINTS: [&str; PASSES.len()] = {
+    let mut names = [""; PASSES.len()];
+    let mut k = 0;
+    while k < PASSES.len() {
+        names[k] = PASSES[k].0;
+        k += 1;
+    }
+    names
+};
+
 /// Byte offsets of the indirect dispatches' workgroup counts (`dispatch` in view.wgsl).
 const VERTEX_DISPATCH: u64 = 0;
 const ROW_DISPATCH: u64 = 12;

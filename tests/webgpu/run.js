@@ -24,7 +24,7 @@ const read = (name) => fs.readFileSync(path.join(dir, name));
 
 // In the page: a device, the module (compilation errors are fatal) and one pipeline per
 // entry point, on one bind group layout — the layout knotwork's GpuContext creates.
-async function setUp({ wgsl, entryPoints, curveWgsl, curveEntryPoint, coonsWgsl, coonsEntryPoint }) {
+async function setUp({ wgsl, entryPoints, curveWgsl, curveEntryPoint, coonsWgsl, coonsEntryPoint, viewWgsl, viewEntryPoints }) {
   const adapter = await navigator.gpu.requestAdapter();
   if (!adapter) throw new Error('no WebGPU adapter');
   const device = await adapter.requestDevice();
@@ -72,6 +72,12 @@ async function setUp({ wgsl, entryPoints, curveWgsl, curveEntryPoint, coonsWgsl,
     layout: device.createPipelineLayout({ bindGroupLayouts: [coonsLayout] }),
     compute: { module: await compile(coonsWgsl), entryPoint: coonsEntryPoint },
   });
+  // view.wgsl (the view-dependent re-planning): compiled by Tint, with its uniformity
+  // analysis, and one pipeline per entry point — not dispatched here.
+  const viewModule = await compile(viewWgsl);
+  for (const entryPoint of viewEntryPoints) {
+    await device.createComputePipelineAsync({ layout: 'auto', compute: { module: viewModule, entryPoint } });
+  }
   // Helpers the runners share (each runner is sent to the page on its own).
   const decode = (b64) => Uint8Array.from(atob(b64), (ch) => ch.charCodeAt(0));
   const encode = (bytes) => {
@@ -306,9 +312,12 @@ async function main() {
       curveEntryPoint: manifest.curve_entry_point,
       coonsWgsl: read('coons.wgsl').toString('utf8'),
       coonsEntryPoint: manifest.coons_entry_point,
+      viewWgsl: read('view.wgsl').toString('utf8'),
+      viewEntryPoints: manifest.view_entry_points,
     });
     const bars = manifest.bars;
     console.log(`adapter: ${adapter} (Chromium WebGPU)`);
+    console.log(`view.wgsl: compiled, ${manifest.view_entry_points.length} pipelines made`);
     console.log(`bars: position ${bars.position_rel} of the diagonal (+ f32 rounding), normal ${bars.normal} rad (${bars.degenerate_normal} near degenerate points)`);
     let failures = 0;
     const cell = (v) => v.toExponential(3).padStart(11);
