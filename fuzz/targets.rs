@@ -78,6 +78,7 @@ fn tessellate_and_write(scene: &Scene, options: TessOptions) {
         memory_budget: Some(FUZZ_MEMORY_BUDGET),
         // As the command line runs: a face that cannot be planned is left out.
         skip_failed_faces: true,
+        max_triangles: None,
     };
     let groups = scene.groups();
     if let Ok(mesh) = CpuTessellator.tessellate_scene(scene, &defaults) {

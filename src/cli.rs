@@ -69,6 +69,11 @@ pub enum Command {
         /// longer than this (model units).
         #[arg(long, value_parser = parse_tolerance, allow_hyphen_values = true, conflicts_with = "grid")]
         max_edge: Option<f64>,
+        /// At most this many triangles per file: with --tolerance or --tolerance-rel, a file
+        /// that needs more is refused; without, each file is sampled to the finest tolerance
+        /// that fits (chosen from the plans, printed in the summary).
+        #[arg(long, value_parser = clap::value_parser!(u64).range(1..), conflicts_with = "grid")]
+        max_triangles: Option<u64>,
         /// Which tessellator runs.
         #[arg(long, value_enum, default_value_t = Backend::Auto)]
         backend: Backend,
@@ -238,6 +243,8 @@ pub struct Job {
     pub samples: u32,
     /// Bytes one file's mesh may take (halved when welding, which copies it).
     pub memory_budget: u64,
+    /// Triangles one file's mesh may have (`--max-triangles`).
+    pub max_triangles: Option<u64>,
 }
 
 /// The options of `--grid`, `--tolerance`, `--tolerance-rel` and `--max-edge` (at most one
@@ -289,6 +296,15 @@ impl Job {
             weld,
             samples,
             memory_budget,
+            max_triangles: None,
+        }
+    }
+
+    /// The job with `--max-triangles`.
+    pub fn with_max_triangles(self, max_triangles: Option<u64>) -> Self {
+        Job {
+            max_triangles,
+            ..self
         }
     }
 }

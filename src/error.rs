@@ -154,6 +154,14 @@ pub enum Error {
         "the mesh would take {needed} bytes of memory, over the budget of {budget} (--max-memory): use a coarser grid or a larger budget"
     )]
     OverMemoryBudget { needed: u64, budget: u64 },
+    #[error(
+        "the mesh would have {needed} triangles, over the budget of {budget} (--max-triangles): ask for a larger tolerance or budget, or leave the tolerance out to have it chosen"
+    )]
+    OverTriangleBudget { needed: u64, budget: u64 },
+    #[error(
+        "a budget of {budget} triangles is below the {least} the scene takes at its coarsest (one segment per knot span, grids as given): raise --max-triangles"
+    )]
+    TriangleBudgetTooSmall { budget: u64, least: u64 },
     #[error("{message}")]
     Syntax { message: String },
     #[error(

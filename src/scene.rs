@@ -7,6 +7,7 @@ use crate::error::Result;
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface, TrimmedSurface};
 use crate::mesh::{GridMesh, Mesh, Mesh32, Polyline, TessOptions};
+use rayon::prelude::*;
 
 /// What one item of a scene is.
 #[derive(Debug, Clone)]
@@ -100,6 +101,11 @@ pub struct SceneOptions {
     /// are left out — no part for their item — instead of failing the whole scene;
     /// [`crate::cpu::trimmed_face_plan`] tells why. `false` by default.
     pub skip_failed_faces: bool,
+    /// Most triangles the scene's mesh may have (≥ 1): with a tolerance in `grid`, a scene
+    /// that needs more is refused ([`crate::Error::OverTriangleBudget`]); without one, the
+    /// surfaces and trimmed faces that follow `grid` are sampled to the finest tolerance
+    /// that keeps the mesh within it (see [`fit_triangle_budget`]). `None`: no limit.
+    pub max_triangles: Option<u64>,
 }
 
 impl Default for SceneOptions {
@@ -109,6 +115,7 @@ impl Default for SceneOptions {
             samples: 65,
             memory_budget: None,
             skip_failed_faces: false,
+            max_triangles: None,
         }
     }
 }
@@ -136,6 +143,22 @@ impl Scene {
             Geometry::Curve(c) => Some(c),
             _ => None,
         })
+    }
+
+    /// The diagonal of the box around the control points of every item (model units).
+    pub fn control_box_diagonal(&self) -> f64 {
+        let (low, high) = self
+            .items
+            .iter()
+            .map(|item| item.geometry.control_box())
+            .fold(
+                (
+                    glam::DVec3::splat(f64::INFINITY),
+                    glam::DVec3::splat(f64::NEG_INFINITY),
+                ),
+                |(low, high), (a, b)| (low.min(a), high.max(b)),
+            );
+        (high - low).length()
     }
 
     /// The surfaces, cloned, in item order (for the slice-based calls).
@@ -263,6 +286,7 @@ pub trait Tessellator {
     /// else on `defaults`. Parts and polylines come in item order and carry their item's
     /// index ([`crate::MeshPart::item`], [`Polyline::item`]).
     fn tessellate_scene(&self, scene: &Scene, defaults: &SceneOptions) -> Result<Mesh> {
+        let defaults = &fit_triangle_budget(scene, defaults)?;
         let grid_bytes = check_memory(scene, defaults, F64_VERTEX_BYTES)?;
         let trimmed =
             crate::cpu::mesh_trimmed_faces(scene, defaults, grid_bytes, F64_VERTEX_BYTES)?;
@@ -283,6 +307,7 @@ pub trait Tessellator {
     /// As [`Tessellator::tessellate_scene`], into an f32 mesh (the GPU reads back without
     /// widening).
     fn tessellate_scene_f32(&self, scene: &Scene, defaults: &SceneOptions) -> Result<Mesh32> {
+        let defaults = &fit_triangle_budget(scene, defaults)?;
         let vertex_bytes = size_of::<crate::Vertex>() as u64;
         let grid_bytes = check_memory(scene, defaults, vertex_bytes)?;
         let trimmed = crate::cpu::mesh_trimmed_faces(scene, defaults, grid_bytes, vertex_bytes)?;
@@ -326,6 +351,93 @@ pub fn scene_mesh_bytes(scene: &Scene, defaults: &SceneOptions, vertex_bytes: u6
         .map(|&n| u64::from(n))
         .sum();
     Ok(vertices * vertex_bytes + indices * 4 + samples * 48)
+}
+
+/// The triangles of `scene`'s mesh under `defaults`, from the plans alone (nothing is
+/// evaluated): its surfaces' and Coons patches' layouts and its trimmed faces' plans (a
+/// face that fails to plan counts nothing where `defaults.skip_failed_faces` leaves it out).
+pub fn scene_triangles(scene: &Scene, defaults: &SceneOptions) -> Result<u64> {
+    let surfaces = crate::plan::SurfacePlan::layout_only(
+        &scene.surface_list(),
+        &scene.surface_grids(defaults.grid),
+    )?;
+    let coons = crate::plan::GridLayout::new(
+        scene.coons_patches().count(),
+        &scene.coons_grids(defaults.grid),
+    )?;
+    let faces: Vec<usize> = (0..scene.items.len())
+        .filter(|&k| matches!(scene.items[k].geometry, Geometry::Trimmed(_)))
+        .collect();
+    let trimmed = faces
+        .par_iter()
+        .map(
+            |&k| match crate::cpu::trimmed_face_plan(scene, defaults, k) {
+                Ok(plan) => Ok(plan.triangles.len() as u64),
+                Err(_) if defaults.skip_failed_faces => Ok(0),
+                Err(error) => Err(error),
+            },
+        )
+        .collect::<Result<Vec<u64>>>()?;
+    Ok((surfaces.index_count + coons.index_count) / 3 + trimmed.iter().sum::<u64>())
+}
+
+/// `defaults` made to keep `scene` within `defaults.max_triangles` (unchanged without one).
+/// With a tolerance in `defaults.grid`, checks it: a scene needing more triangles is
+/// [`crate::Error::OverTriangleBudget`]. Without one, finds the finest absolute tolerance
+/// whose plans fit (bisection on its logarithm to 1 %, over triangle counts from the plans:
+/// [`scene_triangles`]; no mesh is made) and puts it in `grid` — surfaces and trimmed faces
+/// that follow `grid` are then sampled to it; items with their own grid or tolerance, and
+/// Coons patches, keep theirs. A budget below what the scene takes at its coarsest (one
+/// segment per knot span) is [`crate::Error::TriangleBudgetTooSmall`].
+pub fn fit_triangle_budget(scene: &Scene, defaults: &SceneOptions) -> Result<SceneOptions> {
+    let Some(budget) = defaults.max_triangles else {
+        return Ok(*defaults);
+    };
+    if defaults.grid.tolerance.is_some() {
+        let needed = scene_triangles(scene, defaults)?;
+        return if needed <= budget {
+            Ok(*defaults)
+        } else {
+            Err(crate::Error::OverTriangleBudget { needed, budget })
+        };
+    }
+    let diagonal = scene.control_box_diagonal();
+    let size = if diagonal > 0.0 && diagonal.is_finite() {
+        diagonal
+    } else {
+        1.0
+    };
+    let at = |tolerance: f64| SceneOptions {
+        grid: defaults
+            .grid
+            .with_tolerance(crate::mesh::Tolerance::Absolute(tolerance)),
+        ..*defaults
+    };
+    // A plan too fine to make (too many segments, vertices or bytes) does not fit either.
+    let fits = |tolerance: f64| scene_triangles(scene, &at(tolerance)).is_ok_and(|n| n <= budget);
+    // Coarser than the model's size: every cell one segment each way.
+    let coarsest = size * 1e3;
+    let least = scene_triangles(scene, &at(coarsest))?;
+    if least > budget {
+        return Err(crate::Error::TriangleBudgetTooSmall { budget, least });
+    }
+    let (mut fit, mut over) = (coarsest, coarsest / 10.0);
+    while fits(over) {
+        fit = over;
+        over /= 10.0;
+        if over < size * 1e-12 {
+            return Ok(at(fit));
+        }
+    }
+    while fit / over > 1.01 {
+        let middle = (fit * over).sqrt();
+        if fits(middle) {
+            fit = middle;
+        } else {
+            over = middle;
+        }
+    }
+    Ok(at(fit))
 }
 
 /// Refuses a scene whose grids and curves would take more than the budget of `defaults`;

@@ -962,8 +962,7 @@ fn repeated_scenes_allocate_nothing_after_the_first_call() {
     let smaller = knotwork::SceneOptions {
         grid: TessOptions::DEFAULT.with_grid(9, 5),
         samples: 17,
-        memory_budget: None,
-        skip_failed_faces: false,
+        ..knotwork::SceneOptions::default()
     };
     // In buffers longer than their contents, smaller jobs (fewer curves, coarser grids)
     // still give what a fresh tessellator gives: bindings cover the contents only.

@@ -2860,3 +2860,99 @@ fn cli_meshes_iges_files_and_reports_dropped_faces() {
         .collect();
     assert!(!xs.is_empty() && xs.iter().all(|&x| (10.0..=11.0).contains(&x)));
 }
+
+// ---------------------------------------------------------------- triangle budgets
+
+/// A triangle budget without a tolerance picks the finest one that fits: the teapot's mesh
+/// stays within each budget, and 2 % finer would not fit (the plans' counts, no meshing);
+/// with a tolerance the budget is a check; below the coarsest mesh it is a clear error.
+#[test]
+fn triangle_budgets_choose_the_finest_tolerance_that_fits() {
+    use knotwork::SceneOptions;
+    use knotwork::scene::{fit_triangle_budget, scene_triangles};
+    let scene = read_scene(Path::new("data/teapot.bpt")).unwrap();
+    for budget in [100u64, 10_000, 100_000] {
+        let defaults = SceneOptions {
+            max_triangles: Some(budget),
+            ..SceneOptions::default()
+        };
+        let fitted = fit_triangle_budget(&scene, &defaults).unwrap();
+        let Some(knotwork::Tolerance::Absolute(tolerance)) = fitted.grid.tolerance else {
+            panic!("a tolerance is chosen");
+        };
+        let mesh = CpuTessellator.tessellate_scene(&scene, &defaults).unwrap();
+        let triangles = mesh.indices.len() as u64 / 3;
+        assert!(triangles <= budget, "{triangles} triangles over {budget}");
+        let finer = SceneOptions {
+            grid: TessOptions::DEFAULT
+                .with_tolerance(knotwork::Tolerance::Absolute(tolerance / 1.02)),
+            ..defaults
+        };
+        assert!(
+            scene_triangles(&scene, &finer).unwrap() > budget,
+            "not the finest"
+        );
+        println!("budget {budget}: tolerance {tolerance:.3e}, {triangles} triangles");
+    }
+    let with_tolerance = SceneOptions {
+        grid: TessOptions::DEFAULT.with_tolerance(knotwork::Tolerance::Relative(1e-4)),
+        max_triangles: Some(1000),
+        ..SceneOptions::default()
+    };
+    assert!(matches!(
+        CpuTessellator.tessellate_scene(&scene, &with_tolerance),
+        Err(Error::OverTriangleBudget { needed, budget: 1000 }) if needed > 1000
+    ));
+    let too_small = SceneOptions {
+        max_triangles: Some(10),
+        ..SceneOptions::default()
+    };
+    // 32 patches of one knot span each, one grid cell of two triangles at the coarsest.
+    assert!(matches!(
+        fit_triangle_budget(&scene, &too_small),
+        Err(Error::TriangleBudgetTooSmall {
+            budget: 10,
+            least: 64
+        })
+    ));
+}
+
+/// `--max-triangles` on an IGES part (trimmed faces counted from their plans): the file
+/// written holds at most that many, and the summary names the tolerance chosen; with a
+/// tolerance too fine for it, nothing is written.
+#[test]
+fn cli_max_triangles_bounds_the_written_mesh() {
+    let dir = scratch_dir("max-triangles");
+    let out = dir.join("lid.obj");
+    let run = succeeds(&[
+        "tessellate",
+        "data/beetle_front_lid.igs",
+        "-o",
+        out.to_str().unwrap(),
+        "--max-triangles",
+        "5000",
+        "--backend",
+        "cpu",
+    ]);
+    let summary = String::from_utf8_lossy(&run.stdout);
+    assert!(summary.contains("for the triangle budget"), "{summary}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    let faces = text.lines().filter(|l| l.starts_with("f ")).count();
+    assert!(faces <= 5000 && faces > 4000, "{faces} triangles");
+    let refused = dir.join("refused.obj");
+    let run = knotwork(&[
+        "tessellate",
+        "data/beetle_front_lid.igs",
+        "-o",
+        refused.to_str().unwrap(),
+        "--max-triangles",
+        "5000",
+        "--tolerance-rel",
+        "1e-5",
+        "--backend",
+        "cpu",
+    ]);
+    assert!(!run.status.success());
+    assert!(String::from_utf8_lossy(&run.stderr).contains("over the budget of 5000"));
+    assert!(!refused.exists());
+}

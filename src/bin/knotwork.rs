@@ -89,6 +89,7 @@ fn main() -> ExitCode {
             tolerance,
             tolerance_rel,
             max_edge,
+            max_triangles,
             backend,
             format,
             input_format,
@@ -103,7 +104,8 @@ fn main() -> ExitCode {
                 weld,
                 samples,
                 max_memory.unwrap_or_else(default_memory_budget),
-            );
+            )
+            .with_max_triangles(max_triangles);
             tessellate(&inputs, &output, backend, &job)
         }
         Command::Render {
@@ -255,16 +257,22 @@ struct Tally {
     merged: Option<usize>,
     /// Faces the reader could not read (reported as they were found).
     dropped: usize,
+    /// The tolerance `--max-triangles` chose (model units), if it chose one.
+    chosen_tolerance: Option<f64>,
 }
 
 impl Tally {
-    /// "N surfaces, N curves, N vertices, N triangles[, N vertices merged]".
+    /// "N surfaces, N curves, N vertices, N triangles[, N vertices merged][, tolerance T
+    /// for the triangle budget]".
     fn summary(&self) -> String {
         let merged = self.merged.map_or(String::new(), |m| {
             format!(", {} merged", count(m, "vertex"))
         });
+        let chosen = self.chosen_tolerance.map_or(String::new(), |t| {
+            format!(", tolerance {t:.3e} for the triangle budget")
+        });
         format!(
-            "{}, {}, {}, {}{merged}",
+            "{}, {}, {}, {}{merged}{chosen}",
             count(self.surfaces, "surface"),
             count(self.curves, "curve"),
             count(self.vertices, "vertex"),
@@ -342,6 +350,13 @@ fn process(
         samples: job.samples,
         memory_budget: Some(budget),
         skip_failed_faces: true,
+        max_triangles: job.max_triangles,
+    };
+    // The tolerance a triangle budget chose, once, for the summary and the tessellation.
+    let defaults = knotwork::scene::fit_triangle_budget(&scene, &defaults)?;
+    let chosen = match (job.options.tolerance, defaults.grid.tolerance) {
+        (None, Some(knotwork::Tolerance::Absolute(t))) => Some(t),
+        _ => None,
     };
     // Binary formats carry f32: an f32 mesh goes to them without widening and narrowing
     // (from the GPU, straight from its buffers); OBJ and welding take the f64 mesh, and so
@@ -382,6 +397,7 @@ fn process(
         triangles,
         merged,
         dropped: dropped + skipped,
+        chosen_tolerance: chosen,
     })
 }
 

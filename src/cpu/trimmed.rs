@@ -5,7 +5,7 @@ use crate::geom::{SamplingLimits, TrimmedSurface};
 use crate::mesh::{Mesh, MeshPart, TessOptions, Tolerance};
 use crate::plan::{TrimmedPlan, plan_trimmed_within};
 use crate::scene::{Geometry, Scene, SceneOptions};
-use glam::{DVec2, DVec3};
+use glam::DVec2;
 use rayon::prelude::*;
 
 /// The mesh of one trimmed face from its plan: every vertex evaluated on the surface
@@ -77,7 +77,7 @@ pub fn mesh_trimmed_faces(
     if faces.is_empty() {
         return Ok(Mesh::default());
     }
-    let diagonal = scene_diagonal(scene);
+    let diagonal = scene.control_box_diagonal();
     let planned = faces
         .par_iter()
         .map(|&(index, _)| plan_face(scene, defaults, diagonal, index, grid_bytes, vertex_bytes))
@@ -121,7 +121,7 @@ pub fn trimmed_face_plan(
     plan_face(
         scene,
         defaults,
-        scene_diagonal(scene),
+        scene.control_box_diagonal(),
         index,
         0,
         F64_VERTEX_BYTES,
@@ -187,17 +187,4 @@ fn trimmed_limits(options: &TessOptions, diagonal: f64) -> Result<SamplingLimits
         tolerance,
         max_edge,
     })
-}
-
-/// The diagonal of the box around the control points of every item of `scene`.
-fn scene_diagonal(scene: &Scene) -> f64 {
-    let (low, high) = scene
-        .items
-        .iter()
-        .map(|item| item.geometry.control_box())
-        .fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(low, high), (a, b)| (low.min(a), high.max(b)),
-        );
-    (high - low).length()
 }
