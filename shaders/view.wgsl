@@ -25,7 +25,8 @@ struct Frame {
 @group(0) @binding(0) var<uniform> frame: Frame;
 // Cells (CELL_WORDS each), then edges (EDGE_WORDS), then corners (2): see src/gpu/view.rs.
 @group(0) @binding(1) var<storage, read> plan: array<u32>;
-// Each cell's homogeneous control points (w·(P − centre), w), u fastest.
+// Each cell's homogeneous control points (w·(P − centre), w), u fastest, then their
+// differences along u, v, and second differences uu, uv, vv (see write_vertex).
 @group(0) @binding(2) var<storage, read> points: array<vec4<f32>>;
 // Per frame: rates (2 words per cell), vertex counts (edges, then cells), rows (one word per
 // cell), triangle counts (one per grid row of the frame, at most max_segments per cell),
@@ -49,6 +50,8 @@ const TOP: u32 = 2u;
 const LEFT: u32 = 3u;
 const UNMET: u32 = 0x10000u;
 const SCAN_GROUP: u32 = 256u;
+// plan::view::PROJECTION_ROUNDING: 8 f32 epsilons.
+const PROJECTION_ROUNDING: f32 = 9.5367431640625e-7;
 
 // ---- plan records ----
 
@@ -105,22 +108,24 @@ fn cell_rate(c: u32) -> vec2<u32> {
     let centre = vec4<f32>(cell_f32(c, 0u), cell_f32(c, 1u), cell_f32(c, 2u), 1.0);
     let r = cell_f32(c, 3u);
     var planes = array<vec4<f32>, 6>(rw + rx, rw - rx, rw + ry, rw - ry, rz, rw - rz);
+    // Each dot product widened by its rounding (plan::view::PROJECTION_ROUNDING).
+    let a = abs(centre);
     for (var k = 0u; k < 6u; k++) {
         let p = planes[k];
-        if (dot(p, centre) < -r * length(p.xyz)) {
+        if (dot(p, centre) < -r * length(p.xyz) - PROJECTION_ROUNDING * dot(abs(p), a)) {
             return vec2<u32>(1u, 1u);
         }
     }
     let most = vec2<u32>(frame.max_segments, frame.max_segments | UNMET);
     let w_norm = length(rw.xyz);
-    let w_min = dot(rw, centre) - r * w_norm;
+    let w_min = dot(rw, centre) - r * w_norm - PROJECTION_ROUNDING * dot(abs(rw), a);
     if (w_min <= 0.0) {
         return most;
     }
     let nx = length(rx.xyz);
     let ny = length(ry.xyz);
-    let ndc_x = (abs(dot(rx, centre)) + r * nx) / w_min;
-    let ndc_y = (abs(dot(ry, centre)) + r * ny) / w_min;
+    let ndc_x = (abs(dot(rx, centre)) + r * nx + PROJECTION_ROUNDING * dot(abs(rx), a)) / w_min;
+    let ndc_y = (abs(dot(ry, centre)) + r * ny + PROJECTION_ROUNDING * dot(abs(ry), a)) / w_min;
     let gx = 0.5 * frame.viewport.x * (nx + ndc_x * w_norm) / w_min;
     let gy = 0.5 * frame.viewport.y * (ny + ndc_y * w_norm) / w_min;
     let tolerance = frame.margin * frame.tolerance_px / sqrt(gx * gx + gy * gy);
@@ -508,94 +513,93 @@ fn scan_triangles(@builtin(local_invocation_index) lid: u32) {
 
 // ---- vertices ----
 
-// Bernstein values, first and second derivatives of degree n at x, in x, y, z, into `out`.
-fn bernstein(n: u32, x: f32, out: ptr<function, array<vec3<f32>, 16>>) {
+// The Bernstein polynomials of degree n at x (entries 0..=n), by de Casteljau's triangle.
+fn bernstein(n: u32, x: f32) -> array<f32, 16> {
     var b: array<f32, 16>;
-    var lower1: array<f32, 16>;
-    var lower2: array<f32, 16>;
     b[0] = 1.0;
-    if (n == 1u) {
-        lower1 = b;
-    }
     for (var d = 1u; d <= n; d++) {
-        b[d] = x * b[d - 1u];
-        for (var i = d - 1u; i >= 1u; i--) {
-            b[i] = (1.0 - x) * b[i] + x * b[i - 1u];
-        }
-        b[0] = (1.0 - x) * b[0];
-        if (d + 1u == n) {
-            lower1 = b;
-        }
-        if (d + 2u == n) {
-            lower2 = b;
+        // Row d from row d − 1 (b[d] is still 0), upward, keeping the old b[i − 1].
+        var below = 0.0;
+        for (var i = 0u; i <= d; i++) {
+            let here = b[i];
+            b[i] = (1.0 - x) * here + x * below;
+            below = here;
         }
     }
-    if (n == 2u) {
-        lower2[0] = 1.0;
-    }
-    let nf = f32(n);
-    for (var i = 0u; i <= n; i++) {
-        var first = 0.0;
-        if (i < n) {
-            first -= lower1[i];
-        }
-        if (i >= 1u) {
-            first += lower1[i - 1u];
-        }
-        var second = 0.0;
-        if (n >= 2u) {
-            if (i + 2u <= n) {
-                second += lower2[i];
-            }
-            if (i >= 1u && i + 1u <= n) {
-                second -= 2.0 * lower2[i - 1u];
-            }
-            if (i >= 2u) {
-                second += lower2[i - 2u];
-            }
-        }
-        (*out)[i] = vec3<f32>(b[i], nf * first, nf * (nf - 1.0) * second);
-    }
+    return b;
 }
 
-// Evaluates cell c at local (s, t) into vertex `index`.
+// Evaluates cell c at local (s, t) into vertex `index`. The cell's points are its net H and
+// the differences of H along u, along v, and the second differences (uu, uv, vv), each
+// formed in f64 on the host: derivatives sum differences (the hodographs' nets), so a cell
+// 1e-6 of its surface wide keeps its derivatives' digits.
 fn write_vertex(index: u32, c: u32, s: f32, t: f32) {
     let p = cell_u32(c, 12u);
     let q = cell_u32(c, 13u);
-    let first = cell_u32(c, 14u);
-    var bu: array<vec3<f32>, 16>;
-    var bv: array<vec3<f32>, 16>;
-    bernstein(p, s, &bu);
-    bernstein(q, t, &bv);
+    let net = cell_u32(c, 14u);
+    let net_u = net + (p + 1u) * (q + 1u);
+    let net_v = net_u + p * (q + 1u);
+    let net_uu = net_v + (p + 1u) * q;
+    let net_uv = net_uu + (p - 1u) * (q + 1u);
+    let net_vv = net_uv + p * q;
+    // Degrees p, p − 1 (and p − 2 where degenerate) along u; likewise along v.
+    let bu0 = bernstein(p, s);
+    let bu1 = bernstein(p - 1u, s);
+    let bv0 = bernstein(q, t);
+    let bv1 = bernstein(q - 1u, t);
     var h = vec4<f32>(0.0);
     var hu = vec4<f32>(0.0);
     var hv = vec4<f32>(0.0);
-    var huu = vec4<f32>(0.0);
-    var huv = vec4<f32>(0.0);
-    var hvv = vec4<f32>(0.0);
     for (var j = 0u; j <= q; j++) {
         for (var i = 0u; i <= p; i++) {
-            let point = points[first + j * (p + 1u) + i];
-            let a = bu[i];
-            let b = bv[j];
-            h += (a.x * b.x) * point;
-            hu += (a.y * b.x) * point;
-            hv += (a.x * b.y) * point;
-            huu += (a.z * b.x) * point;
-            huv += (a.y * b.y) * point;
-            hvv += (a.x * b.z) * point;
+            h += (bu0[i] * bv0[j]) * points[net + j * (p + 1u) + i];
+        }
+        for (var i = 0u; i < p; i++) {
+            hu += (bu1[i] * bv0[j]) * points[net_u + j * p + i];
         }
     }
+    for (var j = 0u; j < q; j++) {
+        for (var i = 0u; i <= p; i++) {
+            hv += (bu0[i] * bv1[j]) * points[net_v + j * (p + 1u) + i];
+        }
+    }
+    let pf = f32(p);
+    let qf = f32(q);
+    hu *= pf;
+    hv *= qf;
     let w = h.w;
     let local = h.xyz / w;
     let su = (hu.xyz - hu.w * local) / w;
     let sv = (hv.xyz - hv.w * local) / w;
-    let suu = (huu.xyz - 2.0 * hu.w * su - huu.w * local) / w;
-    let suv = (huv.xyz - hu.w * sv - hv.w * su - huv.w * local) / w;
-    let svv = (hvv.xyz - 2.0 * hv.w * sv - hvv.w * local) / w;
     var normal = cross(su, sv);
     let degenerate_sq = cell_f32(c, 7u);
     if (dot(normal, normal) <= degenerate_sq) {
+        let bu2 = bernstein(max(p, 2u) - 2u, s);
+        let bv2 = bernstein(max(q, 2u) - 2u, t);
+        var huu = vec4<f32>(0.0);
+        var huv = vec4<f32>(0.0);
+        var hvv = vec4<f32>(0.0);
+        for (var j = 0u; j <= q; j++) {
+            for (var i = 0u; i + 1u < p; i++) {
+                huu += (bu2[i] * bv0[j]) * points[net_uu + j * (p - 1u) + i];
+            }
+        }
+        for (var j = 0u; j < q; j++) {
+            for (var i = 0u; i < p; i++) {
+                huv += (bu1[i] * bv1[j]) * points[net_uv + j * p + i];
+            }
+        }
+        for (var j = 0u; j + 1u < q; j++) {
+            for (var i = 0u; i <= p; i++) {
+                hvv += (bu0[i] * bv2[j]) * points[net_vv + j * (p + 1u) + i];
+            }
+        }
+        huu *= pf * (pf - 1.0);
+        huv *= pf * qf;
+        hvv *= qf * (qf - 1.0);
+        let suu = (huu.xyz - 2.0 * hu.w * su - huu.w * local) / w;
+        let suv = (huv.xyz - hu.w * sv - hv.w * su - huv.w * local) / w;
+        let svv = (hvv.xyz - 2.0 * hv.w * sv - hvv.w * local) / w;
         normal = first_order_limit_normal(su, sv, suu, suv, svv, vec2<f32>(1.0, 1.0),
                                           vec2<f32>(s, t), degenerate_sq);
     }

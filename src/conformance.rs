@@ -8,10 +8,12 @@ use crate::geom::{
     BSplineCurve, BSplineSurface, Interval, KnotVector, bezier_curve, bezier_surface, curves,
     shapes,
 };
-use crate::gpu::{CoonsInputs, CurveInputs, GpuBatch, GpuContext, KernelInputs};
+use crate::gpu::{CoonsInputs, CurveInputs, GpuBatch, GpuContext, KernelInputs, ViewBatch};
 use crate::mesh::{Mesh, Polyline, TessOptions, Tolerance};
 use crate::plan::SurfacePlan;
+use crate::plan::view::{MAX_VIEW_DEGREE, View, ViewOptions, ViewPlan};
 use crate::{CpuTessellator, Tessellator};
+use glam::camera::rh::{proj::directx::perspective, view::look_at_mat4};
 use glam::{DVec2, DVec3};
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::Path;
@@ -127,14 +129,15 @@ pub fn compare_executors(
 
 /// Compares `mesh` with the f64 `reference` of `surfaces`.
 fn compare_surfaces(surfaces: &[BSplineSurface], reference: &Mesh, mesh: &Mesh) -> Report {
-    compare_with_reference(reference, mesh, surface_measure(surfaces))
+    let measure = surface_measure(surfaces);
+    compare_with_reference(reference, mesh, |part, _, uv| measure(part, uv))
 }
 
-/// For vertex uv of part k: the size of surface k (its control box diagonal) and whether the
+/// For uv of surface k: the size of surface k (its control box diagonal) and whether the
 /// point is regular (|S_u × S_v| ≥ [`REGULAR_REL`] × its cross scale).
 fn surface_measure(surfaces: &[BSplineSurface]) -> impl Fn(usize, DVec2) -> (f64, bool) + '_ {
-    |part, uv| {
-        let surface = &surfaces[part];
+    |k, uv| {
+        let surface = &surfaces[k];
         let sample = surface.evaluate(surface.range_u().lerp(uv.x), surface.range_v().lerp(uv.y));
         let cross = sample.du.cross(sample.dv).length();
         (
@@ -142,6 +145,109 @@ fn surface_measure(surfaces: &[BSplineSurface]) -> impl Fn(usize, DVec2) -> (f64
             cross >= REGULAR_REL * surface.cross_scale(),
         )
     }
+}
+
+/// One view-dependent case: surfaces and the view the GPU re-plans them for.
+pub struct ViewCase {
+    pub name: String,
+    pub surfaces: Vec<BSplineSurface>,
+    pub view: View,
+}
+
+/// Surface cases of [`suite`] seen by a camera 2.5 diagonals away at half a pixel on an
+/// 800 × 600 viewport: rational with extreme weights, poles, creases and tiny spans, far
+/// from the origin, high degree (≤ [`MAX_VIEW_DEGREE`]).
+pub fn view_suite() -> Vec<ViewCase> {
+    let wanted = [
+        "bicubic, weights 0.01..100",
+        "sphere: poles (collapsed edges)",
+        "repeated interior knots (C0 creases)",
+        "tiny knot spans (1e-6)",
+        "offset 1e5 from the origin",
+        "rational, high degree, unclamped × clamped",
+    ];
+    suite()
+        .into_iter()
+        .filter(|case| wanted.contains(&case.name.as_str()))
+        .map(|case| {
+            let surfaces: Vec<BSplineSurface> = case
+                .surfaces
+                .into_iter()
+                .filter(|s| s.degree_u().max(s.degree_v()) <= MAX_VIEW_DEGREE)
+                .collect();
+            let (low, high) = surfaces.iter().map(BSplineSurface::control_box).fold(
+                (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+                |(low, high), (a, b)| (low.min(a), high.max(b)),
+            );
+            let (centre, diagonal) = (0.5 * (low + high), (high - low).length());
+            let eye = centre + DVec3::new(1.0, -1.5, 1.2).normalize() * 2.5 * diagonal;
+            let near_far = ((0.1 * diagonal) as f32, (10.0 * diagonal) as f32);
+            let view_projection = perspective(0.8, 4.0 / 3.0, near_far.0, near_far.1)
+                * look_at_mat4(eye.as_vec3(), centre.as_vec3(), glam::Vec3::Z);
+            ViewCase {
+                name: format!("view: {}", case.name),
+                surfaces,
+                view: View {
+                    view_projection,
+                    viewport: glam::Vec2::new(800.0, 600.0),
+                    tolerance_px: 0.5,
+                },
+            }
+        })
+        .collect()
+}
+
+/// Re-plans `surfaces` for `view` on the GPU ([`crate::gpu::ViewBatch`]) and compares the
+/// frame with the f64 executor of the same plan at the rates the GPU chose: the rates must
+/// each meet the view's tolerance and be the fewest (checked in f64), the triangles be the
+/// same, and the vertices within the bars.
+pub fn compare_view(
+    context: &GpuContext,
+    surfaces: &[BSplineSurface],
+    view: &View,
+) -> Result<Report> {
+    let plan = ViewPlan::new(surfaces, ViewOptions::default())?;
+    let batch = ViewBatch::new(context, &plan)?;
+    batch.dispatch(view)?;
+    let frame = batch.read_frame()?;
+    let rates_valid = frame.rates.iter().enumerate().all(|(c, &rate)| {
+        let (meets, fewest) = plan.rate_meets(c, rate, view, 1e-4);
+        fewest && (meets || !rate.met)
+    });
+    let reference = crate::cpu::execute_view(&plan, surfaces, &frame.rates)?;
+    let mesh = Mesh {
+        positions: frame
+            .vertices
+            .iter()
+            .map(|v| DVec3::from(v.position.map(f64::from)))
+            .collect(),
+        normals: frame
+            .vertices
+            .iter()
+            .map(|v| DVec3::from(v.normal.map(f64::from)))
+            .collect(),
+        uvs: frame
+            .vertices
+            .iter()
+            .map(|v| DVec2::from(v.uv.map(f64::from)))
+            .collect(),
+        indices: frame.indices,
+        parts: reference.parts.clone(),
+        polylines: Vec::new(),
+    };
+    // Each vertex is measured on the surface of the cell that evaluates it.
+    let layout = plan.layout(&frame.rates);
+    let cells: Vec<u32> = plan
+        .vertex_samples(&frame.rates, &layout)
+        .into_iter()
+        .map(|(cell, _, _)| cell)
+        .collect();
+    let measure = surface_measure(surfaces);
+    let mut report = compare_with_reference(&reference, &mesh, |_, k, uv| {
+        measure(plan.cells[cells[k] as usize].surface as usize, uv)
+    });
+    report.topology_equal &= rates_valid;
+    Ok(report)
 }
 
 /// As [`surface_measure`] for directly evaluated Coons patches (size: [`CoonsPatch::size`]).
@@ -165,19 +271,19 @@ pub fn compare_coons(
 ) -> Result<Report> {
     let mut reference = Mesh::default();
     CpuTessellator.tessellate_coons_into(patches, options, &mut reference)?;
-    Ok(compare_with_reference(
-        &reference,
-        mesh,
-        coons_measure(patches),
-    ))
+    let measure = coons_measure(patches);
+    Ok(compare_with_reference(&reference, mesh, |part, _, uv| {
+        measure(part, uv)
+    }))
 }
 
-/// Compares `mesh` with `reference` vertex by vertex; `measure(part, uv)` gives the size of
-/// part `part` and whether the point at `uv` is regular (away from degenerate points).
+/// Compares `mesh` with `reference` vertex by vertex; `measure(part, vertex, uv)` gives the
+/// size of what the vertex of that part lies on and whether the point at `uv` is regular
+/// (away from degenerate points).
 fn compare_with_reference(
     reference: &Mesh,
     mesh: &Mesh,
-    measure: impl Fn(usize, DVec2) -> (f64, bool),
+    measure: impl Fn(usize, usize, DVec2) -> (f64, bool),
 ) -> Report {
     let mut report = Report {
         worst_position: 0.0,
@@ -196,7 +302,7 @@ fn compare_with_reference(
     }
     for (index, part) in reference.parts.iter().enumerate() {
         for k in part.first_vertex as usize..(part.first_vertex + part.vertex_count) as usize {
-            let (size, regular) = measure(index, reference.uvs[k]);
+            let (size, regular) = measure(index, k, reference.uvs[k]);
             let expected = reference.positions[k];
             let error = (mesh.positions[k] - expected).length() - F32_ROUNDING * expected.length();
             report.worst_position = report.worst_position.max(error.max(0.0) / size);

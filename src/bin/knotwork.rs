@@ -565,6 +565,10 @@ fn conformance() -> knotwork::Result<bool> {
         let report = conformance::compare_executors(gpu.context(), &case.surfaces, &options)?;
         surface_row(&case.name, report);
     }
+    for case in conformance::view_suite() {
+        let report = conformance::compare_view(gpu.context(), &case.surfaces, &case.view)?;
+        surface_row(&case.name, report);
+    }
     for case in conformance::coons_suite() {
         let options = vec![case.options; case.patches.len()];
         let mut mesh = knotwork::Mesh::default();

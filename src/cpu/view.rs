@@ -1,12 +1,12 @@
 //! The f64 executor of a view plan's frame: every vertex the frame's layout names, evaluated
-//! on its surface where [`ViewPlan::vertex_samples`] puts it, with the plan's triangles — the
-//! mesh the GPU draws for that frame, in f64.
+//! on the cell [`ViewPlan::vertex_samples`] puts it on (the cell's rational Bezier patch of
+//! its surface, in f64), with the plan's triangles — the mesh the GPU draws for that frame.
 
 use crate::error::{Error, Result};
-use crate::geom::BSplineSurface;
+use crate::geom::{BSplineSurface, bezier_surface};
 use crate::mesh::{Mesh, MeshPart};
 use crate::plan::view::{Rate, ViewPlan};
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
 /// The frame of `plan` (made for `surfaces`) at `rates` (one per cell, as
@@ -31,13 +31,23 @@ pub fn execute_view(plan: &ViewPlan, surfaces: &[BSplineSurface], rates: &[Rate]
     }
     let layout = plan.layout(rates);
     let samples = plan.vertex_samples(rates, &layout);
+    // Each vertex on the cell that owns it, as the kernel evaluates it: at a crease (a knot
+    // of multiplicity ≥ the degree) the normal is that cell's one-sided limit.
+    let cells = plan
+        .cells
+        .par_iter()
+        .map(|cell| {
+            let patch = &cell.patch;
+            let points: Vec<DVec3> = patch.points.iter().map(|h| h.truncate() / h.w).collect();
+            let weights: Vec<f64> = patch.points.iter().map(|h| h.w).collect();
+            bezier_surface(patch.degree_u, patch.degree_v, &points, Some(&weights))
+        })
+        .collect::<Result<Vec<_>>>()?;
     let evaluated: Vec<_> = samples
         .par_iter()
         .map(|&(c, s, t)| {
             let cell = &plan.cells[c as usize];
-            let patch = &cell.patch;
-            let sample = surfaces[cell.surface as usize]
-                .evaluate(patch.range_u.lerp(s), patch.range_v.lerp(t));
+            let sample = cells[c as usize].evaluate(s, t);
             (
                 sample.position,
                 sample.normal,

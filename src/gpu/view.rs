@@ -14,10 +14,11 @@ use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped};
 use super::readback::{BufferPool, copy_out, mapped};
 use super::{GpuMesh, VERTEX_BYTES};
 use crate::error::{Error, Result};
-use crate::geom::{cross_scale, degenerate_cross_sq};
+use crate::geom::degenerate_cross_sq;
 use crate::mesh::Vertex;
 use crate::plan::view::{Rate, VIEW_TOLERANCE_MARGIN, View, ViewPlan};
 use bytemuck::{Pod, Zeroable};
+use glam::DVec4;
 
 /// The WGSL source of the view-dependent kernels (with the shared grid rules prepended).
 pub const VIEW_WGSL: &str = concat!(
@@ -420,7 +421,7 @@ impl ViewBatch {
 
 /// The plan as the kernels read it: cell, edge and corner records as u32 words (floats by
 /// their bits), and each cell's homogeneous control points relative to its centre, weights
-/// scaled to a largest of 1.
+/// scaled to a largest of 1, followed by their first and second differences (formed in f64).
 fn pack(plan: &ViewPlan) -> (Vec<u32>, Vec<[f32; 4]>) {
     let mut words = Vec::with_capacity(
         plan.cells.len() * CELL_WORDS + plan.edges.len() * EDGE_WORDS + 2 * plan.corners.len(),
@@ -430,20 +431,36 @@ fn pack(plan: &ViewPlan) -> (Vec<u32>, Vec<[f32; 4]>) {
         let patch = &cell.patch;
         let first_point = points.len() as u32;
         let largest = patch.points.iter().map(|h| h.w).fold(0.0, f64::max);
-        let (low, high) = patch.points.iter().fold(
-            (
-                glam::DVec3::splat(f64::INFINITY),
-                glam::DVec3::splat(f64::NEG_INFINITY),
-            ),
-            |(low, high), h| (low.min(h.truncate() / h.w), high.max(h.truncate() / h.w)),
-        );
-        for h in &patch.points {
-            let w = h.w / largest;
-            let local = (h.truncate() / h.w - cell.centre) * w;
-            points.push([local.x as f32, local.y as f32, local.z as f32, w as f32]);
+        let net: Vec<DVec4> = patch
+            .points
+            .iter()
+            .map(|h| {
+                let w = h.w / largest;
+                ((h.truncate() / h.w - cell.centre) * w).extend(w)
+            })
+            .collect();
+        let (p, q) = (patch.degree_u, patch.degree_v);
+        let at = |i: usize, j: usize| net[j * (p + 1) + i];
+        let mut push = |h: DVec4| points.push(h.as_vec4().to_array());
+        // The net, then its differences along u, along v, and uu, uv, vv, each u fastest.
+        net.iter().for_each(|&h| push(h));
+        for j in 0..=q {
+            (0..p).for_each(|i| push(at(i + 1, j) - at(i, j)));
         }
-        let size = (high - low).length();
-        let degenerate = degenerate_cross_sq(cross_scale(size, 1.0, 1.0), f64::from(f32::EPSILON));
+        for j in 0..q {
+            (0..=p).for_each(|i| push(at(i, j + 1) - at(i, j)));
+        }
+        for j in 0..=q {
+            (0..p.saturating_sub(1))
+                .for_each(|i| push(at(i + 2, j) - 2.0 * at(i + 1, j) + at(i, j)));
+        }
+        for j in 0..q {
+            (0..p).for_each(|i| push(at(i + 1, j + 1) - at(i + 1, j) - at(i, j + 1) + at(i, j)));
+        }
+        for j in 0..q.saturating_sub(1) {
+            (0..=p).for_each(|i| push(at(i, j + 2) - 2.0 * at(i, j + 1) + at(i, j)));
+        }
+        let degenerate = degenerate_cross_sq(cell.cross_scale, f64::from(f32::EPSILON));
         let f = |x: f64| (x as f32).to_bits();
         let centre = cell.centre.as_vec3();
         words.extend([centre.x.to_bits(), centre.y.to_bits(), centre.z.to_bits()]);
@@ -482,4 +499,48 @@ fn pack(plan: &ViewPlan) -> (Vec<u32>, Vec<[f32; 4]>) {
         words.extend([cell, corner]);
     }
     (words, points)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plan::view::PROJECTION_ROUNDING;
+
+    /// The frame uniform matches view.wgsl's `Frame` byte for byte, and the kernel's copies of
+    /// the plan's constants are the plan's.
+    #[test]
+    fn host_mirrors_match_the_view_kernel() {
+        let module = naga::front::wgsl::parse_str(VIEW_WGSL).expect("view.wgsl parses");
+        let mut layouter = naga::proc::Layouter::default();
+        layouter.update(module.to_ctx()).expect("layout");
+        let (frame, _) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some("Frame"))
+            .expect("Frame exists");
+        assert_eq!(layouter[frame].size as usize, size_of::<FrameParams>());
+        let constant = |name: &str| {
+            let (_, c) = module
+                .constants
+                .iter()
+                .find(|(_, c)| c.name.as_deref() == Some(name))
+                .expect("constant exists");
+            match module.global_expressions[c.init] {
+                naga::Expression::Literal(literal) => literal,
+                ref other => panic!("{name}: {other:?}"),
+            }
+        };
+        assert_eq!(
+            constant("PROJECTION_ROUNDING"),
+            naga::Literal::F32(PROJECTION_ROUNDING)
+        );
+        assert_eq!(
+            constant("CELL_WORDS"),
+            naga::Literal::U32(CELL_WORDS as u32)
+        );
+        assert_eq!(
+            constant("EDGE_WORDS"),
+            naga::Literal::U32(EDGE_WORDS as u32)
+        );
+    }
 }

@@ -105,6 +105,10 @@ pub struct ViewCell {
     /// Centre and radius of a ball around the cell's control points (model units).
     pub centre: DVec3,
     pub radius: f64,
+    /// The surface's [`BSplineSurface::cross_scale`] in the cell's local parameters (times
+    /// the cell's widths): what the one degeneracy rule scales by, so a cell 1e-6 of its
+    /// surface wide is judged as its surface is, not by its own box.
+    pub cross_scale: f64,
     /// Where the cell's corner (0, 0) lies in its surface's uv square, and its size there.
     pub uv_start: DVec2,
     pub uv_size: DVec2,
@@ -199,7 +203,7 @@ impl ViewPlan {
                         for a in 0..k {
                             let cell_patch =
                                 strip.restricted_u(a as f64 / k as f64, (a + 1) as f64 / k as f64);
-                            cells.push(view_cell(index as u32, cell_patch, range_u, range_v));
+                            cells.push(view_cell(index as u32, cell_patch, surface));
                         }
                     }
                 }
@@ -393,11 +397,16 @@ impl ViewPlan {
 
     /// Checks a rate another arithmetic decided, in f64: whether it meets the view's
     /// tolerance for `cell` (to `slack`, relative), and whether no grid of fewer cells would
-    /// meet the tolerance the rates aim at ([`VIEW_TOLERANCE_MARGIN`] of it, to `slack`).
+    /// meet the tolerance the rates aim at ([`VIEW_TOLERANCE_MARGIN`] of the tolerance with
+    /// the projection widened by [`PROJECTION_ROUNDING`], to `slack`).
     /// A cell outside the frustum meets any tolerance; one reaching the camera plane none.
     pub fn rate_meets(&self, cell: usize, rate: Rate, view: &View, slack: f64) -> (bool, bool) {
         let c = &self.cells[cell];
-        let Some(tolerance) = model_tolerance(c.centre, c.radius, view) else {
+        let rounding = f64::from(PROJECTION_ROUNDING);
+        let (Some(tolerance), Some(aimed)) = (
+            model_tolerance(c.centre, c.radius, view, 0.0),
+            model_tolerance(c.centre, c.radius, view, rounding),
+        ) else {
             return (true, rate.u * rate.v == 1);
         };
         let [a, b, cc] = c.deviation;
@@ -406,7 +415,7 @@ impl ViewPlan {
             a / (n_u * n_u) + b / (n_u * n_v) + cc / (n_v * n_v)
         };
         let meets = deviation(rate.u, rate.v) <= tolerance * (1.0 + slack);
-        let aim = tolerance * f64::from(VIEW_TOLERANCE_MARGIN) * (1.0 - slack);
+        let aim = aimed * f64::from(VIEW_TOLERANCE_MARGIN) * (1.0 - slack);
         let most = self.options.max_segments;
         let cells = u64::from(rate.u) * u64::from(rate.v);
         let fewest = (1..=most).all(|n_u| {
@@ -701,12 +710,21 @@ pub(crate) fn round_up_f32(x: f64) -> f32 {
     if f64::from(y) < x { y.next_up() } else { y }
 }
 
-/// The model-space tolerance of a ball (centre, radius) under `view` in f64: `None` when
-/// the ball lies outside the frustum (any rate will do); 0 when it reaches the camera plane.
-fn model_tolerance(centre: DVec3, radius: f64, view: &View) -> Option<f64> {
+/// Relative rounding of a 4-term f32 dot product of the view's rows with a point (and of
+/// the point's own rounding to f32), with room to spare: what the kernel widens its screen
+/// bound by, so that its f32 arithmetic — which cancels terms the size of the point's
+/// distance from the world origin — never shrinks the bound below the exact one.
+pub const PROJECTION_ROUNDING: f32 = 8.0 * f32::EPSILON;
+
+/// The model-space tolerance of a ball (centre, radius) under `view` in f64, with the
+/// projection's dot products widened by `rounding` of their terms' magnitudes (0: exact;
+/// [`PROJECTION_ROUNDING`]: what the kernel aims at): `None` when the ball lies outside the
+/// frustum (any rate will do); 0 when it reaches the camera plane.
+fn model_tolerance(centre: DVec3, radius: f64, view: &View, rounding: f64) -> Option<f64> {
     let m = view.view_projection.as_dmat4();
     let rows = [0, 1, 2, 3].map(|i| m.row(i));
     let c = centre.extend(1.0);
+    let slop = |row: glam::DVec4| rounding * row.abs().dot(c.abs());
     let planes = [
         rows[3] + rows[0],
         rows[3] - rows[0],
@@ -717,18 +735,18 @@ fn model_tolerance(centre: DVec3, radius: f64, view: &View) -> Option<f64> {
     ];
     if planes
         .iter()
-        .any(|p| p.dot(c) < -radius * p.truncate().length())
+        .any(|p| p.dot(c) < -radius * p.truncate().length() - slop(*p))
     {
         return None;
     }
     let w_norm = rows[3].truncate().length();
-    let w_min = rows[3].dot(c) - radius * w_norm;
+    let w_min = rows[3].dot(c) - radius * w_norm - slop(rows[3]);
     if w_min <= 0.0 {
         return Some(0.0);
     }
     let gradient = |row: glam::DVec4, pixels: f64| {
         let norm = row.truncate().length();
-        let ndc = (row.dot(c).abs() + radius * norm) / w_min;
+        let ndc = (row.dot(c).abs() + radius * norm + slop(row)) / w_min;
         0.5 * pixels * (norm + ndc * w_norm) / w_min
     };
     let gx = gradient(rows[0], f64::from(view.viewport.x));
@@ -743,6 +761,7 @@ fn rate_for(bound: &CellBound32, view: &View, max_segments: u32) -> Rate {
     let rows = [0, 1, 2, 3].map(|i| m.row(i));
     let c = bound.centre.extend(1.0);
     let r = bound.radius;
+    let slop = |row: Vec4| PROJECTION_ROUNDING * row.abs().dot(c.abs());
     let planes = [
         rows[3] + rows[0],
         rows[3] - rows[0],
@@ -753,7 +772,7 @@ fn rate_for(bound: &CellBound32, view: &View, max_segments: u32) -> Rate {
     ];
     if planes
         .iter()
-        .any(|p: &Vec4| p.dot(c) < -r * p.truncate().length())
+        .any(|p: &Vec4| p.dot(c) < -r * p.truncate().length() - slop(*p))
     {
         return Rate {
             u: 1,
@@ -767,13 +786,13 @@ fn rate_for(bound: &CellBound32, view: &View, max_segments: u32) -> Rate {
         met: false,
     };
     let w_norm = rows[3].truncate().length();
-    let w_min = rows[3].dot(c) - r * w_norm;
+    let w_min = rows[3].dot(c) - r * w_norm - slop(rows[3]);
     if w_min <= 0.0 {
         return most;
     }
     let gradient = |row: Vec4, pixels: f32| {
         let norm = row.truncate().length();
-        let ndc = (row.dot(c).abs() + r * norm) / w_min;
+        let ndc = (row.dot(c).abs() + r * norm + slop(row)) / w_min;
         0.5 * pixels * (norm + ndc * w_norm) / w_min
     };
     let gx = gradient(rows[0], view.viewport.x);
@@ -819,8 +838,9 @@ fn fewest_segments([a, b, c]: [f32; 3], tolerance: f32, max_segments: u32) -> Op
     best
 }
 
-/// The cell over a Bezier patch clipped to the surface's range.
-fn view_cell(surface: u32, patch: BezierPatch, range_u: Interval, range_v: Interval) -> ViewCell {
+/// The cell over a Bezier patch of `surface` (number `index`) clipped to its range.
+fn view_cell(index: u32, patch: BezierPatch, surface: &BSplineSurface) -> ViewCell {
+    let (range_u, range_v) = (surface.range_u(), surface.range_v());
     let bound = patch.derivative_bound();
     let (w_u, w_v) = (patch.range_u.width(), patch.range_v.width());
     let cartesian: Vec<DVec3> = patch.points.iter().map(|h| h.truncate() / h.w).collect();
@@ -831,7 +851,8 @@ fn view_cell(surface: u32, patch: BezierPatch, range_u: Interval, range_v: Inter
     );
     let uv_size = DVec2::new(w_u / range_u.width(), w_v / range_v.width());
     ViewCell {
-        surface,
+        surface: index,
+        cross_scale: surface.cross_scale() * w_u * w_v,
         deviation: [
             0.125 * w_u * w_u * bound.uu,
             0.25 * w_u * w_v * bound.uv,
