@@ -1998,3 +1998,111 @@ fn view_cases_conform_on_this_adapter() {
         );
     }
 }
+
+/// A view batch writing into the caller's buffers, at offsets: the same frame as in its own
+/// buffers, the indirect arguments where the caller asked; buffers without STORAGE, too
+/// small or misaligned are refused naming the buffer.
+#[test]
+fn view_frames_go_into_the_callers_buffers() {
+    use glam::camera::rh::{proj::directx::perspective, view::look_at_mat4};
+    use glam::{Vec2, Vec3};
+    use knotwork::gpu::{BufferSlice, ViewBatch, ViewTargets};
+    use knotwork::plan::view::{View, ViewOptions, ViewPlan};
+    let Some(context) = gpu() else { return };
+    let surfaces = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt"))
+        .unwrap()
+        .surface_list();
+    let plan = ViewPlan::new(&surfaces, ViewOptions::default()).unwrap();
+    let view = View {
+        view_projection: perspective(0.8, 4.0 / 3.0, 0.1, 200.0)
+            * look_at_mat4(Vec3::new(6.0, -9.0, 5.0), Vec3::new(0.2, 0.0, 1.2), Vec3::Z),
+        viewport: Vec2::new(640.0, 480.0),
+        tolerance_px: 0.5,
+    };
+    let own = ViewBatch::new(context, &plan).unwrap();
+    own.dispatch(&view).unwrap();
+    let expected = own.read_frame().unwrap();
+    let (vertices, indices) = plan.capacity();
+    let device = context.device();
+    let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+    let make = |bytes: u64, usage: wgpu::BufferUsages| {
+        device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("caller"),
+            size: bytes,
+            usage,
+            mapped_at_creation: false,
+        })
+    };
+    let slice = |buffer: &wgpu::Buffer, offset: u64| BufferSlice {
+        buffer: buffer.clone(),
+        offset,
+    };
+    let vertex_buffer = make(
+        256 + vertices * knotwork::gpu::VERTEX_BYTES,
+        usage | wgpu::BufferUsages::VERTEX,
+    );
+    let index_buffer = make(512 + indices * 4, usage | wgpu::BufferUsages::INDEX);
+    let indirect_buffer = make(256 + 32, usage | wgpu::BufferUsages::INDIRECT);
+    let targets = ViewTargets {
+        vertices: slice(&vertex_buffer, 256),
+        indices: slice(&index_buffer, 512),
+        indirect: slice(&indirect_buffer, 256),
+    };
+    let theirs = ViewBatch::with_targets(context, &plan, targets.clone()).unwrap();
+    theirs.dispatch(&view).unwrap();
+    let frame = theirs.read_frame().unwrap();
+    assert_eq!(frame, expected);
+    assert_eq!(
+        (
+            theirs.mesh().vertex_offset,
+            theirs.mesh().index_offset,
+            theirs.indirect_offset()
+        ),
+        (256, 512, 256)
+    );
+    // The indirect arguments, copied out of the caller's buffer.
+    let staging = make(
+        20,
+        wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+    );
+    let mut encoder = device.create_command_encoder(&Default::default());
+    encoder.copy_buffer_to_buffer(&indirect_buffer, 256, &staging, 0, 20);
+    context.queue().submit([encoder.finish()]);
+    staging.map_async(wgpu::MapMode::Read, .., |r| r.unwrap());
+    device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+    let args: Vec<u32> = bytemuck::cast_slice(&staging.get_mapped_range(..).unwrap()).to_vec();
+    assert_eq!(args, [frame.indices.len() as u32, 1, 0, 0, 0]);
+    // Refusals, each naming the buffer.
+    let refused = |targets: ViewTargets, what: &str| {
+        let e = ViewBatch::with_targets(context, &plan, targets).unwrap_err();
+        assert!(
+            matches!(e, Error::OutputTarget { .. }) && e.to_string().contains(what),
+            "{e}"
+        );
+    };
+    let no_storage = make(
+        vertices * knotwork::gpu::VERTEX_BYTES,
+        wgpu::BufferUsages::VERTEX,
+    );
+    refused(
+        ViewTargets {
+            vertices: slice(&no_storage, 0),
+            ..targets.clone()
+        },
+        "vertex buffer",
+    );
+    refused(
+        ViewTargets {
+            indices: slice(&index_buffer, 768),
+            ..targets.clone()
+        },
+        "index buffer",
+    );
+    refused(
+        ViewTargets {
+            indirect: slice(&indirect_buffer, 4),
+            ..targets.clone()
+        },
+        "indirect buffer",
+    );
+}

@@ -249,7 +249,11 @@ fn bind_range(
 const INPUT_BUFFERS: usize = 6;
 
 /// Checks that a caller's buffer can be an output: storage usage, aligned offset.
-fn check_target(what: &'static str, target: &BufferSlice, limits: &Limits) -> Result<()> {
+pub(super) fn check_target(
+    what: &'static str,
+    target: &BufferSlice,
+    limits: &Limits,
+) -> Result<()> {
     let problem = if !target.buffer.usage().contains(wgpu::BufferUsages::STORAGE) {
         "it lacks STORAGE usage".to_string()
     } else if !target.offset.is_multiple_of(limits.offset_alignment) {
@@ -270,7 +274,12 @@ fn check_target(what: &'static str, target: &BufferSlice, limits: &Limits) -> Re
 }
 
 /// Checks that `bytes` of output fit a caller's buffer past its offset.
-fn check_room(what: &'static str, buffer: &wgpu::Buffer, offset: u64, bytes: u64) -> Result<()> {
+pub(super) fn check_room(
+    what: &'static str,
+    buffer: &wgpu::Buffer,
+    offset: u64,
+    bytes: u64,
+) -> Result<()> {
     let room = buffer.size() - offset;
     if bytes > room {
         return Err(Error::OutputTarget {

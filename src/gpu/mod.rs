@@ -46,7 +46,7 @@ pub use export::{
 };
 pub use surfaces::{Limits, VERTEX_BYTES};
 pub use tessellator::GpuTessellator;
-pub use view::{ViewBatch, ViewFrame};
+pub use view::{ViewBatch, ViewFrame, ViewTargets};
 
 /// The WGSL source of the tessellation kernels (with the shared grid rules prepended).
 pub const TESSELLATE_WGSL: &str = concat!(

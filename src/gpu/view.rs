@@ -7,9 +7,11 @@
 //! over the frame's own vertices and rows. Nothing travels through the CPU.
 //!
 //! The output buffers are sized once for every cell at its most segments
-//! ([`ViewPlan::capacity`]), so a frame never reallocates; draw them with
-//! `draw_indexed_indirect(indirect, 0)` and [`GpuMesh::vertex_buffer_layout`].
+//! ([`ViewPlan::capacity`]), so a frame never reallocates — knotwork's own, or the caller's
+//! ([`ViewBatch::with_targets`]); draw them with `draw_indexed_indirect(indirect,
+//! indirect_offset)` and [`GpuMesh::vertex_buffer_layout`].
 
+use super::batch::{BufferSlice, check_room, check_target};
 use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped};
 use super::readback::{BufferPool, copy_out, mapped};
 use super::{GpuMesh, VERTEX_BYTES};
@@ -102,10 +104,25 @@ pub struct ViewBatch {
     uniform: wgpu::Buffer,
     work: wgpu::Buffer,
     mesh: GpuMesh,
-    indirect: wgpu::Buffer,
+    indirect: BufferSlice,
     counts: FrameParams,
     pool: BufferPool,
 }
+
+/// The caller's buffers a [`ViewBatch`] writes its frames into (each `STORAGE`; add `VERTEX`,
+/// `INDEX` and `INDIRECT` to draw them, `COPY_SRC` to read them back), at offsets that are
+/// multiples of the device's storage offset alignment. They must hold the largest frame
+/// ([`ViewPlan::capacity`]: that many vertices of [`VERTEX_BYTES`], u32 indices, and 20
+/// bytes of indirect arguments); they are never reallocated.
+#[derive(Debug, Clone)]
+pub struct ViewTargets {
+    pub vertices: BufferSlice,
+    pub indices: BufferSlice,
+    pub indirect: BufferSlice,
+}
+
+/// Bytes of `DrawIndexedIndirect` arguments.
+const INDIRECT_BYTES: u64 = 20;
 
 /// A frame read back: the rates the GPU chose and the mesh it wrote.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -119,6 +136,21 @@ impl ViewBatch {
     /// Uploads `plan` and allocates buffers for its largest frame; compiles the view kernels
     /// on the context's device. Fails if a buffer would exceed the device's limits.
     pub fn new(context: &GpuContext, plan: &ViewPlan) -> Result<Self> {
+        Self::build(context, plan, None)
+    }
+
+    /// As [`ViewBatch::new`], writing every frame into the caller's buffers; refused
+    /// ([`Error::OutputTarget`], naming the buffer) if one lacks `STORAGE`, is misaligned or
+    /// cannot hold the largest frame.
+    pub fn with_targets(
+        context: &GpuContext,
+        plan: &ViewPlan,
+        targets: ViewTargets,
+    ) -> Result<Self> {
+        Self::build(context, plan, Some(targets))
+    }
+
+    fn build(context: &GpuContext, plan: &ViewPlan, targets: Option<ViewTargets>) -> Result<Self> {
         let device = &context.device;
         let (max_vertices, max_indices) = plan.capacity();
         let limits = context.limits();
@@ -137,6 +169,28 @@ impl ViewBatch {
                     bytes,
                     limit: limits.binding_bytes,
                 });
+            }
+        }
+        if let Some(targets) = &targets {
+            for (what, target, bytes) in [
+                (
+                    "the caller's vertex buffer",
+                    &targets.vertices,
+                    max_vertices * VERTEX_BYTES,
+                ),
+                (
+                    "the caller's index buffer",
+                    &targets.indices,
+                    max_indices * 4,
+                ),
+                (
+                    "the caller's indirect buffer",
+                    &targets.indirect,
+                    INDIRECT_BYTES,
+                ),
+            ] {
+                check_target(what, target, &limits)?;
+                check_room(what, &target.buffer, target.offset, bytes)?;
             }
         }
         let (words, points) = pack(plan);
@@ -239,34 +293,68 @@ impl ViewBatch {
                 work_words as u64 * 4,
                 U::STORAGE | U::COPY_SRC,
             );
-            let vertices = buffer(
-                "knotwork view vertices",
-                max_vertices * VERTEX_BYTES,
-                U::STORAGE | U::VERTEX | U::COPY_SRC,
-            );
-            let indices = buffer(
-                "knotwork view indices",
-                max_indices * 4,
-                U::STORAGE | U::INDEX | U::COPY_SRC,
-            );
-            let indirect = buffer(
-                "knotwork view indirect",
-                20,
-                U::STORAGE | U::INDIRECT | U::COPY_SRC,
-            );
-            let bind_group = bind_buffers(
-                context,
-                &layout,
-                &[
-                    (&uniform, size_of::<FrameParams>() as u64),
-                    (&plan_buffer, plan_bytes.len() as u64),
-                    (&point_buffer, point_bytes.len() as u64),
-                    (&work, work_words as u64 * 4),
-                    (&vertices, max_vertices * VERTEX_BYTES),
-                    (&indices, max_indices * 4),
-                    (&indirect, 20),
-                ],
-            );
+            let own = |label: &str, bytes: u64, usage: wgpu::BufferUsages| BufferSlice {
+                buffer: buffer(label, bytes, usage),
+                offset: 0,
+            };
+            let ViewTargets {
+                vertices,
+                indices,
+                indirect,
+            } = targets.unwrap_or_else(|| ViewTargets {
+                vertices: own(
+                    "knotwork view vertices",
+                    max_vertices * VERTEX_BYTES,
+                    U::STORAGE | U::VERTEX | U::COPY_SRC,
+                ),
+                indices: own(
+                    "knotwork view indices",
+                    max_indices * 4,
+                    U::STORAGE | U::INDEX | U::COPY_SRC,
+                ),
+                indirect: own(
+                    "knotwork view indirect",
+                    INDIRECT_BYTES,
+                    U::STORAGE | U::INDIRECT | U::COPY_SRC,
+                ),
+            });
+            fn binding(
+                buffer: &wgpu::Buffer,
+                offset: u64,
+                bytes: u64,
+            ) -> wgpu::BindingResource<'_> {
+                wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer,
+                    offset,
+                    size: std::num::NonZeroU64::new(bytes.max(4)),
+                })
+            }
+            let resources = [
+                binding(&uniform, 0, size_of::<FrameParams>() as u64),
+                binding(&plan_buffer, 0, plan_bytes.len() as u64),
+                binding(&point_buffer, 0, point_bytes.len() as u64),
+                binding(&work, 0, work_words as u64 * 4),
+                binding(
+                    &vertices.buffer,
+                    vertices.offset,
+                    max_vertices * VERTEX_BYTES,
+                ),
+                binding(&indices.buffer, indices.offset, max_indices * 4),
+                binding(&indirect.buffer, indirect.offset, INDIRECT_BYTES),
+            ];
+            let entries: Vec<wgpu::BindGroupEntry> = resources
+                .into_iter()
+                .enumerate()
+                .map(|(k, resource)| wgpu::BindGroupEntry {
+                    binding: k as u32,
+                    resource,
+                })
+                .collect();
+            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("knotwork view"),
+                layout: &layout,
+                entries: &entries,
+            });
             let dispatch_args = buffer(
                 "knotwork view dispatch",
                 24,
@@ -285,10 +373,10 @@ impl ViewBatch {
                 uniform,
                 work,
                 mesh: GpuMesh {
-                    vertices,
-                    indices,
-                    vertex_offset: 0,
-                    index_offset: 0,
+                    vertices: vertices.buffer,
+                    indices: indices.buffer,
+                    vertex_offset: vertices.offset,
+                    index_offset: indices.offset,
                     base_vertex: 0,
                     vertex_count: max_vertices as u32,
                     index_count: max_indices as u32,
@@ -350,16 +438,22 @@ impl ViewBatch {
         })
     }
 
-    /// The vertex and index buffers (sized for the largest frame; the frame's counts are in
-    /// [`ViewBatch::indirect`]).
+    /// The vertex and index buffers (sized for the largest frame, from their offsets; the
+    /// frame's counts are in [`ViewBatch::indirect`]): draw
+    /// `vertices.slice(vertex_offset..)` and `indices.slice(index_offset..)`.
     pub fn mesh(&self) -> &GpuMesh {
         &self.mesh
     }
 
-    /// The frame's `DrawIndexedIndirect` arguments at offset 0: index count, 1 instance,
-    /// first index 0, base vertex 0, first instance 0.
+    /// The frame's `DrawIndexedIndirect` arguments — index count, 1 instance, first index 0,
+    /// base vertex 0, first instance 0 — in this buffer at [`ViewBatch::indirect_offset`].
     pub fn indirect(&self) -> &wgpu::Buffer {
-        &self.indirect
+        &self.indirect.buffer
+    }
+
+    /// Byte offset of the indirect arguments in [`ViewBatch::indirect`].
+    pub fn indirect_offset(&self) -> u64 {
+        self.indirect.offset
     }
 
     /// The last frame's vertex and triangle counts (a small read back, for statistics).
@@ -403,8 +497,16 @@ impl ViewBatch {
         self.pool.read(
             &self.context,
             &[
-                (&self.mesh.vertices, 0, vertex_bytes.max(4)),
-                (&self.mesh.indices, 0, index_bytes.max(4)),
+                (
+                    &self.mesh.vertices,
+                    self.mesh.vertex_offset,
+                    vertex_bytes.max(4),
+                ),
+                (
+                    &self.mesh.indices,
+                    self.mesh.index_offset,
+                    index_bytes.max(4),
+                ),
             ],
             |buffers| {
                 let mut frame = ViewFrame {
