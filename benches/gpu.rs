@@ -57,6 +57,17 @@ fn degree_7() -> BSplineSurface {
     BSplineSurface::try_new(knots.clone(), knots, &points, Some(&weights)).expect("valid surface")
 }
 
+/// Waits until `submission` has run on `context`'s device.
+fn wait(context: &GpuContext, submission: wgpu::SubmissionIndex) {
+    context
+        .device()
+        .poll(wgpu::PollType::Wait {
+            submission_index: Some(submission),
+            timeout: None,
+        })
+        .expect("completes");
+}
+
 fn bench_gpu(c: &mut Criterion) {
     let context =
         GpuContext::new().expect("a GPU adapter (install mesa-vulkan-drivers for lavapipe)");
@@ -87,14 +98,7 @@ fn bench_gpu(c: &mut Criterion) {
             .expect("fits the adapter");
         group.bench_function(format!("gpu dispatch, {name}"), |b| {
             b.iter(|| {
-                let submission = batch.dispatch().expect("dispatch");
-                context
-                    .device()
-                    .poll(wgpu::PollType::Wait {
-                        submission_index: Some(submission),
-                        timeout: None,
-                    })
-                    .expect("completes");
+                wait(&context, batch.dispatch().expect("dispatch"));
             })
         });
         let tessellator = GpuTessellator::from_context(&context);
@@ -170,14 +174,7 @@ fn bench_view(c: &mut Criterion) {
         group.throughput(Throughput::Elements((frame.indices.len() / 3) as u64));
         group.bench_function(format!("gpu frame, teapot {name}"), |b| {
             b.iter(|| {
-                let submission = batch.dispatch(&view).expect("dispatch");
-                context
-                    .device()
-                    .poll(wgpu::PollType::Wait {
-                        submission_index: Some(submission),
-                        timeout: None,
-                    })
-                    .expect("completes");
+                wait(&context, batch.dispatch(&view).expect("dispatch"));
             })
         });
         group.bench_function(format!("cpu frame, teapot {name}"), |b| {

@@ -332,14 +332,7 @@ const F64_VERTEX_BYTES: u64 = 64;
 /// Bytes the mesh of `scene` takes at `vertex_bytes` per vertex (with its u32 indices and its
 /// f64 polylines), from the layout alone.
 pub fn scene_mesh_bytes(scene: &Scene, defaults: &SceneOptions, vertex_bytes: u64) -> Result<u64> {
-    let surfaces = crate::plan::SurfacePlan::layout_only(
-        &scene.surface_list(),
-        &scene.surface_grids(defaults.grid),
-    )?;
-    let coons = crate::plan::GridLayout::new(
-        scene.coons_patches().count(),
-        &scene.coons_grids(defaults.grid),
-    )?;
+    let (surfaces, coons) = grid_layouts(scene, defaults)?;
     let vertices = surfaces.vertex_count + coons.vertex_count;
     let indices = surfaces.index_count + coons.index_count;
     if vertices > u64::from(u32::MAX) || indices > u64::from(u32::MAX) {
@@ -353,10 +346,11 @@ pub fn scene_mesh_bytes(scene: &Scene, defaults: &SceneOptions, vertex_bytes: u6
     Ok(vertices * vertex_bytes + indices * 4 + samples * 48)
 }
 
-/// The triangles of `scene`'s mesh under `defaults`, from the plans alone (nothing is
-/// evaluated): its surfaces' and Coons patches' layouts and its trimmed faces' plans (a
-/// face that fails to plan counts nothing where `defaults.skip_failed_faces` leaves it out).
-pub fn scene_triangles(scene: &Scene, defaults: &SceneOptions) -> Result<u64> {
+/// The layouts of `scene`'s surfaces and of its Coons patches under `defaults`.
+fn grid_layouts(
+    scene: &Scene,
+    defaults: &SceneOptions,
+) -> Result<(crate::plan::GridLayout, crate::plan::GridLayout)> {
     let surfaces = crate::plan::SurfacePlan::layout_only(
         &scene.surface_list(),
         &scene.surface_grids(defaults.grid),
@@ -365,6 +359,14 @@ pub fn scene_triangles(scene: &Scene, defaults: &SceneOptions) -> Result<u64> {
         scene.coons_patches().count(),
         &scene.coons_grids(defaults.grid),
     )?;
+    Ok((surfaces, coons))
+}
+
+/// The triangles of `scene`'s mesh under `defaults`, from the plans alone (nothing is
+/// evaluated): its surfaces' and Coons patches' layouts and its trimmed faces' plans (a
+/// face that fails to plan counts nothing where `defaults.skip_failed_faces` leaves it out).
+pub fn scene_triangles(scene: &Scene, defaults: &SceneOptions) -> Result<u64> {
+    let (surfaces, coons) = grid_layouts(scene, defaults)?;
     let faces: Vec<usize> = (0..scene.items.len())
         .filter(|&k| matches!(scene.items[k].geometry, Geometry::Trimmed(_)))
         .collect();

@@ -2,7 +2,9 @@
 //! uploaded, the output buffers a renderer draws, dispatch, per-surface updates, reloads that
 //! reuse every buffer the new contents fit, and readback.
 
-use super::context::{CONNECT_PASS, GpuContext, MAX_GROUPS_PER_DIMENSION, UNIFORM_STRIDE, scoped};
+use super::context::{
+    CONNECT_PASS, GpuContext, MAX_GROUPS_PER_DIMENSION, UNIFORM_STRIDE, bind_resources, scoped,
+};
 use super::coons::CoonsWork;
 use super::curves::{CurveWork, GpuLines};
 use super::readback::{
@@ -1013,21 +1015,12 @@ fn bind_chunks(
                 ),
                 bind_range(&mesh.indices, mesh.index_offset, chunk.indices, 4),
             ];
-            let entries: Vec<wgpu::BindGroupEntry> = resources
-                .into_iter()
-                .enumerate()
-                .map(|(binding, resource)| wgpu::BindGroupEntry {
-                    binding: binding as u32,
-                    resource,
-                })
-                .collect();
-            context
-                .device
-                .create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("knotwork chunk"),
-                    layout: &context.kernels.layout,
-                    entries: &entries,
-                })
+            bind_resources(
+                context,
+                "knotwork chunk",
+                &context.kernels.layout,
+                resources.into(),
+            )
         })
         .collect()
 }

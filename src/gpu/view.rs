@@ -12,7 +12,9 @@
 //! indirect_offset)` and [`GpuMesh::vertex_buffer_layout`].
 
 use super::batch::{BufferSlice, check_room, check_target};
-use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped};
+use super::context::{
+    GpuContext, bind_buffers, bind_resources, dispatch_flat, scoped, storage_entry,
+};
 use super::readback::{BufferPool, copy_out, mapped};
 use super::{GpuMesh, VERTEX_BYTES};
 use crate::error::{Error, Result};
@@ -212,16 +214,7 @@ impl ViewBatch {
                 label: Some("knotwork view.wgsl"),
                 source: wgpu::ShaderSource::Wgsl(VIEW_WGSL.into()),
             });
-            let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Storage { read_only },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            };
+            let storage = storage_entry;
             let mut entries = vec![wgpu::BindGroupLayoutEntry {
                 binding: 0,
                 visibility: wgpu::ShaderStages::COMPUTE,
@@ -342,19 +335,7 @@ impl ViewBatch {
                 binding(&indices.buffer, indices.offset, max_indices * 4),
                 binding(&indirect.buffer, indirect.offset, INDIRECT_BYTES),
             ];
-            let entries: Vec<wgpu::BindGroupEntry> = resources
-                .into_iter()
-                .enumerate()
-                .map(|(k, resource)| wgpu::BindGroupEntry {
-                    binding: k as u32,
-                    resource,
-                })
-                .collect();
-            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("knotwork view"),
-                layout: &layout,
-                entries: &entries,
-            });
+            let bind_group = bind_resources(context, "knotwork view", &layout, resources.into());
             let dispatch_args = buffer(
                 "knotwork view dispatch",
                 24,
