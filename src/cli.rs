@@ -72,7 +72,7 @@ pub enum Command {
         /// At most this many triangles per file: with --tolerance or --tolerance-rel, a file
         /// that needs more is refused; without, each file is sampled to the finest tolerance
         /// that fits (chosen from the plans, printed in the summary).
-        #[arg(long, value_parser = clap::value_parser!(u64).range(1..), conflicts_with = "grid")]
+        #[arg(long, value_parser = parse_count, conflicts_with = "grid")]
         max_triangles: Option<u64>,
         /// Which tessellator runs.
         #[arg(long, value_enum, default_value_t = Backend::Auto)]
@@ -267,6 +267,35 @@ pub fn tess_options(
     }
 }
 
+/// Parses a count of at least 1: digits (`250000`), a whole number in scientific notation
+/// (`2.5e5`), or with a k or M suffix (`250k`, `1.5M`).
+pub fn parse_count(text: &str) -> Result<u64, String> {
+    let text = text.trim();
+    let (number, scale) = match text.strip_suffix(['k', 'K']) {
+        Some(number) => (number, 1e3),
+        None => match text.strip_suffix('M') {
+            Some(number) => (number, 1e6),
+            None => (text, 1.0),
+        },
+    };
+    if let (Ok(count), 1.0) = (number.parse::<u64>(), scale) {
+        return if count >= 1 {
+            Ok(count)
+        } else {
+            Err("the count must be at least 1".into())
+        };
+    }
+    match number.parse::<f64>().map(|n| n * scale) {
+        Ok(value) if value >= 1.0 && value.fract() == 0.0 && value <= 1e18 => Ok(value as u64),
+        Ok(value) => Err(format!(
+            "{value} is not a count: it must be a whole number of at least 1"
+        )),
+        Err(_) => Err(format!(
+            "`{text}` is not a count (e.g. 250000, 2.5e5 or 250k)"
+        )),
+    }
+}
+
 /// Parses a tolerance or a length: a finite number greater than 0.
 pub fn parse_tolerance(text: &str) -> Result<f64, String> {
     match text.trim().parse::<f64>() {
@@ -420,5 +449,22 @@ mod tests {
             panic!("not a render command")
         };
         assert_eq!((view.azimuth, view.elevation), (-90.0, 50.0));
+    }
+
+    /// Triangle budgets read as users write them; fractions, zero and words are refused.
+    #[test]
+    fn counts_parse_in_the_forms_users_write() {
+        for (text, count) in [
+            ("250000", 250_000),
+            ("2.5e5", 250_000),
+            ("250k", 250_000),
+            ("1.5M", 1_500_000),
+            ("1e4", 10_000),
+        ] {
+            assert_eq!(parse_count(text), Ok(count), "{text}");
+        }
+        for text in ["0", "0.5", "1.5", "-3", "many", "", "1e30"] {
+            assert!(parse_count(text).is_err(), "{text}");
+        }
     }
 }

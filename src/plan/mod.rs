@@ -304,7 +304,16 @@ impl<'a> SeamSamples<'a> {
     /// Finds the seams of the adaptive surfaces of `sampling` and merges their samples
     /// (vertices numbered as the layout will: checked against u32 here first).
     fn new(surfaces: &[BSplineSurface], sampling: &'a [Sampling]) -> Result<Self> {
-        let without_seams = layout_of(sampling, &vec![0; sampling.len()])?;
+        // The cells' own triangles (seams add more): a job too large for u32 is refused
+        // here with counts that mean something.
+        let own_triangles: Vec<u64> = sampling
+            .iter()
+            .map(|s| match s {
+                Sampling::Cells(cells) => cells.triangle_count(),
+                Sampling::Grid(..) => 0,
+            })
+            .collect();
+        let without_seams = layout_of(sampling, &own_triangles)?;
         let cells: Vec<Option<&CellGrid>> = sampling
             .iter()
             .map(|s| match s {
