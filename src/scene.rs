@@ -383,7 +383,9 @@ pub fn scene_triangles(scene: &Scene, defaults: &SceneOptions) -> Result<u64> {
     Ok((surfaces.index_count + coons.index_count) / 3 + trimmed.iter().sum::<u64>())
 }
 
-/// `defaults` made to keep `scene` within `defaults.max_triangles` (unchanged without one).
+/// `defaults` made to keep `scene` within `defaults.max_triangles` (unchanged without one),
+/// returned with the budget resolved (`max_triangles: None`), so tessellating with them does
+/// not plan the scene once more to check it.
 /// With a tolerance in `defaults.grid`, checks it: a scene needing more triangles is
 /// [`crate::Error::OverTriangleBudget`]. Without one, finds the finest absolute tolerance
 /// whose plans fit (bisection on its logarithm to 1 %, over triangle counts from the plans:
@@ -398,7 +400,10 @@ pub fn fit_triangle_budget(scene: &Scene, defaults: &SceneOptions) -> Result<Sce
     if defaults.grid.tolerance.is_some() {
         let needed = scene_triangles(scene, defaults)?;
         return if needed <= budget {
-            Ok(*defaults)
+            Ok(SceneOptions {
+                max_triangles: None,
+                ..*defaults
+            })
         } else {
             Err(crate::Error::OverTriangleBudget { needed, budget })
         };
@@ -409,10 +414,12 @@ pub fn fit_triangle_budget(scene: &Scene, defaults: &SceneOptions) -> Result<Sce
     } else {
         1.0
     };
+    // Options whose tolerance fits need no second check: the budget is spent.
     let at = |tolerance: f64| SceneOptions {
         grid: defaults
             .grid
             .with_tolerance(crate::mesh::Tolerance::Absolute(tolerance)),
+        max_triangles: None,
         ..*defaults
     };
     // A plan too fine to make (too many segments, vertices or bytes) does not fit either.
