@@ -37,7 +37,7 @@ impl Cli {
 /// The subcommands.
 #[derive(Subcommand)]
 pub enum Command {
-    /// Tessellate surface files (.obj free-form, .bpt, .json, .igs/.iges) into mesh files (.obj, .ply, .stl, .glb).
+    /// Tessellate surface files (.obj free-form, .bpt, .json, .igs/.iges, .stp/.step) into mesh files (.obj, .ply, .stl, .glb).
     ///
     /// Trimmed faces (IGES) are meshed to a tolerance: --tolerance or --tolerance-rel, else
     /// 1e-3 of the model's diagonal. A face that cannot be read is reported by entity and
@@ -48,7 +48,7 @@ pub enum Command {
     /// the input's file name), files in parallel. The GPU computes in f32 (positions within
     /// 1e-5 of each surface's size); `--backend cpu` gives the f64 reference.
     Tessellate {
-        /// Input files or directories (their .obj, .bpt, .json, .igs and .iges files).
+        /// Input files or directories (their .obj, .bpt, .json, .igs, .iges, .stp and .step files).
         #[arg(required = true)]
         inputs: Vec<PathBuf>,
         /// Output file, or directory for several inputs.
@@ -163,6 +163,7 @@ pub enum InputFormat {
     Bpt,
     Json,
     Iges,
+    Step,
 }
 
 /// Parses `--grid`: NUxNV, each side at least 2 vertices.
@@ -381,6 +382,7 @@ impl InputFormat {
             InputFormat::Bpt => SceneFormat::Bpt,
             InputFormat::Json => SceneFormat::Json,
             InputFormat::Iges => SceneFormat::Iges,
+            InputFormat::Step => SceneFormat::Step,
         }
     }
 }

@@ -134,6 +134,20 @@ pub enum Error {
         directory: usize,
         source: Box<Error>,
     },
+    #[error("STEP entity #{id} ({kind}) {problem}")]
+    StepEntity {
+        id: u64,
+        kind: String,
+        problem: String,
+    },
+    #[error("STEP entity #{id} ({kind}): {source}")]
+    InStepEntity {
+        id: u64,
+        kind: String,
+        source: Box<Error>,
+    },
+    #[error("invalid B-rep: {what}")]
+    InvalidBrep { what: String },
     #[error("item {index} ({name}): {source}")]
     InItem {
         index: usize,

@@ -4,6 +4,7 @@
 //! item's index, the mesh's parts are in item order, writers emit groups in item order.
 
 use crate::error::Result;
+use crate::geom::brep::Shell;
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface, TrimmedSurface};
 use crate::mesh::{GridMesh, Mesh, Mesh32, Polyline, TessOptions};
@@ -21,6 +22,10 @@ pub enum Geometry {
     /// A trimmed face: a surface cut to its loops (IGES 144 and 143), meshed to a tolerance
     /// by [`crate::plan::plan_trimmed`] and the f64 executor, whichever backend runs.
     Trimmed(Box<TrimmedSurface>),
+    /// A B-rep shell (a STEP solid's): faces meshed to a tolerance with every shared edge
+    /// discretised once ([`crate::plan::plan_shell`]), by the f64 executor whichever
+    /// backend runs; a closed shell's mesh is closed.
+    Shell(Box<Shell>),
 }
 
 impl Geometry {
@@ -31,6 +36,7 @@ impl Geometry {
             Geometry::Coons(p) => p.control_box(),
             Geometry::Curve(c) => c.control_box(),
             Geometry::Trimmed(face) => face.surface().control_box(),
+            Geometry::Shell(shell) => shell.control_box(),
         }
     }
 }
@@ -368,17 +374,34 @@ fn grid_layouts(
 pub fn scene_triangles(scene: &Scene, defaults: &SceneOptions) -> Result<u64> {
     let (surfaces, coons) = grid_layouts(scene, defaults)?;
     let faces: Vec<usize> = (0..scene.items.len())
-        .filter(|&k| matches!(scene.items[k].geometry, Geometry::Trimmed(_)))
+        .filter(|&k| {
+            matches!(
+                scene.items[k].geometry,
+                Geometry::Trimmed(_) | Geometry::Shell(_)
+            )
+        })
         .collect();
     let trimmed = faces
         .par_iter()
-        .map(
-            |&k| match crate::cpu::trimmed_face_plan(scene, defaults, k) {
-                Ok(plan) => Ok(plan.triangles.len() as u64),
+        .map(|&k| {
+            let count = if matches!(scene.items[k].geometry, Geometry::Shell(_)) {
+                crate::cpu::shell_plan(scene, defaults, k).map(|plan| {
+                    plan.faces
+                        .iter()
+                        .flatten()
+                        .map(|f| f.triangles.len() as u64)
+                        .sum()
+                })
+            } else {
+                crate::cpu::trimmed_face_plan(scene, defaults, k)
+                    .map(|plan| plan.triangles.len() as u64)
+            };
+            match count {
+                Ok(count) => Ok(count),
                 Err(_) if defaults.skip_failed_faces => Ok(0),
                 Err(error) => Err(error),
-            },
-        )
+            }
+        })
         .collect::<Result<Vec<u64>>>()?;
     Ok((surfaces.index_count + coons.index_count) / 3 + trimmed.iter().sum::<u64>())
 }

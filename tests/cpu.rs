@@ -831,7 +831,9 @@ fn scene_parts_are_the_items_tessellated_alone() {
                 .tessellate_coons_into(std::slice::from_ref(&**p), &grid, &mut alone)
                 .unwrap(),
             knotwork::Geometry::Curve(_) => unreachable!("curves have no part"),
-            knotwork::Geometry::Trimmed(_) => unreachable!("forms.json has no trimmed faces"),
+            knotwork::Geometry::Trimmed(_) | knotwork::Geometry::Shell(_) => {
+                unreachable!("forms.json has no trimmed faces or shells")
+            }
         }
         let vertices = part.first_vertex as usize..(part.first_vertex + part.vertex_count) as usize;
         assert_eq!(

@@ -370,7 +370,7 @@ fn file_errors_name_the_file_and_line() {
         Error::Io { .. }
     ));
     assert!(matches!(
-        read_scene(&dir.join("model.stp")).unwrap_err(),
+        read_scene(&dir.join("model.3dm")).unwrap_err(),
         Error::UnknownFormat { .. }
     ));
 }
@@ -1356,7 +1356,7 @@ fn cli_refuses_a_folder_without_surface_files() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(
         stderr.contains(
-            "no surface file (.obj (free-form), .bpt, .json, .igs/.iges) in this directory"
+            "no surface file (.obj (free-form), .bpt, .json, .igs/.iges, .stp/.step) in this directory"
         ) && stderr.contains("empty-folder"),
         "{stderr}"
     );
@@ -1524,7 +1524,7 @@ fn batches_name_the_files_they_skip() {
     let input = dir.join("in");
     std::fs::create_dir_all(&input).unwrap();
     std::fs::copy("data/teapot.bpt", input.join("teapot.bpt")).unwrap();
-    std::fs::write(input.join("part.step"), "ISO-10303-21;").unwrap();
+    std::fs::write(input.join("part.3dm"), "3D Geometry File Format").unwrap();
     let run = knotwork(&[
         "tessellate",
         input.to_str().unwrap(),
@@ -1536,7 +1536,7 @@ fn batches_name_the_files_they_skip() {
     assert!(run.status.success());
     let stdout = String::from_utf8_lossy(&run.stdout);
     assert!(
-        stdout.contains("skipped 1 file of other formats") && stdout.contains("part.step"),
+        stdout.contains("skipped 1 file of other formats") && stdout.contains("part.3dm"),
         "{stdout}"
     );
 }
@@ -2955,4 +2955,356 @@ fn cli_max_triangles_bounds_the_written_mesh() {
     assert!(!run.status.success());
     assert!(String::from_utf8_lossy(&run.stderr).contains("over the budget of 5000"));
     assert!(!refused.exists());
+}
+
+// ---- STEP -------------------------------------------------------------------------------
+
+/// Open edges, edges of more than two triangles, and edges two triangles run the same way,
+/// of a mesh welded on exactly equal positions (shared B-rep points are one f64 value).
+fn topology(mesh: &knotwork::Mesh, part: &knotwork::MeshPart) -> (usize, usize, usize) {
+    use std::collections::HashMap;
+    let key = |k: u32| {
+        let p = mesh.positions[k as usize];
+        [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]
+    };
+    let mut directed: HashMap<([u64; 3], [u64; 3]), usize> = HashMap::new();
+    let indices =
+        &mesh.indices[part.first_index as usize..(part.first_index + part.index_count) as usize];
+    for t in indices.chunks(3) {
+        let t: Vec<u32> = t.iter().map(|&k| k + part.first_vertex).collect();
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            *directed.entry((key(a), key(b))).or_default() += 1;
+        }
+    }
+    let mut undirected: HashMap<([u64; 3], [u64; 3]), usize> = HashMap::new();
+    for (&(a, b), &n) in &directed {
+        *undirected
+            .entry(if a < b { (a, b) } else { (b, a) })
+            .or_default() += n;
+    }
+    let open = undirected.values().filter(|&&n| n == 1).count();
+    let non_manifold = undirected.values().filter(|&&n| n > 2).count();
+    let misoriented = directed.values().filter(|&&n| n > 1).count();
+    (open, non_manifold, misoriented)
+}
+
+/// (area, enclosed volume) of a part's triangles.
+fn area_and_volume(mesh: &knotwork::Mesh, part: &knotwork::MeshPart) -> (f64, f64) {
+    let indices =
+        &mesh.indices[part.first_index as usize..(part.first_index + part.index_count) as usize];
+    let (mut area, mut volume) = (0.0, 0.0);
+    for t in indices.chunks(3) {
+        let [a, b, c] =
+            [t[0], t[1], t[2]].map(|k| mesh.positions[(k + part.first_vertex) as usize]);
+        area += 0.5 * (b - a).cross(c - a).length();
+        volume += a.dot(b.cross(c)) / 6.0;
+    }
+    (area, volume)
+}
+
+/// STEP text of a DATA section's instances (numbered from 1 in order), in a minimal file.
+fn step_file(instances: &[String]) -> String {
+    let mut text = String::from(
+        "ISO-10303-21;\nHEADER;\nFILE_SCHEMA(('AUTOMOTIVE_DESIGN'));\nENDSEC;\nDATA;\n",
+    );
+    for (k, instance) in instances.iter().enumerate() {
+        text += &format!("#{} = {instance};\n", k + 1);
+    }
+    text + "ENDSEC;\nEND-ISO-10303-21;\n"
+}
+
+/// Instances of a STEP file under construction; `add` returns the new one's reference.
+#[derive(Default)]
+struct StepWriter(Vec<String>);
+
+impl StepWriter {
+    fn add(&mut self, instance: impl Into<String>) -> String {
+        self.0.push(instance.into());
+        format!("#{}", self.0.len())
+    }
+    fn point(&mut self, p: DVec3) -> String {
+        self.add(format!(
+            "CARTESIAN_POINT('',({:?},{:?},{:?}))",
+            p.x, p.y, p.z
+        ))
+    }
+    fn direction(&mut self, d: DVec3) -> String {
+        self.add(format!("DIRECTION('',({:?},{:?},{:?}))", d.x, d.y, d.z))
+    }
+    fn placement(&mut self, origin: DVec3, z: DVec3, x: DVec3) -> String {
+        let (o, z, x) = (self.point(origin), self.direction(z), self.direction(x));
+        self.add(format!("AXIS2_PLACEMENT_3D('',{o},{z},{x})"))
+    }
+    fn vertex(&mut self, p: DVec3) -> String {
+        let p = self.point(p);
+        self.add(format!("VERTEX_POINT('',{p})"))
+    }
+    fn face(&mut self, edges: &[(String, bool)], surface: &str, same_sense: bool) -> String {
+        let oriented: Vec<String> = edges
+            .iter()
+            .map(|(e, forward)| {
+                self.add(format!(
+                    "ORIENTED_EDGE('',*,*,{e},{})",
+                    if *forward { ".T." } else { ".F." }
+                ))
+            })
+            .collect();
+        let edge_loop = self.add(format!("EDGE_LOOP('',({}))", oriented.join(",")));
+        let bound = self.add(format!("FACE_OUTER_BOUND('',{edge_loop},.T.)"));
+        self.add(format!(
+            "ADVANCED_FACE('',({bound}),{surface},{})",
+            if same_sense { ".T." } else { ".F." }
+        ))
+    }
+    /// A solid of `faces` in millimetres, named `name`.
+    fn solid(mut self, faces: &[String], name: &str) -> String {
+        let shell = self.add(format!("CLOSED_SHELL('',({}))", faces.join(",")));
+        let solid = self.add(format!("MANIFOLD_SOLID_BREP('{name}',{shell})"));
+        let unit = self.add("(LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.))");
+        let context = self.add(format!(
+            "(GEOMETRIC_REPRESENTATION_CONTEXT(3) GLOBAL_UNIT_ASSIGNED_CONTEXT(({unit})) REPRESENTATION_CONTEXT('',''))"
+        ));
+        self.add(format!(
+            "ADVANCED_BREP_SHAPE_REPRESENTATION('',({solid}),{context})"
+        ));
+        step_file(&self.0)
+    }
+}
+
+/// A box [0, a] × [0, b] × [0, c] of 6 planes over 12 lines.
+fn step_box(a: f64, b: f64, c: f64) -> String {
+    let mut w = StepWriter::default();
+    let corner = |k: usize| {
+        DVec3::new(
+            if k & 1 == 1 { a } else { 0.0 },
+            if k & 2 == 2 { b } else { 0.0 },
+            if k & 4 == 4 { c } else { 0.0 },
+        )
+    };
+    let vertices: Vec<String> = (0..8).map(|k| w.vertex(corner(k))).collect();
+    let mut edges = std::collections::HashMap::new();
+    // Faces by corners counter-clockwise seen from outside, with their outward normal.
+    let faces = [
+        ([0, 2, 3, 1], DVec3::NEG_Z),
+        ([4, 5, 7, 6], DVec3::Z),
+        ([0, 1, 5, 4], DVec3::NEG_Y),
+        ([2, 6, 7, 3], DVec3::Y),
+        ([0, 4, 6, 2], DVec3::NEG_X),
+        ([1, 3, 7, 5], DVec3::X),
+    ];
+    let mut face_refs = Vec::new();
+    for (corners, normal) in faces {
+        let mut loop_edges = Vec::new();
+        for k in 0..4 {
+            let (p, q) = (corners[k], corners[(k + 1) % 4]);
+            let key = (p.min(q), p.max(q));
+            let edge = edges.entry(key).or_insert_with(|| {
+                let (start, end) = (corner(key.0), corner(key.1));
+                let origin = w.point(start);
+                let direction = w.direction((end - start).normalize());
+                let vector = w.add(format!(
+                    "VECTOR('',{direction},{:?})",
+                    (end - start).length()
+                ));
+                let line = w.add(format!("LINE('',{origin},{vector})"));
+                w.add(format!(
+                    "EDGE_CURVE('',{},{},{line},.T.)",
+                    vertices[key.0], vertices[key.1]
+                ))
+            });
+            loop_edges.push((edge.clone(), p < q));
+        }
+        let x = (corner(corners[1]) - corner(corners[0])).normalize();
+        let plane_at = w.placement(corner(corners[0]), normal, x);
+        let plane = w.add(format!("PLANE('',{plane_at})"));
+        face_refs.push(w.face(&loop_edges, &plane, true));
+    }
+    w.solid(&face_refs, "box")
+}
+
+/// A closed cylinder of radius r and height h about the z axis: a lateral face with a seam
+/// edge (run once each way), two circles and two discs.
+fn step_cylinder(r: f64, h: f64) -> String {
+    let mut w = StepWriter::default();
+    let (v0, v1) = (
+        w.vertex(DVec3::new(r, 0.0, 0.0)),
+        w.vertex(DVec3::new(r, 0.0, h)),
+    );
+    let bottom_frame = w.placement(DVec3::ZERO, DVec3::Z, DVec3::X);
+    let top_frame = w.placement(DVec3::new(0.0, 0.0, h), DVec3::Z, DVec3::X);
+    let bottom_circle = w.add(format!("CIRCLE('',{bottom_frame},{r:?})"));
+    let top_circle = w.add(format!("CIRCLE('',{top_frame},{r:?})"));
+    let bottom = w.add(format!("EDGE_CURVE('',{v0},{v0},{bottom_circle},.T.)"));
+    let top = w.add(format!("EDGE_CURVE('',{v1},{v1},{top_circle},.T.)"));
+    let seam_origin = w.point(DVec3::new(r, 0.0, 0.0));
+    let up = w.direction(DVec3::Z);
+    let seam_vector = w.add(format!("VECTOR('',{up},{h:?})"));
+    let seam_line = w.add(format!("LINE('',{seam_origin},{seam_vector})"));
+    let seam = w.add(format!("EDGE_CURVE('',{v0},{v1},{seam_line},.T.)"));
+    let axis = w.placement(DVec3::ZERO, DVec3::Z, DVec3::X);
+    let cylinder = w.add(format!("CYLINDRICAL_SURFACE('',{axis},{r:?})"));
+    let lateral = w.face(
+        &[
+            (bottom.clone(), true),
+            (seam.clone(), true),
+            (top.clone(), false),
+            (seam, false),
+        ],
+        &cylinder,
+        true,
+    );
+    let down_frame = w.placement(DVec3::ZERO, DVec3::NEG_Z, DVec3::X);
+    let bottom_plane = w.add(format!("PLANE('',{down_frame})"));
+    let bottom_face = w.face(&[(bottom, false)], &bottom_plane, true);
+    let top_plane = w.add(format!("PLANE('',{top_frame})"));
+    let top_face = w.face(&[(top, true)], &top_plane, true);
+    w.solid(&[lateral, bottom_face, top_face], "cylinder")
+}
+
+fn step_scene(text: &str) -> Scene {
+    knotwork::io::read_step(text).unwrap()
+}
+
+/// The mesh of a one-shell scene at a relative tolerance, with its shell's part.
+fn step_mesh(scene: &Scene, tolerance_rel: f64) -> knotwork::Mesh {
+    let options = knotwork::SceneOptions {
+        grid: TessOptions::DEFAULT.with_tolerance(knotwork::Tolerance::Relative(tolerance_rel)),
+        ..Default::default()
+    };
+    CpuTessellator.tessellate_scene(scene, &options).unwrap()
+}
+
+#[test]
+fn step_box_meshes_closed_with_exact_area_and_volume() {
+    let (a, b, c) = (30.0, 20.0, 10.0);
+    let scene = step_scene(&step_box(a, b, c));
+    assert_eq!(scene.items.len(), 1);
+    assert_eq!(scene.items[0].name.as_deref(), Some("box"));
+    assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
+    let mesh = step_mesh(&scene, 1e-3);
+    let part = &mesh.parts[0];
+    assert_eq!(
+        topology(&mesh, part),
+        (0, 0, 0),
+        "a closed, consistently oriented mesh"
+    );
+    let (area, volume) = area_and_volume(&mesh, part);
+    // Planes are meshed exactly: only rounding separates the sums from the closed forms.
+    let exact_area = 2.0 * (a * b + b * c + c * a);
+    assert!(
+        (area - exact_area).abs() <= 1e-9 * exact_area,
+        "area {area} vs {exact_area}"
+    );
+    assert!(
+        (volume - a * b * c).abs() <= 1e-9 * a * b * c,
+        "volume {volume} vs {}",
+        a * b * c
+    );
+    // Normals point out of the box.
+    let centre = DVec3::new(a, b, c) / 2.0;
+    for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
+        assert!(n.dot(*p - centre) > 0.0, "normal {n} at {p} points inward");
+    }
+}
+
+#[test]
+fn step_cylinder_with_a_seam_edge_meshes_closed_within_its_tolerance() {
+    let (r, h) = (10.0, 25.0);
+    let scene = step_scene(&step_cylinder(r, h));
+    for tolerance_rel in [1e-2, 1e-3] {
+        let mesh = step_mesh(&scene, tolerance_rel);
+        let part = &mesh.parts[0];
+        assert_eq!(
+            topology(&mesh, part),
+            (0, 0, 0),
+            "tolerance_rel {tolerance_rel}"
+        );
+        let (area, volume) = area_and_volume(&mesh, part);
+        // Every point of the mesh lies within the tolerance of the solid, so the volumes
+        // differ by at most tolerance × area; the mesh is inscribed, so it is the smaller.
+        let diagonal = scene.control_box_diagonal();
+        let tolerance = tolerance_rel * diagonal;
+        let exact_volume = std::f64::consts::PI * r * r * h;
+        let exact_area = 2.0 * std::f64::consts::PI * r * (r + h);
+        assert!(
+            volume <= exact_volume * (1.0 + 1e-12)
+                && exact_volume - volume <= tolerance * exact_area,
+            "tolerance {tolerance}: volume {volume} vs {exact_volume}"
+        );
+        assert!(
+            area <= exact_area * (1.0 + 1e-12),
+            "area {area} vs {exact_area}"
+        );
+        for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
+            let radial = DVec3::new(p.x, p.y, 0.0);
+            let outward = if p.z.abs() < 1e-9 {
+                -DVec3::Z
+            } else if (p.z - h).abs() < 1e-9 {
+                DVec3::Z
+            } else {
+                radial.normalize()
+            };
+            assert!(
+                n.dot(outward) > 0.5 || radial.length() > r * (1.0 - 1e-9),
+                "normal {n} at {p}"
+            );
+        }
+    }
+}
+
+#[test]
+fn step_reads_the_abc_part_in_millimetres() {
+    let scene = read_scene(Path::new("data/abc-0000.step")).unwrap();
+    let names: Vec<&str> = scene
+        .items
+        .iter()
+        .filter_map(|i| i.name.as_deref())
+        .collect();
+    assert_eq!(names, ["Blob3", "Blob2", "Blob1", "Glass", "Base", "Cap"]);
+    let faces: usize = scene
+        .items
+        .iter()
+        .map(|i| match &i.geometry {
+            knotwork::Geometry::Shell(shell) => shell.faces().len(),
+            _ => panic!("a STEP solid is a shell"),
+        })
+        .sum();
+    assert_eq!(faces, 25);
+    assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
+    // The file is in metres (a CONVERSION_BASED_UNIT of the SI metre): the part is about a
+    // decimetre across, so in millimetres its diagonal is in the hundreds.
+    let diagonal = scene.control_box_diagonal();
+    assert!((50.0..1000.0).contains(&diagonal), "diagonal {diagonal} mm");
+}
+
+#[test]
+fn step_refuses_broken_references_by_entity() {
+    let good = step_box(1.0, 1.0, 1.0);
+    let cases = [
+        // A cycle: a trimmed curve trimming itself.
+        ("ISO-10303-21;\nDATA;\n#1=MANIFOLD_SOLID_BREP('s',#2);\n#2=CLOSED_SHELL('',(#3));\n#3=ADVANCED_FACE('',(),#4,.T.);\n#4=SURFACE_OF_LINEAR_EXTRUSION('',#5,#6);\n#5=TRIMMED_CURVE('',#5,(),(),.T.,.UNSPECIFIED.);\n#6=VECTOR('',#7,1.);\n#7=DIRECTION('',(0.,0.,1.));\nENDSEC;\n".to_string(), Some("#5")),
+        // A direction where a surface is expected.
+        ("ISO-10303-21;\nDATA;\n#1=MANIFOLD_SOLID_BREP('s',#2);\n#2=CLOSED_SHELL('',(#3));\n#3=ADVANCED_FACE('',(),#7,.T.);\n#7=DIRECTION('',(0.,0.,1.));\nENDSEC;\n".to_string(), Some("#7")),
+        // An absurd knot multiplicity: refused before anything is sized by it.
+        ("ISO-10303-21;\nDATA;\n#1=MANIFOLD_SOLID_BREP('s',#2);\n#2=CLOSED_SHELL('',(#3));\n#3=ADVANCED_FACE('',(),#4,.T.);\n#4=B_SPLINE_SURFACE_WITH_KNOTS('',1,1,((#5,#5),(#5,#5)),.UNSPECIFIED.,.F.,.F.,.F.,(2,999999999999),(2,2),(0.,1.),(0.,1.),.UNSPECIFIED.);\n#5=CARTESIAN_POINT('',(0.,0.,0.));\nENDSEC;\n".to_string(), Some("#4")),
+    ];
+    for (text, entity) in &cases {
+        let scene = knotwork::io::read_step(text).unwrap();
+        // The solid's only face is dropped, named, with the entity at fault.
+        assert_eq!(scene.dropped.len(), 1, "{text}");
+        let reason = &scene.dropped[0].reason;
+        assert!(scene.dropped[0].what.contains("#3"), "{:?}", scene.dropped);
+        if let Some(entity) = entity {
+            assert!(reason.contains(entity), "{reason}");
+        }
+    }
+    // A reference to nothing.
+    let dangling = good.replace("PLANE('',#", "PLANE('',#9");
+    let scene = knotwork::io::read_step(&dangling).unwrap();
+    assert!(
+        scene.dropped.iter().all(|d| d.reason.contains("dangling")),
+        "{:?}",
+        scene.dropped
+    );
+    assert!(!scene.dropped.is_empty());
 }

@@ -11,7 +11,8 @@ pub use crate::geom::SurfaceSample;
 pub use coons::{execute_coons, tessellate_coons_into};
 pub use grid::{evaluate_grid_into, execute_surfaces, execute_surfaces_f32, tessellate_grid_into};
 pub use trimmed::{
-    TRIMMED_DEFAULT_TOLERANCE_REL, execute_trimmed, mesh_trimmed_faces, trimmed_face_plan,
+    TRIMMED_DEFAULT_TOLERANCE_REL, execute_shell, execute_trimmed, mesh_trimmed_faces, shell_plan,
+    trimmed_face_plan,
 };
 pub use view::execute_view;
 

@@ -1,9 +1,10 @@
 //! Executes the plan of a trimmed face ([`crate::plan::plan_trimmed`]) in f64.
 
 use crate::error::{Error, Result};
+use crate::geom::brep::Shell;
 use crate::geom::{SamplingLimits, TrimmedSurface};
 use crate::mesh::{Mesh, MeshPart, TessOptions, Tolerance};
-use crate::plan::{TrimmedPlan, plan_trimmed_within};
+use crate::plan::{ShellPlan, TrimmedPlan, plan_shell, plan_trimmed_within};
 use crate::scene::{Geometry, Scene, SceneOptions};
 use glam::DVec2;
 use rayon::prelude::*;
@@ -65,49 +66,176 @@ pub fn mesh_trimmed_faces(
     grid_bytes: u64,
     vertex_bytes: u64,
 ) -> Result<Mesh> {
-    let faces: Vec<(usize, &TrimmedSurface)> = scene
-        .items
-        .iter()
-        .enumerate()
-        .filter_map(|(k, item)| match &item.geometry {
-            Geometry::Trimmed(face) => Some((k, &**face)),
-            _ => None,
+    let items: Vec<usize> = (0..scene.items.len())
+        .filter(|&k| {
+            matches!(
+                scene.items[k].geometry,
+                Geometry::Trimmed(_) | Geometry::Shell(_)
+            )
         })
         .collect();
-    if faces.is_empty() {
+    if items.is_empty() {
         return Ok(Mesh::default());
     }
     let diagonal = scene.control_box_diagonal();
-    let planned = faces
+    let planned = items
         .par_iter()
-        .map(|&(index, _)| plan_face(scene, defaults, diagonal, index, grid_bytes, vertex_bytes))
+        .map(|&index| plan_item(scene, defaults, diagonal, index, grid_bytes, vertex_bytes))
         .collect::<Vec<_>>();
-    let mut plans = Vec::with_capacity(faces.len());
+    let mut plans = Vec::with_capacity(items.len());
     // In item order, so that the error reported is the first face's.
-    for (&(index, face), plan) in faces.iter().zip(planned) {
+    for (&index, plan) in items.iter().zip(planned) {
         match plan {
-            Ok(plan) => plans.push((index, face, plan)),
+            Ok(plan) => plans.push((index, plan)),
             Err(_) if defaults.skip_failed_faces => {}
             Err(error) => return Err(error),
         }
     }
     if let Some(budget) = defaults.memory_budget {
-        let needed = plans.iter().fold(grid_bytes, |sum, (_, _, plan)| {
-            sum + plan.params.len() as u64 * vertex_bytes + plan.triangles.len() as u64 * 12
+        let needed = plans.iter().fold(grid_bytes, |sum, (_, plan)| {
+            let (vertices, triangles) = plan.counts();
+            sum + vertices * vertex_bytes + triangles * 12
         });
         if needed > budget {
             return Err(Error::OverMemoryBudget { needed, budget });
         }
     }
     let mut mesh = Mesh::default();
-    for (index, face, plan) in &plans {
-        let mut part = execute_trimmed(face, plan);
+    for (index, plan) in &plans {
+        let mut part = match (&scene.items[*index].geometry, plan) {
+            (Geometry::Trimmed(face), ItemPlan::Face(plan)) => execute_trimmed(face, plan),
+            (Geometry::Shell(shell), ItemPlan::Shell(plan)) => execute_shell(shell, plan),
+            _ => unreachable!("plans are made per item kind"),
+        };
         for p in &mut part.parts {
             p.item = *index as u32;
         }
         mesh.append(part)?;
     }
     Ok(mesh)
+}
+
+/// The plan of one item the f64 executor meshes: a trimmed face or a shell.
+enum ItemPlan {
+    Face(TrimmedPlan),
+    Shell(ShellPlan),
+}
+
+impl ItemPlan {
+    /// (vertices, triangles) of its mesh.
+    fn counts(&self) -> (u64, u64) {
+        match self {
+            ItemPlan::Face(plan) => (plan.params.len() as u64, plan.triangles.len() as u64),
+            ItemPlan::Shell(plan) => plan.faces.iter().flatten().fold((0, 0), |(v, t), face| {
+                (
+                    v + face.params.len() as u64,
+                    t + face.triangles.len() as u64,
+                )
+            }),
+        }
+    }
+}
+
+/// The plan of item `index` (a trimmed face or a shell). A shell fails on its first face
+/// that cannot be planned unless `defaults.skip_failed_faces`.
+fn plan_item(
+    scene: &Scene,
+    defaults: &SceneOptions,
+    diagonal: f64,
+    index: usize,
+    grid_bytes: u64,
+    vertex_bytes: u64,
+) -> Result<ItemPlan> {
+    let item = &scene.items[index];
+    let Geometry::Shell(shell) = &item.geometry else {
+        return plan_face(scene, defaults, diagonal, index, grid_bytes, vertex_bytes)
+            .map(ItemPlan::Face);
+    };
+    let max_vertices = defaults.memory_budget.map_or(usize::MAX, |budget| {
+        usize::try_from(budget.saturating_sub(grid_bytes) / vertex_bytes).unwrap_or(usize::MAX)
+    });
+    let in_item = |source: Error| Error::InItem {
+        index,
+        name: item.name.clone().unwrap_or_else(|| format!("item {index}")),
+        source: Box::new(source),
+    };
+    let limits = trimmed_limits(&item.grid.unwrap_or(defaults.grid), diagonal).map_err(in_item)?;
+    let plan = plan_shell(shell, limits, max_vertices).map_err(in_item)?;
+    if !defaults.skip_failed_faces
+        && let Some(Err(reason)) = plan.faces.iter().find(|f| f.is_err())
+    {
+        return Err(in_item(Error::InvalidBrep {
+            what: reason.clone(),
+        }));
+    }
+    Ok(ItemPlan::Shell(plan))
+}
+
+/// The plan of the shell that is item `index` of `scene`, as [`mesh_trimmed_faces`] makes
+/// it: its faces that cannot be planned say why. An item that is no shell is
+/// [`Error::IndexOutOfRange`].
+pub fn shell_plan(scene: &Scene, defaults: &SceneOptions, index: usize) -> Result<ShellPlan> {
+    let Some(Geometry::Shell(shell)) = scene.items.get(index).map(|i| &i.geometry) else {
+        return Err(Error::IndexOutOfRange {
+            what: "shell",
+            index,
+            count: scene.items.len(),
+        });
+    };
+    let item = &scene.items[index];
+    let limits = trimmed_limits(
+        &item.grid.unwrap_or(defaults.grid),
+        scene.control_box_diagonal(),
+    )?;
+    plan_shell(shell, limits, usize::MAX)
+}
+
+/// The mesh of a shell from its plan: each face's vertices (one per face side of an edge,
+/// so normals are the face's), positions of shared points taken from the plan (the same
+/// value in every face), normals the surface's turned with the face's sense, triangles
+/// counter-clockwise seen from outside. One part (item 0) for the whole shell; faces
+/// without a plan are left out.
+pub fn execute_shell(shell: &Shell, plan: &ShellPlan) -> Mesh {
+    let mut mesh = Mesh::default();
+    for (face, face_plan) in shell.faces().iter().zip(&plan.faces) {
+        let Ok(face_plan) = face_plan else { continue };
+        let surface = &face.surface;
+        let (range_u, range_v) = (surface.range_u(), surface.range_v());
+        let samples: Vec<_> = face_plan
+            .params
+            .par_iter()
+            .map(|p| surface.evaluate(p.x, p.y))
+            .collect();
+        let base = mesh.positions.len() as u32;
+        let sign = if face.same_sense { 1.0 } else { -1.0 };
+        for ((sample, shared), p) in samples.iter().zip(&face_plan.shared).zip(&face_plan.params) {
+            mesh.positions
+                .push(shared.map_or(sample.position, |k| plan.points[k as usize]));
+            mesh.normals.push(sample.normal * sign);
+            mesh.uvs.push(DVec2::new(
+                (p.x - range_u.start) / range_u.width(),
+                (p.y - range_v.start) / range_v.width(),
+            ));
+        }
+        for &[a, b, c] in &face_plan.triangles {
+            let triangle = if face.same_sense {
+                [a, b, c]
+            } else {
+                [a, c, b]
+            };
+            mesh.indices.extend(triangle.map(|k| base + k));
+        }
+    }
+    mesh.parts.push(MeshPart {
+        item: 0,
+        grid_u: 0,
+        grid_v: 0,
+        first_vertex: 0,
+        vertex_count: mesh.positions.len() as u32,
+        first_index: 0,
+        index_count: mesh.indices.len() as u32,
+    });
+    mesh
 }
 
 /// The plan of the trimmed face that is item `index` of `scene`, as [`mesh_trimmed_faces`]

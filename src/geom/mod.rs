@@ -6,6 +6,7 @@
 
 mod basis;
 mod bezier;
+pub mod brep;
 mod curve;
 pub mod curves;
 mod deviation;

@@ -51,7 +51,7 @@ pub fn invert(surface: &BSplineSurface, target: DVec3, start: DVec2) -> (DVec2, 
 
 /// The parameters nearest `target` over a grid of the surface (8 per knot span each way, at
 /// most 64), refined by [`invert`].
-fn invert_from_grid(surface: &BSplineSurface, target: DVec3) -> (DVec2, f64) {
+pub(crate) fn invert_from_grid(surface: &BSplineSurface, target: DVec3) -> (DVec2, f64) {
     let (ru, rv) = (surface.range_u(), surface.range_v());
     let count = |spans: usize| (8 * spans).clamp(8, 64);
     let (nu, nv) = (
@@ -246,7 +246,12 @@ pub fn project_chain(
 
 /// [`invert`] from `guess`; where that lands farther than `tolerance` from the target, the
 /// grid search too, and the nearer of the two.
-fn nearest(surface: &BSplineSurface, target: DVec3, guess: DVec2, tolerance: f64) -> (DVec2, f64) {
+pub(crate) fn nearest(
+    surface: &BSplineSurface,
+    target: DVec3,
+    guess: DVec2,
+    tolerance: f64,
+) -> (DVec2, f64) {
     let local = invert(surface, target, guess);
     if local.1 <= tolerance {
         return local;

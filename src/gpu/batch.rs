@@ -1033,15 +1033,16 @@ fn upload_trimmed(
     defaults: &SceneOptions,
 ) -> Result<Option<TrimmedFaces>> {
     use wgpu::util::DeviceExt;
-    let faces: Vec<&crate::TrimmedSurface> = scene
+    let boxes: Vec<(glam::DVec3, glam::DVec3)> = scene
         .items
         .iter()
         .filter_map(|item| match &item.geometry {
-            crate::scene::Geometry::Trimmed(face) => Some(&**face),
+            crate::scene::Geometry::Trimmed(face) => Some(face.surface().control_box()),
+            crate::scene::Geometry::Shell(shell) => Some(shell.control_box()),
             _ => None,
         })
         .collect();
-    if faces.is_empty() {
+    if boxes.is_empty() {
         return Ok(None);
     }
     let mesh = Mesh32::from(crate::cpu::mesh_trimmed_faces(
@@ -1050,9 +1051,8 @@ fn upload_trimmed(
         0,
         VERTEX_BYTES,
     )?);
-    let control_box = faces
-        .iter()
-        .map(|face| face.surface().control_box())
+    let control_box = boxes
+        .into_iter()
         .reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)))
         .expect("at least one face");
     let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;

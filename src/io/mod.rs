@@ -12,6 +12,7 @@ mod iges;
 mod json;
 mod obj_freeform;
 mod obj_mesh;
+mod step;
 
 pub use binary_meshes::{write_ply, write_stl};
 pub use bpt::read_bpt;
@@ -22,6 +23,7 @@ pub use iges::read_iges;
 pub use json::read_json_scene;
 pub use obj_freeform::read_obj_freeform;
 pub use obj_mesh::{format_f32, format_f64, write_obj_mesh};
+pub use step::read_step;
 
 pub use crate::scene::{ItemGroup, Scene};
 
@@ -54,7 +56,7 @@ pub fn cover_groups(groups: &[ItemGroup], items: impl Iterator<Item = u32>) -> V
 }
 
 /// The input formats, as error messages name them.
-pub const INPUT_FORMATS: &str = ".obj (free-form), .bpt, .json, .igs/.iges";
+pub const INPUT_FORMATS: &str = ".obj (free-form), .bpt, .json, .igs/.iges, .stp/.step";
 const OUTPUT_FORMATS: &str = ".obj, .ply, .stl, .glb";
 
 fn extension(path: &Path) -> String {
@@ -75,16 +77,19 @@ pub enum SceneFormat {
     Json,
     /// IGES 5.3, fixed 80-column ASCII form.
     Iges,
+    /// STEP (ISO 10303-21) B-reps, AP203/AP214/AP242.
+    Step,
 }
 
 impl SceneFormat {
-    /// The format a file extension names (`obj`, `bpt`, `json`, `igs`, `iges`; any case).
+    /// The format a file extension names (`obj`, `bpt`, `json`, `igs`, `iges`, `stp`, `step`, `p21`; any case).
     pub fn from_extension(extension: &str) -> Option<Self> {
         match extension.to_ascii_lowercase().as_str() {
             "obj" => Some(Self::Obj),
             "bpt" => Some(Self::Bpt),
             "json" => Some(Self::Json),
             "igs" | "iges" => Some(Self::Iges),
+            "stp" | "step" | "p21" => Some(Self::Step),
             _ => None,
         }
     }
@@ -120,6 +125,7 @@ pub fn read_scene_as(path: &Path, format: Option<SceneFormat>) -> Result<Scene> 
             what: "JSON scene files",
         }),
         SceneFormat::Iges => read_iges(&bytes),
+        SceneFormat::Step => read_step(&text(bytes)?),
     };
     scene.map_err(|e| e.in_file(path))
 }

@@ -5,6 +5,7 @@
 //! neither decides a sample position or a layout of its own.
 
 mod adaptive;
+mod brep;
 mod seams;
 mod tables;
 mod trim;
@@ -13,6 +14,7 @@ pub mod view;
 pub use adaptive::{
     Cell, CellGrid, MAX_CELL_SEGMENTS, MAX_CELLS_PER_SPAN, SEGMENTS_PER_CELL, surface_cells,
 };
+pub use brep::{FacePlan, ShellPlan, plan_shell};
 pub use tables::{AxisSamples, BEZIER_DEGREE, BezierSegment, ROW_PADDING, SpanRun};
 pub use trim::{MAX_TRIMMED_VERTICES, TrimmedPlan, plan_trimmed, plan_trimmed_within};
 

@@ -72,7 +72,72 @@ pub fn plan_trimmed_within(
     for polyline in &mut polylines {
         *polyline = with_line_crossings(polyline, &lines);
     }
-    let region = Region::new(&polylines);
+    let triangulation = triangulate(
+        surface,
+        &grid,
+        &bounds,
+        &lines,
+        &polylines,
+        limits,
+        max_vertices,
+        false,
+    )?;
+    Ok(triangulation.plan)
+}
+
+/// A face's triangulation with where its vertices came from.
+pub(crate) struct Triangulated {
+    pub plan: TrimmedPlan,
+    /// For each plan vertex, the point of the polylines (numbered through all of them in
+    /// order) it is, or `None` for a vertex inside the face.
+    pub boundary_point: Vec<Option<usize>>,
+}
+
+/// Plans a face of `surface` whose boundary is given and kept: closed `polylines` in the
+/// surface's parameters (no repeated end) that no vertex is added to — so a neighbour that
+/// uses the same points meets the face without a crack. Interior samples come from the
+/// adaptive cells (those within rounding of a polyline left out), triangles are refined as
+/// in [`plan_trimmed`]. Errors as there.
+pub(crate) fn plan_fixed_boundary(
+    surface: &crate::geom::BSplineSurface,
+    polylines: &[Vec<DVec2>],
+    limits: SamplingLimits,
+    max_vertices: usize,
+) -> Result<Triangulated> {
+    let max_vertices = max_vertices.min(MAX_TRIMMED_VERTICES);
+    let grid = surface_cells(surface, limits)?;
+    let bounds = CellBounds::new(&grid);
+    let lines = CellLines {
+        lines: bounds.interior_lines(),
+        snap_width: [surface.range_u(), surface.range_v()].map(|r| 1e-12 * r.width()),
+    };
+    triangulate(
+        surface,
+        &grid,
+        &bounds,
+        &lines,
+        polylines,
+        limits,
+        max_vertices,
+        true,
+    )
+}
+
+/// Steps 3–5 of the module's plan over loops already sampled. `fixed`: the polylines are
+/// kept as given (see [`plan_fixed_boundary`]): grid points within rounding of them are
+/// left out and cell lines only constrain where they cross no polyline.
+#[allow(clippy::too_many_arguments)]
+fn triangulate(
+    surface: &crate::geom::BSplineSurface,
+    grid: &CellGrid,
+    bounds: &CellBounds,
+    lines: &CellLines,
+    polylines: &[Vec<DVec2>],
+    limits: SamplingLimits,
+    max_vertices: usize,
+    fixed: bool,
+) -> Result<Triangulated> {
+    let region = Region::new(polylines);
 
     // Triangulated in scaled parameters: u·√M_uu and v·√M_vv (typical over the cells),
     // in which the deviation bound is about as strict along either axis, so Delaunay
@@ -80,8 +145,10 @@ pub fn plan_trimmed_within(
     let scale = bounds.typical_scale(surface.range_u().width(), surface.range_v().width());
     let mut vertices = Vertices::new(&lines.lines, scale);
     let mut edges: Vec<[usize; 2]> = Vec::new();
-    for polyline in &polylines {
+    let mut boundary_vertex = Vec::new();
+    for polyline in polylines {
         let ids: Vec<usize> = polyline.iter().map(|&p| vertices.add(p)).collect();
+        boundary_vertex.extend(ids.iter().copied());
         for (k, &a) in ids.iter().enumerate() {
             let b = ids[(k + 1) % ids.len()];
             if a != b {
@@ -95,6 +162,7 @@ pub fn plan_trimmed_within(
     // they cross no loop, so the interior keeps the cells' own rectangles, whose bounds
     // hold (a Delaunay triangle could join a coarse cell to a fine one).
     let mut grid_lines: Vec<[usize; 2]> = Vec::new();
+    let near_width = 1e-9 * surface.range_u().width().hypot(surface.range_v().width());
     for cell in &grid.cells {
         let (n_u, n_v) = cell.segments;
         let row_length = n_u as usize + 1;
@@ -103,7 +171,8 @@ pub fn plan_trimmed_within(
             let v = cell.range_v.lerp(f64::from(j) / f64::from(n_v));
             for i in 0..=n_u {
                 let p = DVec2::new(cell.range_u.lerp(f64::from(i) / f64::from(n_u)), v);
-                ids.push(region.contains(p).then(|| vertices.add(p)));
+                let keep = region.contains(p) && !(fixed && region.near(p, near_width));
+                ids.push(keep.then(|| vertices.add(p)));
             }
         }
         for (k, &id) in ids.iter().enumerate() {
@@ -118,7 +187,11 @@ pub fn plan_trimmed_within(
             }
         }
     }
-    edges.extend(vertices.line_edges(&region, &loop_edges));
+    if fixed {
+        grid_lines.extend(vertices.line_edges(&region, &loop_edges));
+    } else {
+        edges.extend(vertices.line_edges(&region, &loop_edges));
+    }
 
     let points: Vec<Point2<f64>> = vertices
         .positions
@@ -161,8 +234,21 @@ pub fn plan_trimmed_within(
             FixedVertexHandle::from_index(b),
         );
     }
-    let triangles = mesh.refine(&bounds, limits, max_vertices)?;
-    Ok(mesh.collect(&triangles))
+    let triangles = mesh.refine(bounds, limits, max_vertices, &|p| {
+        fixed && region.near(p, near_width)
+    })?;
+    let (plan, origins) = mesh.collect(&triangles);
+    let mut point_of_vertex: HashMap<usize, usize> = HashMap::new();
+    for (point, &vertex) in boundary_vertex.iter().enumerate() {
+        point_of_vertex.entry(vertex).or_insert(point);
+    }
+    Ok(Triangulated {
+        plan,
+        boundary_point: origins
+            .iter()
+            .map(|o| point_of_vertex.get(o).copied())
+            .collect(),
+    })
 }
 
 /// A point of the parameter plane in the triangulation's scaled coordinates.
@@ -282,11 +368,14 @@ impl FaceTriangulation {
 
     /// Splits triangles of the face at their centroids until each meets `limits` by the
     /// bound of the cells its parameter box overlaps; returns the face's final triangles.
+    /// Centroids `keep_off` refuses (within rounding of a boundary that must stay as it is)
+    /// are not inserted.
     fn refine(
         &mut self,
         bounds: &CellBounds,
         limits: SamplingLimits,
         max_vertices: usize,
+        keep_off: &dyn Fn(DVec2) -> bool,
     ) -> Result<Vec<([usize; 3], [DVec2; 3])>> {
         loop {
             let triangles = self.triangles();
@@ -295,10 +384,12 @@ impl FaceTriangulation {
                 let (low, high) = (a.min(b).min(c), a.max(b).max(c));
                 let extent = high - low;
                 let bound = bounds.over(low, high);
-                if bound.deviation(extent.x, extent.y) > limits.tolerance
-                    || bound.edge_length(extent.x, extent.y) > limits.max_edge
+                let centroid = (a + b + c) / 3.0;
+                if (bound.deviation(extent.x, extent.y) > limits.tolerance
+                    || bound.edge_length(extent.x, extent.y) > limits.max_edge)
+                    && !keep_off(centroid)
                 {
-                    splits.push((a + b + c) / 3.0);
+                    splits.push(centroid);
                 }
             }
             if self.params.len() + splits.len() > max_vertices {
@@ -328,20 +419,22 @@ impl FaceTriangulation {
     }
 
     /// The plan of `triangles` (the face's) and the vertices they use, renumbered in order
-    /// of use.
-    fn collect(&self, triangles: &[([usize; 3], [DVec2; 3])]) -> TrimmedPlan {
+    /// of use, with each plan vertex's index in the triangulation.
+    fn collect(&self, triangles: &[([usize; 3], [DVec2; 3])]) -> (TrimmedPlan, Vec<usize>) {
         let mut plan = TrimmedPlan::default();
+        let mut origins = Vec::new();
         let mut renumbered: HashMap<usize, u32> = HashMap::new();
         for &(ids, _) in triangles {
             let triangle = ids.map(|k| {
                 *renumbered.entry(k).or_insert_with(|| {
                     plan.params.push(self.params[k]);
+                    origins.push(k);
                     (plan.params.len() - 1) as u32
                 })
             });
             plan.triangles.push(triangle);
         }
-        plan
+        (plan, origins)
     }
 }
 
@@ -749,6 +842,27 @@ impl Region {
             }
         }
         inside
+    }
+
+    /// Whether `p` lies within `width` (parameter units) of a loop segment.
+    fn near(&self, p: DVec2, width: f64) -> bool {
+        let row_of = |v: f64| ((v - self.v_start) / self.row_height).floor();
+        let (low, high) = (row_of(p.y - width), row_of(p.y + width));
+        if high < 0.0 || low >= self.rows.len() as f64 {
+            return false;
+        }
+        let last = self.rows.len() - 1;
+        let (low, high) = (
+            (low.max(0.0) as usize).min(last),
+            (high.max(0.0) as usize).min(last),
+        );
+        self.rows[low..=high].iter().flatten().any(|&k| {
+            let (a, b) = self.segments[k as usize];
+            let along = b - a;
+            let t = ((p - a).dot(along) / along.length_squared().max(f64::MIN_POSITIVE))
+                .clamp(0.0, 1.0);
+            (a + along * t).distance(p) <= width
+        })
     }
 
     /// The loop (position among the face's polylines) of segment `k`.

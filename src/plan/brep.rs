@@ -1,0 +1,780 @@
+//! Planning a B-rep shell so that its faces meet without cracks: every edge is discretised
+//! once, and each face that runs along it uses those very points (one shared point each).
+//!
+//! 1. **Edges.** Each edge's curve is bisected until, for every piece, the curve at ¼, ½
+//!    and ¾ lies within tol/2 of the chord, the chord is no longer than the longest edge,
+//!    and — for every face along the edge — the surface at the middle of the piece's chord
+//!    in that face's parameters lies within tol/2 of the curve (an edge refined for one face
+//!    is refined for both). A piece whose parameters jump across a face's seam is cut where
+//!    the curve meets the seam.
+//! 2. **Loops in parameters.** A face's loops are its edges' shared points inverted onto
+//!    its surface, each from the one before (so a point on a seam or pole takes the side
+//!    its neighbours are on; the second run along a seam edge the other side).
+//! 3. **Seams and poles.** A loop that goes round a closed surface (a circle on a cylinder
+//!    with no seam edge) is cut where it jumps across the seam; the pieces are closed by
+//!    walking the boundary of the parameter range counter-clockwise with the face on the
+//!    left — along a seam through points the two sides share, along a pole as the one
+//!    point it is.
+//! 4. **Interiors** as for trimmed faces, the boundary kept ([`super::trim`]).
+
+use super::trim::plan_fixed_boundary;
+use crate::error::{Error, Result};
+use crate::geom::brep::{Bound, Shell};
+use crate::geom::project::{invert_from_grid, nearest};
+use crate::geom::{BSplineSurface, Interval, SamplingLimits};
+use glam::{DVec2, DVec3};
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// Deepest bisection of one piece of an edge.
+const MAX_EDGE_DEPTH: u32 = 24;
+
+/// Farthest (as a fraction of the model's size) an edge may lie from a face along it.
+const OFF_FACE: f64 = 1e-3;
+
+/// What to sample of a shell.
+#[derive(Clone, Debug, Default)]
+pub struct ShellPlan {
+    /// The shared points (model space): the shell's vertices first, then the edges' inner
+    /// samples, then points along faces' seams and poles.
+    pub points: Vec<DVec3>,
+    /// Each edge's points (indices into `points`) from its start to its end.
+    pub edges: Vec<Vec<u32>>,
+    /// Each face's plan, or why it has none.
+    pub faces: Vec<std::result::Result<FacePlan, String>>,
+}
+
+/// One face's samples and triangles.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FacePlan {
+    /// The surface parameters of every vertex.
+    pub params: Vec<DVec2>,
+    /// The shared point each vertex is (its position comes from there), or `None` for a
+    /// vertex inside the face (its position is the surface's).
+    pub shared: Vec<Option<u32>>,
+    /// Triangles, counter-clockwise in (u, v).
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Plans `shell` to `limits`; each face at most `max_vertices` vertices. Faces that cannot
+/// be planned say why in [`ShellPlan::faces`]; errors of the edges fail the shell.
+pub fn plan_shell(shell: &Shell, limits: SamplingLimits, max_vertices: usize) -> Result<ShellPlan> {
+    let (low, high) = shell.control_box();
+    let size = (high - low).length().max(f64::MIN_POSITIVE);
+    let views: Vec<FaceView> = shell
+        .faces()
+        .iter()
+        .map(|f| FaceView::new(&f.surface, size))
+        .collect();
+    let mut faces_of_edge: Vec<Vec<usize>> = vec![Vec::new(); shell.edges().len()];
+    for (f, face) in shell.faces().iter().enumerate() {
+        for bound in &face.bounds {
+            if let Bound::Edges(chain) = bound {
+                for o in chain {
+                    if !faces_of_edge[o.edge].contains(&f) {
+                        faces_of_edge[o.edge].push(f);
+                    }
+                }
+            }
+        }
+    }
+    let sampled: Vec<Vec<DVec3>> = shell
+        .edges()
+        .par_iter()
+        .zip(&faces_of_edge)
+        .map(|(edge, faces)| {
+            let faces: Vec<&FaceView> = faces.iter().map(|&f| &views[f]).collect();
+            sample_edge(&edge.curve, &faces, limits)
+        })
+        .collect();
+    let mut plan = ShellPlan {
+        points: shell.vertices().to_vec(),
+        ..ShellPlan::default()
+    };
+    for (edge, inner) in shell.edges().iter().zip(&sampled) {
+        let mut ids = vec![edge.start as u32];
+        for &p in &inner[1..inner.len() - 1] {
+            ids.push(plan.points.len() as u32);
+            plan.points.push(p);
+        }
+        ids.push(edge.end as u32);
+        plan.edges.push(ids);
+    }
+    let planned: Vec<Result<(FacePlan, Vec<DVec3>)>> = shell
+        .faces()
+        .par_iter()
+        .zip(&views)
+        .map(|(face, view)| plan_face(&plan, face, view, limits, max_vertices))
+        .collect();
+    for (face, result) in shell.faces().iter().zip(planned) {
+        plan.faces.push(match result {
+            Ok((mut face_plan, extra)) => {
+                // Points this face added along its seams and poles, numbered after the rest.
+                let base = plan.points.len() as u32;
+                for id in face_plan.shared.iter_mut().flatten() {
+                    if *id >= EXTRA {
+                        *id = *id - EXTRA + base;
+                    }
+                }
+                plan.points.extend(extra);
+                Ok(face_plan)
+            }
+            Err(error) => Err(format!("{}: {error}", face.name)),
+        });
+    }
+    Ok(plan)
+}
+
+/// Shared ids from this value up are a face's own seam and pole points (renumbered when
+/// the faces are gathered).
+const EXTRA: u32 = 1 << 31;
+
+/// A face's surface with what inverting points onto it needs.
+struct FaceView<'a> {
+    surface: &'a BSplineSurface,
+    ranges: [Interval; 2],
+    /// Whether the surface closes on itself along u (`[0]`) and v (`[1]`).
+    closed: [bool; 2],
+    /// Whether the side u = start, u = end, v = start, v = end collapses to a point.
+    collapsed: [bool; 4],
+    size: f64,
+}
+
+impl<'a> FaceView<'a> {
+    fn new(surface: &'a BSplineSurface, model_size: f64) -> Self {
+        let ranges = [surface.range_u(), surface.range_v()];
+        let (low, high) = surface.control_box();
+        let size = (high - low).length().max(1e-12 * model_size);
+        let at = |axis: usize, side: f64, f: f64| {
+            if axis == 0 {
+                surface.point(side, ranges[1].lerp(f))
+            } else {
+                surface.point(ranges[0].lerp(f), side)
+            }
+        };
+        let fractions = [0.0, 0.25, 0.5, 0.75, 1.0];
+        let closed = [0, 1].map(|axis| {
+            fractions.iter().all(|&f| {
+                at(axis, ranges[axis].start, f).distance(at(axis, ranges[axis].end, f))
+                    <= 1e-9 * size
+            })
+        });
+        let collapsed = [(0, false), (0, true), (1, false), (1, true)].map(|(axis, end)| {
+            let side = if end {
+                ranges[axis].end
+            } else {
+                ranges[axis].start
+            };
+            let first = at(axis, side, 0.0);
+            fractions
+                .iter()
+                .all(|&f| at(axis, side, f).distance(first) <= 1e-9 * size)
+        });
+        FaceView {
+            surface,
+            ranges,
+            closed,
+            collapsed,
+            size,
+        }
+    }
+
+    /// Whether `x` lies on a side of `axis` (within rounding): Some(false) the start, Some(true) the end.
+    fn on_side(&self, axis: usize, x: f64) -> Option<bool> {
+        let range = self.ranges[axis];
+        let width = 1e-9 * range.width();
+        if (x - range.start).abs() <= width {
+            Some(false)
+        } else if (x - range.end).abs() <= width {
+            Some(true)
+        } else {
+            None
+        }
+    }
+
+    /// The parameters of `p` (a point on the face's boundary): inverted from `near` (else
+    /// from a grid search); along a closed axis a point on the seam takes the side `force`
+    /// names, else the side nearer `near`; where the surface collapses (a pole) a
+    /// parameter along the collapse is `near`'s.
+    fn invert(&self, p: DVec3, near: Option<DVec2>, force: [Option<bool>; 2]) -> Result<DVec2> {
+        let (mut uv, mut distance) = match near {
+            Some(near) => nearest(self.surface, p, near, 1e-9 * self.size),
+            None => invert_from_grid(self.surface, p),
+        };
+        // Newton steps stop at the range's ends: across a seam, start again from the twin.
+        for axis in 0..2 {
+            if distance > 1e-9 * self.size
+                && self.closed[axis]
+                && let Some(end) = self.on_side(axis, uv[axis])
+            {
+                let range = self.ranges[axis];
+                let mut twin = uv;
+                twin[axis] = if end { range.start } else { range.end };
+                let again = nearest(self.surface, p, twin, 1e-9 * self.size);
+                if again.1 < distance {
+                    (uv, distance) = again;
+                }
+            }
+        }
+        if distance > OFF_FACE * self.size {
+            return Err(Error::Unsupported {
+                what: format!(
+                    "an edge lies {distance:e} from the face's surface (more than {OFF_FACE} of its size) at {p} (nearest parameters {uv})"
+                ),
+            });
+        }
+        for axis in 0..2 {
+            let other = 1 - axis;
+            // A pole: the side of `other` collapses, so `axis` is free there.
+            let pole = self
+                .on_side(other, uv[other])
+                .is_some_and(|end| self.collapsed[2 * other + usize::from(end)]);
+            if pole {
+                if let Some(side) = force[axis] {
+                    uv[axis] = if side {
+                        self.ranges[axis].end
+                    } else {
+                        self.ranges[axis].start
+                    };
+                } else if let Some(near) = near {
+                    uv[axis] = near[axis];
+                }
+                continue;
+            }
+            if self.closed[axis] && self.on_side(axis, uv[axis]).is_some() {
+                let range = self.ranges[axis];
+                uv[axis] = match (force[axis], near) {
+                    (Some(side), _) => {
+                        if side {
+                            range.end
+                        } else {
+                            range.start
+                        }
+                    }
+                    (None, Some(near)) => {
+                        if (near[axis] - range.start).abs() < (near[axis] - range.end).abs() {
+                            range.start
+                        } else {
+                            range.end
+                        }
+                    }
+                    (None, None) => uv[axis],
+                };
+            }
+        }
+        Ok(uv)
+    }
+
+    /// Whether going from `a` to `b` jumps across a seam (more than half the range of a
+    /// closed axis).
+    fn jumps(&self, a: DVec2, b: DVec2) -> bool {
+        (0..2).any(|axis| {
+            self.closed[axis] && (b[axis] - a[axis]).abs() > 0.5 * self.ranges[axis].width()
+        })
+    }
+}
+
+/// The points of an edge's curve from its start to its end (see the module's step 1).
+fn sample_edge(
+    curve: &crate::geom::BSplineCurve,
+    faces: &[&FaceView],
+    limits: SamplingLimits,
+) -> Vec<DVec3> {
+    let half = 0.5 * limits.tolerance;
+    let uv_of =
+        |p: DVec3, near: Option<DVec2>, view: &FaceView| view.invert(p, near, [None; 2]).ok();
+    let breaks = curve.span_breaks();
+    let minimum = if curve.degree() > 1 { 2 } else { 1 };
+    let mut starts: Vec<f64> = Vec::new();
+    for span in breaks.windows(2) {
+        for k in 0..minimum {
+            starts.push(span[0] + (span[1] - span[0]) * f64::from(k) / f64::from(minimum));
+        }
+    }
+    let end = *breaks.last().expect("a curve has a range");
+    starts.push(end);
+    let mut out = vec![curve.point(starts[0])];
+    for pair in starts.windows(2) {
+        // Depth-first, left first: (t0, t1, depth).
+        let mut stack = vec![(pair[0], pair[1], 0u32)];
+        while let Some((t0, t1, depth)) = stack.pop() {
+            let (a, b) = (curve.point(t0), curve.point(t1));
+            let mut ok = a.distance(b) <= limits.max_edge
+                && [0.25, 0.5, 0.75]
+                    .iter()
+                    .all(|&s| curve.point(t0 + (t1 - t0) * s).distance(a.lerp(b, s)) <= half);
+            let mut crossing = None;
+            if ok {
+                for view in faces {
+                    let Some(uv_a) = uv_of(a, None, view) else {
+                        continue;
+                    };
+                    let Some(uv_b) = uv_of(b, Some(uv_a), view) else {
+                        continue;
+                    };
+                    if view.jumps(uv_a, uv_b) {
+                        crossing = Some(seam_crossing(curve, view, t0, t1, uv_a));
+                        ok = false;
+                        break;
+                    }
+                    ok = [0.25, 0.5, 0.75].iter().all(|&s| {
+                        let chord = uv_a.lerp(uv_b, s);
+                        view.surface
+                            .point(chord.x, chord.y)
+                            .distance(curve.point(t0 + (t1 - t0) * s))
+                            <= half
+                    });
+                    if !ok {
+                        break;
+                    }
+                }
+            }
+            if ok || depth >= MAX_EDGE_DEPTH {
+                out.push(b);
+                continue;
+            }
+            let middle = match crossing {
+                Some(t) if t > t0 && t < t1 => t,
+                _ => 0.5 * (t0 + t1),
+            };
+            stack.push((middle, t1, depth + 1));
+            stack.push((t0, middle, depth + 1));
+        }
+    }
+    out
+}
+
+/// Where the curve meets a face's seam between t0 and t1 (the parameters jump there),
+/// found by bisection.
+fn seam_crossing(
+    curve: &crate::geom::BSplineCurve,
+    view: &FaceView,
+    mut t0: f64,
+    mut t1: f64,
+    uv0: DVec2,
+) -> f64 {
+    for _ in 0..60 {
+        let middle = 0.5 * (t0 + t1);
+        if middle <= t0 || middle >= t1 {
+            break;
+        }
+        match view.invert(curve.point(middle), Some(uv0), [None; 2]) {
+            Ok(uv) if !view.jumps(uv0, uv) => t0 = middle,
+            _ => t1 = middle,
+        }
+    }
+    // The sample goes on the seam itself: the end of the bracket nearer it.
+    t1
+}
+
+/// A point of a face's boundary in its parameters, with its shared id.
+#[derive(Clone, Copy, Debug)]
+struct LoopPoint {
+    uv: DVec2,
+    id: u32,
+}
+
+/// Plans one face (steps 2–4): its plan, and the points it adds along seams and poles
+/// (ids from [`EXTRA`] in the plan).
+fn plan_face(
+    plan: &ShellPlan,
+    face: &crate::geom::brep::Face,
+    view: &FaceView,
+    limits: SamplingLimits,
+    max_vertices: usize,
+) -> Result<(FacePlan, Vec<DVec3>)> {
+    let mut closed_loops: Vec<Vec<LoopPoint>> = Vec::new();
+    let mut chains: Vec<Vec<LoopPoint>> = Vec::new();
+    // How many times this face runs along each edge: twice for a seam edge, whose second
+    // run takes the other side of the seam than its first.
+    let mut runs: HashMap<usize, usize> = HashMap::new();
+    for bound in &face.bounds {
+        if let Bound::Edges(chain) = bound {
+            for o in chain {
+                *runs.entry(o.edge).or_default() += 1;
+            }
+        }
+    }
+    let mut run_number = 0usize;
+    // Of each seam edge: its first run's number and the parameters its points took.
+    let mut first_runs: HashMap<usize, (usize, Vec<DVec2>)> = HashMap::new();
+    for bound in &face.bounds {
+        let Bound::Edges(chain) = bound else { continue };
+        // (shared id, edge, run) of each point along the loop, each edge's last point left
+        // to the next edge.
+        let mut points: Vec<(u32, usize, usize)> = Vec::new();
+        for o in chain {
+            let ids = &plan.edges[o.edge];
+            let run: Vec<u32> = if o.forward {
+                ids.clone()
+            } else {
+                ids.iter().rev().copied().collect()
+            };
+            points.extend(
+                run[..run.len() - 1]
+                    .iter()
+                    .map(|&id| (id, o.edge, run_number)),
+            );
+            run_number += 1;
+        }
+        if points.is_empty() {
+            continue;
+        }
+        // Start where the parameters are unambiguous: off every seam and pole.
+        let mut start = 0;
+        for (k, &(id, _, _)) in points.iter().enumerate() {
+            let uv = view.invert(plan.points[id as usize], None, [None; 2])?;
+            if (0..2).all(|axis| view.on_side(axis, uv[axis]).is_none()) {
+                start = k;
+                break;
+            }
+        }
+        let n = points.len();
+        let mut looped: Vec<LoopPoint> = Vec::with_capacity(n);
+        let mut near: Option<DVec2> = None;
+        for step in 0..n {
+            let (id, edge, run) = points[(start + step) % n];
+            let mut force = [None; 2];
+            if runs[&edge] > 1 {
+                let (first, uvs) = first_runs.entry(edge).or_insert_with(|| (run, Vec::new()));
+                if *first != run {
+                    for axis in 0..2 {
+                        let sides: Vec<Option<bool>> =
+                            uvs.iter().map(|uv| view.on_side(axis, uv[axis])).collect();
+                        if view.closed[axis]
+                            && !sides.is_empty()
+                            && sides.iter().all(|s| s.is_some() && *s == sides[0])
+                        {
+                            force[axis] = sides[0].map(|side| !side);
+                        }
+                    }
+                }
+            }
+            let uv = view.invert(plan.points[id as usize], near, force)?;
+            if let Some((first, uvs)) = first_runs.get_mut(&edge)
+                && *first == run
+            {
+                uvs.push(uv);
+            }
+            looped.push(LoopPoint { uv, id });
+            near = Some(uv);
+        }
+        // Cut where the loop jumps across a seam.
+        let cuts: Vec<usize> = (0..n)
+            .filter(|&k| view.jumps(looped[k].uv, looped[(k + 1) % n].uv))
+            .collect();
+        if cuts.is_empty() {
+            closed_loops.push(looped);
+            continue;
+        }
+        for (c, &cut) in cuts.iter().enumerate() {
+            let next_cut = cuts[(c + 1) % cuts.len()];
+            // The point before the jump lies on the seam: the piece after it starts at its
+            // twin on the other side.
+            let mut twin = looped[cut];
+            let next = looped[(cut + 1) % n].uv;
+            for axis in 0..2 {
+                if view.closed[axis]
+                    && (next[axis] - twin.uv[axis]).abs() > 0.5 * view.ranges[axis].width()
+                {
+                    let range = view.ranges[axis];
+                    twin.uv[axis] = match view.on_side(axis, twin.uv[axis]) {
+                        Some(true) => range.start,
+                        Some(false) => range.end,
+                        None => twin.uv[axis],
+                    };
+                }
+            }
+            let mut piece = vec![twin];
+            let mut k = (cut + 1) % n;
+            loop {
+                piece.push(looped[k]);
+                if k == next_cut {
+                    break;
+                }
+                k = (k + 1) % n;
+            }
+            chains.push(piece);
+        }
+    }
+    if !face.same_sense {
+        for chain in &mut chains {
+            chain.reverse();
+        }
+    }
+    let mut extra: Vec<DVec3> = Vec::new();
+    let mut polygons = closed_loops;
+    if !chains.is_empty() {
+        polygons.extend(walk_boundary(view, chains, &mut extra, limits)?);
+    }
+    // The polylines for the triangulation, consecutive repeats dropped.
+    let mut polylines: Vec<Vec<DVec2>> = Vec::new();
+    let mut ids: Vec<u32> = Vec::new();
+    for polygon in &polygons {
+        let mut line: Vec<LoopPoint> = Vec::with_capacity(polygon.len());
+        for &p in polygon {
+            if line.last().is_none_or(|q: &LoopPoint| q.uv != p.uv) {
+                line.push(p);
+            }
+        }
+        while line.len() > 1 && line[0].uv == line[line.len() - 1].uv {
+            line.pop();
+        }
+        if line.len() < 3 {
+            continue;
+        }
+        ids.extend(line.iter().map(|p| p.id));
+        polylines.push(line.iter().map(|p| p.uv).collect());
+    }
+    if polylines.is_empty() {
+        return Err(Error::InvalidBrep {
+            what: "the face's loops enclose nothing".into(),
+        });
+    }
+    let triangulated = plan_fixed_boundary(view.surface, &polylines, limits, max_vertices)?;
+    let shared: Vec<Option<u32>> = triangulated
+        .boundary_point
+        .iter()
+        .map(|p| p.map(|k| ids[k]))
+        .collect();
+    let triangles = triangulated
+        .plan
+        .triangles
+        .iter()
+        .copied()
+        .filter(|t| {
+            let [a, b, c] = t.map(|k| shared[k as usize]);
+            !(a.is_some() && (a == b || a == c) || b.is_some() && b == c)
+        })
+        .collect();
+    Ok((
+        FacePlan {
+            params: triangulated.plan.params,
+            shared,
+            triangles,
+        },
+        extra,
+    ))
+}
+
+/// Closes `chains` (pieces of loops, each from one side of the parameter range to
+/// another, the face on their left) into polygons by walking the range's boundary
+/// counter-clockwise from each chain's end to the next chain's start (step 3).
+fn walk_boundary(
+    view: &FaceView,
+    chains: Vec<Vec<LoopPoint>>,
+    extra: &mut Vec<DVec3>,
+    limits: SamplingLimits,
+) -> Result<Vec<Vec<LoopPoint>>> {
+    let [ru, rv] = view.ranges;
+    let (w, h) = (ru.width(), rv.width());
+    let perimeter = 2.0 * (w + h);
+    // Position along the boundary, counter-clockwise from (u0, v0); None off the boundary.
+    let along = |p: DVec2| -> Option<f64> {
+        match (view.on_side(0, p.x), view.on_side(1, p.y)) {
+            (_, Some(false)) => Some(p.x - ru.start),
+            (Some(true), _) => Some(w + p.y - rv.start),
+            (_, Some(true)) => Some(w + h + ru.end - p.x),
+            (Some(false), _) => Some(2.0 * w + h + rv.end - p.y),
+            _ => None,
+        }
+    };
+    let point_at = |s: f64| -> DVec2 {
+        let s = s.rem_euclid(perimeter);
+        if s <= w {
+            DVec2::new(ru.start + s, rv.start)
+        } else if s <= w + h {
+            DVec2::new(ru.end, rv.start + (s - w))
+        } else if s <= 2.0 * w + h {
+            DVec2::new(ru.end - (s - w - h), rv.end)
+        } else {
+            DVec2::new(ru.start, rv.end - (s - 2.0 * w - h))
+        }
+    };
+    let ends: Vec<(f64, f64)> = chains
+        .iter()
+        .map(|c| {
+            let (first, last) = (c[0], c[c.len() - 1]);
+            match (along(first.uv), along(last.uv)) {
+                (Some(a), Some(b)) => Ok((a, b)),
+                _ => Err(Error::InvalidBrep {
+                    what: "a loop crosses the surface's seam away from its range's boundary".into(),
+                }),
+            }
+        })
+        .collect::<Result<_>>()?;
+    // Sides: 0 bottom (v = v0), 1 right (u = u1), 2 top (v = v1), 3 left (u = u0).
+    let side_of = |s: f64| -> usize {
+        let s = s.rem_euclid(perimeter);
+        if s < w {
+            0
+        } else if s < w + h {
+            1
+        } else if s < 2.0 * w + h {
+            2
+        } else {
+            3
+        }
+    };
+    let collapsed_side = |side: usize| match side {
+        0 => view.collapsed[2],
+        1 => view.collapsed[1],
+        2 => view.collapsed[3],
+        _ => view.collapsed[0],
+    };
+    // One id per collapsed side: a chain end there, else a point of its own.
+    let mut pole_ids: [Option<u32>; 4] = [None; 4];
+    for (chain, &(a, b)) in chains.iter().zip(&ends) {
+        for (p, s) in [(chain[0], a), (chain[chain.len() - 1], b)] {
+            if collapsed_side(side_of(s)) {
+                pole_ids[side_of(s)].get_or_insert(p.id);
+            }
+        }
+    }
+    // Seam points by (axis of the seam, parameter bits): shared by the two sides.
+    let mut seam_ids: HashMap<(usize, u64), u32> = HashMap::new();
+    let new_point = |p: DVec3, extra: &mut Vec<DVec3>| -> u32 {
+        extra.push(p);
+        EXTRA + (extra.len() - 1) as u32
+    };
+    let seam_samples = |axis: usize| -> Vec<f64> {
+        // Along a seam of `axis` (u = u0 for axis 0), the other parameter sampled so the
+        // chord follows the surface within the tolerance.
+        let other = 1 - axis;
+        let range = view.ranges[other];
+        let at = |t: f64| {
+            if axis == 0 {
+                view.surface.point(ru.start, t)
+            } else {
+                view.surface.point(t, rv.start)
+            }
+        };
+        let mut samples = vec![range.start];
+        let mut stack = vec![(range.start, range.end, 0u32)];
+        let pieces = 8;
+        stack.clear();
+        for k in (0..pieces).rev() {
+            stack.push((
+                range.lerp(k as f64 / pieces as f64),
+                range.lerp((k + 1) as f64 / pieces as f64),
+                0,
+            ));
+        }
+        while let Some((a, b, depth)) = stack.pop() {
+            let (pa, pb) = (at(a), at(b));
+            let ok = pa.distance(pb) <= limits.max_edge
+                && [0.25, 0.5, 0.75].iter().all(|&s| {
+                    at(a + (b - a) * s).distance(pa.lerp(pb, s)) <= 0.5 * limits.tolerance
+                });
+            if ok || depth >= MAX_EDGE_DEPTH {
+                samples.push(b);
+            } else {
+                let m = 0.5 * (a + b);
+                stack.push((m, b, depth + 1));
+                stack.push((a, m, depth + 1));
+            }
+        }
+        samples
+    };
+    let seams = [
+        view.closed[0].then(|| seam_samples(0)),
+        view.closed[1].then(|| seam_samples(1)),
+    ];
+    // The walk from boundary position `from` to `to` (counter-clockwise), ends excluded.
+    let mut walk = |from: f64, to: f64, extra: &mut Vec<DVec3>| -> Vec<LoopPoint> {
+        let mut distance = (to - from).rem_euclid(perimeter);
+        if distance < 1e-12 * perimeter {
+            distance = 0.0;
+        }
+        // Corners and seam samples strictly between, in order.
+        let mut stops: Vec<f64> = Vec::new();
+        for corner in [0.0, w, w + h, 2.0 * w + h] {
+            let d = (corner - from).rem_euclid(perimeter);
+            if d > 0.0 && d < distance {
+                stops.push(d);
+            }
+        }
+        for side in 0..4 {
+            let axis = if side % 2 == 1 { 0 } else { 1 };
+            let Some(samples) = &seams[axis] else {
+                continue;
+            };
+            let range = view.ranges[1 - axis];
+            for &t in &samples[1..samples.len() - 1] {
+                let s = match side {
+                    1 => w + (t - range.start),
+                    3 => 2.0 * w + h + (range.end - t),
+                    0 => t - range.start,
+                    _ => w + h + (range.end - t),
+                };
+                let d = (s - from).rem_euclid(perimeter);
+                if d > 1e-9 * perimeter && d < distance - 1e-9 * perimeter {
+                    stops.push(d);
+                }
+            }
+        }
+        stops.sort_by(f64::total_cmp);
+        stops.dedup();
+        stops
+            .into_iter()
+            .map(|d| {
+                let s = from + d;
+                let uv = point_at(s);
+                let side = side_of(s);
+                // A corner is on two sides: on a collapsed one if either is.
+                let pole = [side, (side + 3) % 4].into_iter().find(|&k| {
+                    collapsed_side(k)
+                        && (k == side
+                            || (s.rem_euclid(perimeter) - [0.0, w, w + h, 2.0 * w + h][side]).abs()
+                                <= 1e-12 * perimeter)
+                });
+                let id = if let Some(pole) = pole {
+                    *pole_ids[pole]
+                        .get_or_insert_with(|| new_point(view.surface.point(uv.x, uv.y), extra))
+                } else {
+                    let seam_axis = if side % 2 == 1 { 0 } else { 1 };
+                    if view.closed[seam_axis] {
+                        let t = uv[1 - seam_axis];
+                        *seam_ids
+                            .entry((seam_axis, t.to_bits()))
+                            .or_insert_with(|| new_point(view.surface.point(uv.x, uv.y), extra))
+                    } else {
+                        new_point(view.surface.point(uv.x, uv.y), extra)
+                    }
+                };
+                LoopPoint { uv, id }
+            })
+            .collect()
+    };
+    let mut used = vec![false; chains.len()];
+    let mut polygons = Vec::new();
+    for first in 0..chains.len() {
+        if used[first] {
+            continue;
+        }
+        used[first] = true;
+        let mut polygon: Vec<LoopPoint> = chains[first].clone();
+        let mut current = first;
+        for _ in 0..=chains.len() {
+            let end = ends[current].1;
+            // The chain whose start comes next counter-clockwise.
+            let next = (0..chains.len())
+                .filter(|&k| !used[k] || k == first)
+                .min_by(|&a, &b| {
+                    let da = (ends[a].0 - end).rem_euclid(perimeter);
+                    let db = (ends[b].0 - end).rem_euclid(perimeter);
+                    da.total_cmp(&db)
+                })
+                .expect("the first chain is always a candidate");
+            polygon.extend(walk(end, ends[next].0, extra));
+            if next == first {
+                break;
+            }
+            used[next] = true;
+            polygon.extend(chains[next].iter().copied());
+            current = next;
+        }
+        polygons.push(polygon);
+    }
+    Ok(polygons)
+}
