@@ -515,7 +515,8 @@ fn put_in_item_order(scene: &Scene, mesh: &mut impl GridMesh) {
             .filter(move |(_, item)| wanted(&item.geometry))
             .map(|(k, _)| k as u32)
     };
-    // Trimmed faces' parts come last and already carry their items (a skipped face has none).
+    // Trimmed faces' and shells' parts come last and already carry their items (a skipped
+    // face has none; a shell has one per face).
     let grid_items = items_of(|g| matches!(g, Geometry::Surface(_)))
         .chain(items_of(|g| matches!(g, Geometry::Coons(_))));
     let (parts, polylines) = mesh.parts_and_polylines_mut();
@@ -528,7 +529,7 @@ fn put_in_item_order(scene: &Scene, mesh: &mut impl GridMesh) {
     {
         polyline.item = item;
     }
-    if !parts.windows(2).all(|w| w[0].item < w[1].item) {
+    if !parts.windows(2).all(|w| w[0].item <= w[1].item) {
         let mut order: Vec<usize> = (0..parts.len()).collect();
         order.sort_by_key(|&k| parts[k].item);
         mesh.reorder_parts(&order);

@@ -2961,19 +2961,21 @@ fn cli_max_triangles_bounds_the_written_mesh() {
 
 /// Open edges, edges of more than two triangles, and edges two triangles run the same way,
 /// of a mesh welded on exactly equal positions (shared B-rep points are one f64 value).
-fn topology(mesh: &knotwork::Mesh, part: &knotwork::MeshPart) -> (usize, usize, usize) {
+fn topology(mesh: &knotwork::Mesh, parts: &[&knotwork::MeshPart]) -> (usize, usize, usize) {
     use std::collections::HashMap;
     let key = |k: u32| {
         let p = mesh.positions[k as usize];
         [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]
     };
     let mut directed: HashMap<([u64; 3], [u64; 3]), usize> = HashMap::new();
-    let indices =
-        &mesh.indices[part.first_index as usize..(part.first_index + part.index_count) as usize];
-    for t in indices.chunks(3) {
-        let t: Vec<u32> = t.iter().map(|&k| k + part.first_vertex).collect();
-        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            *directed.entry((key(a), key(b))).or_default() += 1;
+    for part in parts {
+        let indices = &mesh.indices
+            [part.first_index as usize..(part.first_index + part.index_count) as usize];
+        for t in indices.chunks(3) {
+            let t: Vec<u32> = t.to_vec();
+            for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+                *directed.entry((key(a), key(b))).or_default() += 1;
+            }
         }
     }
     let mut undirected: HashMap<([u64; 3], [u64; 3]), usize> = HashMap::new();
@@ -2988,18 +2990,95 @@ fn topology(mesh: &knotwork::Mesh, part: &knotwork::MeshPart) -> (usize, usize, 
     (open, non_manifold, misoriented)
 }
 
-/// (area, enclosed volume) of a part's triangles.
-fn area_and_volume(mesh: &knotwork::Mesh, part: &knotwork::MeshPart) -> (f64, f64) {
-    let indices =
-        &mesh.indices[part.first_index as usize..(part.first_index + part.index_count) as usize];
+/// (area, enclosed volume) of the parts' triangles.
+fn area_and_volume(mesh: &knotwork::Mesh, parts: &[&knotwork::MeshPart]) -> (f64, f64) {
     let (mut area, mut volume) = (0.0, 0.0);
-    for t in indices.chunks(3) {
-        let [a, b, c] =
-            [t[0], t[1], t[2]].map(|k| mesh.positions[(k + part.first_vertex) as usize]);
-        area += 0.5 * (b - a).cross(c - a).length();
-        volume += a.dot(b.cross(c)) / 6.0;
+    for part in parts {
+        let indices = &mesh.indices
+            [part.first_index as usize..(part.first_index + part.index_count) as usize];
+        for t in indices.chunks(3) {
+            let [a, b, c] = [t[0], t[1], t[2]].map(|k| mesh.positions[k as usize]);
+            area += 0.5 * (b - a).cross(c - a).length();
+            volume += a.dot(b.cross(c)) / 6.0;
+        }
     }
     (area, volume)
+}
+
+/// The parts of item `item`.
+fn parts_of(mesh: &knotwork::Mesh, item: usize) -> Vec<&knotwork::MeshPart> {
+    mesh.parts
+        .iter()
+        .filter(|p| p.item as usize == item)
+        .collect()
+}
+
+/// Every solid of a STEP part meshes closed and outward at 1e-3 of its diagonal, each face
+/// one part, and every triangle centroid lies within the tolerance of its face's surface.
+fn check_closed_solids(path: &str) -> (Scene, knotwork::Mesh) {
+    let scene = read_scene(Path::new(path)).unwrap();
+    assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
+    let mesh = step_mesh(&scene, 1e-3);
+    let tolerance = 1e-3 * scene.control_box_diagonal();
+    for (k, item) in scene.items.iter().enumerate() {
+        let knotwork::Geometry::Shell(shell) = &item.geometry else {
+            panic!("a STEP solid is a shell")
+        };
+        let parts = parts_of(&mesh, k);
+        assert_eq!(
+            parts.len(),
+            shell.faces().len(),
+            "{path} {:?}: a part per face",
+            item.name
+        );
+        assert_eq!(topology(&mesh, &parts), (0, 0, 0), "{path} {:?}", item.name);
+        let (_, volume) = area_and_volume(&mesh, &parts);
+        assert!(
+            volume > 0.0,
+            "{path} {:?}: volume {volume} (inside out?)",
+            item.name
+        );
+        for (face, part) in shell.faces().iter().zip(&parts) {
+            let surface = &face.surface;
+            let (ru, rv) = (surface.range_u(), surface.range_v());
+            let indices = &mesh.indices
+                [part.first_index as usize..(part.first_index + part.index_count) as usize];
+            for t in indices.chunks(3) {
+                let corners = [t[0], t[1], t[2]].map(|i| i as usize);
+                let centroid = corners.iter().map(|&i| mesh.positions[i]).sum::<DVec3>() / 3.0;
+                let uv = corners.iter().map(|&i| mesh.uvs[i]).sum::<glam::DVec2>() / 3.0;
+                let guess = glam::DVec2::new(ru.lerp(uv.x), rv.lerp(uv.y));
+                let (_, distance) = knotwork::geom::project::invert(surface, centroid, guess);
+                assert!(
+                    distance <= tolerance,
+                    "{path} {}: a centroid {distance:e} from the surface (tolerance {tolerance:e})",
+                    face.name
+                );
+            }
+        }
+    }
+    (scene, mesh)
+}
+
+#[test]
+fn step_parts_mesh_into_closed_solids_within_the_tolerance() {
+    let (scene, _) = check_closed_solids("data/abc-0000.step");
+    assert_eq!(scene.items.len(), 6);
+    let (scene, mesh) = check_closed_solids("data/boxed_sphere.step");
+    // The sphere is exact (radius 0.5 in centimetres: 5 mm): the mesh is inscribed and
+    // within the tolerance of it, so its volume is less by at most tolerance × area.
+    let sphere = scene
+        .items
+        .iter()
+        .position(|i| i.name.as_deref() == Some("sphere"))
+        .unwrap();
+    let (area, volume) = area_and_volume(&mesh, &parts_of(&mesh, sphere));
+    let exact = 4.0 / 3.0 * std::f64::consts::PI * 125.0;
+    let tolerance = 1e-3 * scene.control_box_diagonal();
+    assert!(
+        volume <= exact && exact - volume <= tolerance * area,
+        "sphere volume {volume} vs {exact}"
+    );
 }
 
 /// STEP text of a DATA section's instances (numbered from 1 in order), in a minimal file.
@@ -3182,13 +3261,13 @@ fn step_box_meshes_closed_with_exact_area_and_volume() {
     assert_eq!(scene.items[0].name.as_deref(), Some("box"));
     assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
     let mesh = step_mesh(&scene, 1e-3);
-    let part = &mesh.parts[0];
+    let parts = parts_of(&mesh, 0);
     assert_eq!(
-        topology(&mesh, part),
+        topology(&mesh, &parts),
         (0, 0, 0),
         "a closed, consistently oriented mesh"
     );
-    let (area, volume) = area_and_volume(&mesh, part);
+    let (area, volume) = area_and_volume(&mesh, &parts);
     // Planes are meshed exactly: only rounding separates the sums from the closed forms.
     let exact_area = 2.0 * (a * b + b * c + c * a);
     assert!(
@@ -3213,13 +3292,13 @@ fn step_cylinder_with_a_seam_edge_meshes_closed_within_its_tolerance() {
     let scene = step_scene(&step_cylinder(r, h));
     for tolerance_rel in [1e-2, 1e-3] {
         let mesh = step_mesh(&scene, tolerance_rel);
-        let part = &mesh.parts[0];
+        let parts = parts_of(&mesh, 0);
         assert_eq!(
-            topology(&mesh, part),
+            topology(&mesh, &parts),
             (0, 0, 0),
             "tolerance_rel {tolerance_rel}"
         );
-        let (area, volume) = area_and_volume(&mesh, part);
+        let (area, volume) = area_and_volume(&mesh, &parts);
         // Every point of the mesh lies within the tolerance of the solid, so the volumes
         // differ by at most tolerance × area; the mesh is inscribed, so it is the smaller.
         let diagonal = scene.control_box_diagonal();

@@ -306,9 +306,26 @@ fn report_skipped(
     defaults: &SceneOptions,
     items: impl Iterator<Item = u32>,
 ) -> usize {
-    let meshed: std::collections::HashSet<u32> = items.collect();
+    let mut parts: std::collections::HashMap<u32, usize> = std::collections::HashMap::new();
+    for item in items {
+        *parts.entry(item).or_default() += 1;
+    }
+    let meshed: std::collections::HashSet<u32> = parts.keys().copied().collect();
     let mut skipped = 0;
     for (index, item) in scene.items.iter().enumerate() {
+        // A shell has one part per face: one short means a face was left out.
+        if let knotwork::Geometry::Shell(shell) = &item.geometry
+            && parts.get(&(index as u32)).copied().unwrap_or(0) < shell.faces().len()
+        {
+            let reasons = match knotwork::cpu::shell_plan(scene, defaults, index) {
+                Ok(plan) => plan.faces.into_iter().filter_map(|f| f.err()).collect(),
+                Err(error) => vec![error.to_string()],
+            };
+            for reason in reasons {
+                skipped += 1;
+                eprintln!("error: {}: face left out: {reason}", input.display());
+            }
+        }
         if matches!(item.geometry, knotwork::Geometry::Trimmed(_))
             && !meshed.contains(&(index as u32))
         {

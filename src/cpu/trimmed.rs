@@ -193,8 +193,8 @@ pub fn shell_plan(scene: &Scene, defaults: &SceneOptions, index: usize) -> Resul
 /// The mesh of a shell from its plan: each face's vertices (one per face side of an edge,
 /// so normals are the face's), positions of shared points taken from the plan (the same
 /// value in every face), normals the surface's turned with the face's sense, triangles
-/// counter-clockwise seen from outside. One part (item 0) for the whole shell; faces
-/// without a plan are left out.
+/// counter-clockwise seen from outside. One part per face that has a plan (item 0, in face
+/// order); faces without one are left out.
 pub fn execute_shell(shell: &Shell, plan: &ShellPlan) -> Mesh {
     let mut mesh = Mesh::default();
     for (face, face_plan) in shell.faces().iter().zip(&plan.faces) {
@@ -206,7 +206,7 @@ pub fn execute_shell(shell: &Shell, plan: &ShellPlan) -> Mesh {
             .par_iter()
             .map(|p| surface.evaluate(p.x, p.y))
             .collect();
-        let base = mesh.positions.len() as u32;
+        let (first_vertex, first_index) = (mesh.positions.len() as u32, mesh.indices.len() as u32);
         let sign = if face.same_sense { 1.0 } else { -1.0 };
         for ((sample, shared), p) in samples.iter().zip(&face_plan.shared).zip(&face_plan.params) {
             mesh.positions
@@ -223,18 +223,18 @@ pub fn execute_shell(shell: &Shell, plan: &ShellPlan) -> Mesh {
             } else {
                 [a, c, b]
             };
-            mesh.indices.extend(triangle.map(|k| base + k));
+            mesh.indices.extend(triangle.map(|k| first_vertex + k));
         }
+        mesh.parts.push(MeshPart {
+            item: 0,
+            grid_u: 0,
+            grid_v: 0,
+            first_vertex,
+            vertex_count: mesh.positions.len() as u32 - first_vertex,
+            first_index,
+            index_count: mesh.indices.len() as u32 - first_index,
+        });
     }
-    mesh.parts.push(MeshPart {
-        item: 0,
-        grid_u: 0,
-        grid_v: 0,
-        first_vertex: 0,
-        vertex_count: mesh.positions.len() as u32,
-        first_index: 0,
-        index_count: mesh.indices.len() as u32,
-    });
     mesh
 }
 

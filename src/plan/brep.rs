@@ -29,6 +29,10 @@ use std::collections::HashMap;
 /// Deepest bisection of one piece of an edge.
 const MAX_EDGE_DEPTH: u32 = 24;
 
+/// Farthest (as a fraction of the range) a loop point beside a jump across a seam may lie
+/// from the seam to be put on it.
+const SEAM_SNAP: f64 = 1e-6;
+
 /// Farthest (as a fraction of the model's size) an edge may lie from a face along it.
 const OFF_FACE: f64 = 1e-3;
 
@@ -201,6 +205,27 @@ impl<'a> FaceView<'a> {
             Some(near) => nearest(self.surface, p, near, 1e-9 * self.size),
             None => invert_from_grid(self.surface, p),
         };
+        // At a pole Newton cannot turn (the derivative along it vanishes): start again from
+        // just off it, at a few places round it.
+        for axis in 0..2 {
+            let other = 1 - axis;
+            let Some(end) = self.on_side(other, uv[other]) else {
+                continue;
+            };
+            if distance <= 1e-9 * self.size || !self.collapsed[2 * other + usize::from(end)] {
+                continue;
+            }
+            let (along, across) = (self.ranges[axis], self.ranges[other]);
+            for k in 0..8 {
+                let mut seed = uv;
+                seed[axis] = along.lerp(f64::from(k) / 8.0);
+                seed[other] = across.lerp(if end { 1.0 - 1e-3 } else { 1e-3 });
+                let again = nearest(self.surface, p, seed, 1e-9 * self.size);
+                if again.1 < distance {
+                    (uv, distance) = again;
+                }
+            }
+        }
         // Newton steps stop at the range's ends: across a seam, start again from the twin.
         for axis in 0..2 {
             if distance > 1e-9 * self.size
@@ -265,6 +290,19 @@ impl<'a> FaceView<'a> {
         Ok(uv)
     }
 
+    /// `uv` with each coordinate on a seam moved to the seam's other side.
+    fn twin(&self, mut uv: DVec2) -> DVec2 {
+        for axis in 0..2 {
+            let range = self.ranges[axis];
+            if self.closed[axis]
+                && let Some(end) = self.on_side(axis, uv[axis])
+            {
+                uv[axis] = if end { range.start } else { range.end };
+            }
+        }
+        uv
+    }
+
     /// Whether going from `a` to `b` jumps across a seam (more than half the range of a
     /// closed axis).
     fn jumps(&self, a: DVec2, b: DVec2) -> bool {
@@ -306,9 +344,18 @@ fn sample_edge(
             let mut crossing = None;
             if ok {
                 for view in faces {
-                    let Some(uv_a) = uv_of(a, None, view) else {
+                    let Some(mut uv_a) = uv_of(a, None, view) else {
                         continue;
                     };
+                    // A start on the seam takes the side of the piece's other end.
+                    if let Some(uv_b) = uv_of(b, Some(uv_a), view)
+                        && view.jumps(uv_a, uv_b)
+                    {
+                        let twin = view.twin(uv_a);
+                        if !view.jumps(twin, uv_b) {
+                            uv_a = twin;
+                        }
+                    }
                     let Some(uv_b) = uv_of(b, Some(uv_a), view) else {
                         continue;
                     };
@@ -333,8 +380,10 @@ fn sample_edge(
                 out.push(b);
                 continue;
             }
+            // A crossing within rounding of an end is that end (which lies on the seam).
+            let margin = 1e-9 * (t1 - t0);
             let middle = match crossing {
-                Some(t) if t > t0 && t < t1 => t,
+                Some(t) if t > t0 + margin && t < t1 - margin => t,
                 _ => 0.5 * (t0 + t1),
             };
             stack.push((middle, t1, depth + 1));
@@ -467,25 +516,50 @@ fn plan_face(
             closed_loops.push(looped);
             continue;
         }
-        for (c, &cut) in cuts.iter().enumerate() {
-            let next_cut = cuts[(c + 1) % cuts.len()];
-            // The point before the jump lies on the seam: the piece after it starts at its
-            // twin on the other side.
-            let mut twin = looped[cut];
-            let next = looped[(cut + 1) % n].uv;
+        // At each jump, the point nearer the seam is put on it (a sample the edge's
+        // sampling placed there, within rounding), and its twin on the other side starts
+        // (or ends) the piece beyond the jump.
+        let mut heads: HashMap<usize, LoopPoint> = HashMap::new();
+        let mut tails: HashMap<usize, LoopPoint> = HashMap::new();
+        for &cut in &cuts {
+            let next = (cut + 1) % n;
             for axis in 0..2 {
-                if view.closed[axis]
-                    && (next[axis] - twin.uv[axis]).abs() > 0.5 * view.ranges[axis].width()
+                let range = view.ranges[axis];
+                if !view.closed[axis]
+                    || (looped[next].uv[axis] - looped[cut].uv[axis]).abs() <= 0.5 * range.width()
                 {
-                    let range = view.ranges[axis];
-                    twin.uv[axis] = match view.on_side(axis, twin.uv[axis]) {
-                        Some(true) => range.start,
-                        Some(false) => range.end,
-                        None => twin.uv[axis],
-                    };
+                    continue;
+                }
+                let off_seam = |x: f64| (x - range.start).abs().min((x - range.end).abs());
+                let seam_of = |x: f64| {
+                    if (x - range.start).abs() < (x - range.end).abs() {
+                        range.start
+                    } else {
+                        range.end
+                    }
+                };
+                let (before, after) = (looped[cut].uv[axis], looped[next].uv[axis]);
+                if off_seam(before) <= off_seam(after)
+                    && off_seam(before) <= SEAM_SNAP * range.width()
+                {
+                    looped[cut].uv[axis] = seam_of(before);
+                    let head = heads.entry(cut).or_insert(looped[cut]);
+                    head.uv[axis] = range.start + range.end - seam_of(before);
+                } else if off_seam(after) <= SEAM_SNAP * range.width() {
+                    looped[next].uv[axis] = seam_of(after);
+                    let tail = tails.entry(cut).or_insert(looped[next]);
+                    tail.uv[axis] = range.start + range.end - seam_of(after);
+                } else {
+                    return Err(Error::InvalidBrep {
+                        what: "a loop jumps across the surface's seam between two points off it"
+                            .into(),
+                    });
                 }
             }
-            let mut piece = vec![twin];
+        }
+        for (c, &cut) in cuts.iter().enumerate() {
+            let next_cut = cuts[(c + 1) % cuts.len()];
+            let mut piece: Vec<LoopPoint> = heads.get(&cut).copied().into_iter().collect();
             let mut k = (cut + 1) % n;
             loop {
                 piece.push(looped[k]);
@@ -494,6 +568,7 @@ fn plan_face(
                 }
                 k = (k + 1) % n;
             }
+            piece.extend(tails.get(&next_cut).copied());
             chains.push(piece);
         }
     }
@@ -577,18 +652,6 @@ fn walk_boundary(
             (_, Some(true)) => Some(w + h + ru.end - p.x),
             (Some(false), _) => Some(2.0 * w + h + rv.end - p.y),
             _ => None,
-        }
-    };
-    let point_at = |s: f64| -> DVec2 {
-        let s = s.rem_euclid(perimeter);
-        if s <= w {
-            DVec2::new(ru.start + s, rv.start)
-        } else if s <= w + h {
-            DVec2::new(ru.end, rv.start + (s - w))
-        } else if s <= 2.0 * w + h {
-            DVec2::new(ru.end - (s - w - h), rv.end)
-        } else {
-            DVec2::new(ru.start, rv.end - (s - 2.0 * w - h))
         }
     };
     let ends: Vec<(f64, f64)> = chains
@@ -686,12 +749,19 @@ fn walk_boundary(
         if distance < 1e-12 * perimeter {
             distance = 0.0;
         }
-        // Corners and seam samples strictly between, in order.
-        let mut stops: Vec<f64> = Vec::new();
-        for corner in [0.0, w, w + h, 2.0 * w + h] {
+        // Corners and seam samples strictly between, in order: (distance from `from`,
+        // side, exact parameters, whether a corner).
+        let mut stops: Vec<(f64, usize, DVec2, bool)> = Vec::new();
+        let corners = [
+            DVec2::new(ru.start, rv.start),
+            DVec2::new(ru.end, rv.start),
+            DVec2::new(ru.end, rv.end),
+            DVec2::new(ru.start, rv.end),
+        ];
+        for (side, corner) in [0.0, w, w + h, 2.0 * w + h].into_iter().enumerate() {
             let d = (corner - from).rem_euclid(perimeter);
             if d > 0.0 && d < distance {
-                stops.push(d);
+                stops.push((d, side, corners[side], true));
             }
         }
         for side in 0..4 {
@@ -701,33 +771,30 @@ fn walk_boundary(
             };
             let range = view.ranges[1 - axis];
             for &t in &samples[1..samples.len() - 1] {
-                let s = match side {
-                    1 => w + (t - range.start),
-                    3 => 2.0 * w + h + (range.end - t),
-                    0 => t - range.start,
-                    _ => w + h + (range.end - t),
+                let (s, uv) = match side {
+                    0 => (t - range.start, DVec2::new(t, rv.start)),
+                    1 => (w + (t - range.start), DVec2::new(ru.end, t)),
+                    2 => (w + h + (range.end - t), DVec2::new(t, rv.end)),
+                    _ => (2.0 * w + h + (range.end - t), DVec2::new(ru.start, t)),
                 };
                 let d = (s - from).rem_euclid(perimeter);
                 if d > 1e-9 * perimeter && d < distance - 1e-9 * perimeter {
-                    stops.push(d);
+                    stops.push((d, side, uv, false));
                 }
             }
         }
-        stops.sort_by(f64::total_cmp);
-        stops.dedup();
+        stops.sort_by(|a, b| a.0.total_cmp(&b.0));
         stops
             .into_iter()
-            .map(|d| {
-                let s = from + d;
-                let uv = point_at(s);
-                let side = side_of(s);
+            .map(|(_, side, uv, corner)| {
                 // A corner is on two sides: on a collapsed one if either is.
-                let pole = [side, (side + 3) % 4].into_iter().find(|&k| {
-                    collapsed_side(k)
-                        && (k == side
-                            || (s.rem_euclid(perimeter) - [0.0, w, w + h, 2.0 * w + h][side]).abs()
-                                <= 1e-12 * perimeter)
-                });
+                let pole = if corner {
+                    [side, (side + 3) % 4]
+                        .into_iter()
+                        .find(|&k| collapsed_side(k))
+                } else {
+                    Some(side).filter(|&k| collapsed_side(k))
+                };
                 let id = if let Some(pole) = pole {
                     *pole_ids[pole]
                         .get_or_insert_with(|| new_point(view.surface.point(uv.x, uv.y), extra))
