@@ -33,6 +33,11 @@ const MAX_EDGE_DEPTH: u32 = 24;
 /// from the seam to be put on it.
 const SEAM_SNAP: f64 = 1e-6;
 
+/// How near (as a fraction of the face's size) an inverted point must come to count as
+/// found without searching further: CAD files put edges on their faces to about their own
+/// modelling tolerance, not to rounding.
+const ON_SURFACE: f64 = 1e-6;
+
 /// Farthest (as a fraction of the model's size) an edge may lie from a face along it.
 const OFF_FACE: f64 = 1e-3;
 
@@ -82,7 +87,7 @@ pub fn plan_shell(shell: &Shell, limits: SamplingLimits, max_vertices: usize) ->
             }
         }
     }
-    let sampled: Vec<Vec<DVec3>> = shell
+    let sampled: Vec<SampledEdge> = shell
         .edges()
         .par_iter()
         .zip(&faces_of_edge)
@@ -95,7 +100,14 @@ pub fn plan_shell(shell: &Shell, limits: SamplingLimits, max_vertices: usize) ->
         points: shell.vertices().to_vec(),
         ..ShellPlan::default()
     };
-    for (edge, inner) in shell.edges().iter().zip(&sampled) {
+    // Each (edge, face)'s parameters of the edge's points, as the sampling found them.
+    let mut seeds: HashMap<(usize, usize), Vec<Option<DVec2>>> = HashMap::new();
+    for (e, ((_, uvs), faces)) in sampled.iter().zip(&faces_of_edge).enumerate() {
+        for (&f, list) in faces.iter().zip(uvs) {
+            seeds.insert((e, f), list.clone());
+        }
+    }
+    for (edge, (inner, _)) in shell.edges().iter().zip(&sampled) {
         let mut ids = vec![edge.start as u32];
         for &p in &inner[1..inner.len() - 1] {
             ids.push(plan.points.len() as u32);
@@ -108,7 +120,8 @@ pub fn plan_shell(shell: &Shell, limits: SamplingLimits, max_vertices: usize) ->
         .faces()
         .par_iter()
         .zip(&views)
-        .map(|(face, view)| plan_face(&plan, face, view, limits, max_vertices))
+        .enumerate()
+        .map(|(f, (face, view))| plan_face(&plan, &seeds, f, face, view, limits, max_vertices))
         .collect();
     for (face, result) in shell.faces().iter().zip(planned) {
         plan.faces.push(match result {
@@ -128,6 +141,10 @@ pub fn plan_shell(shell: &Shell, limits: SamplingLimits, max_vertices: usize) ->
     }
     Ok(plan)
 }
+
+/// An edge's points, and each of its faces' parameters of them (`None` where the point
+/// could not be inverted).
+type SampledEdge = (Vec<DVec3>, Vec<Vec<Option<DVec2>>>);
 
 /// Shared ids from this value up are a face's own seam and pole points (renumbered when
 /// the faces are gathered).
@@ -196,15 +213,32 @@ impl<'a> FaceView<'a> {
         }
     }
 
-    /// The parameters of `p` (a point on the face's boundary): inverted from `near` (else
-    /// from a grid search); along a closed axis a point on the seam takes the side `force`
-    /// names, else the side nearer `near`; where the surface collapses (a pole) a
-    /// parameter along the collapse is `near`'s.
-    fn invert(&self, p: DVec3, near: Option<DVec2>, force: [Option<bool>; 2]) -> Result<DVec2> {
-        let (mut uv, mut distance) = match near {
-            Some(near) => nearest(self.surface, p, near, 1e-9 * self.size),
+    /// The parameters of `p` (a point on the face's boundary): inverted from `seed`, else
+    /// `near`, else from a grid search; along a closed axis a point on the seam takes the
+    /// side `force` names, else the side nearer `near`; where the surface collapses (a
+    /// pole) a parameter along the collapse is `near`'s.
+    fn invert(
+        &self,
+        p: DVec3,
+        seed: Option<DVec2>,
+        near: Option<DVec2>,
+        force: [Option<bool>; 2],
+    ) -> Result<DVec2> {
+        // From a seed, the grid search is the fallback only for a point Newton leaves off
+        // the face altogether (the seeds are a few samples away at most).
+        let (mut uv, mut distance) = match seed.or(near) {
+            Some(start) => nearest(self.surface, p, start, OFF_FACE * self.size),
             None => invert_from_grid(self.surface, p),
         };
+        // Newton stopped on the range's boundary (clamped, or at a pole) short of the point:
+        // the grid search too, and the nearer.
+        let on_boundary = (0..2).any(|axis| self.on_side(axis, uv[axis]).is_some());
+        if seed.or(near).is_some() && on_boundary && distance > ON_SURFACE * self.size {
+            let global = invert_from_grid(self.surface, p);
+            if global.1 < distance {
+                (uv, distance) = global;
+            }
+        }
         // At a pole Newton cannot turn (the derivative along it vanishes): start again from
         // just off it, at a few places round it.
         for axis in 0..2 {
@@ -212,7 +246,7 @@ impl<'a> FaceView<'a> {
             let Some(end) = self.on_side(other, uv[other]) else {
                 continue;
             };
-            if distance <= 1e-9 * self.size || !self.collapsed[2 * other + usize::from(end)] {
+            if distance <= ON_SURFACE * self.size || !self.collapsed[2 * other + usize::from(end)] {
                 continue;
             }
             let (along, across) = (self.ranges[axis], self.ranges[other]);
@@ -220,7 +254,7 @@ impl<'a> FaceView<'a> {
                 let mut seed = uv;
                 seed[axis] = along.lerp(f64::from(k) / 8.0);
                 seed[other] = across.lerp(if end { 1.0 - 1e-3 } else { 1e-3 });
-                let again = nearest(self.surface, p, seed, 1e-9 * self.size);
+                let again = nearest(self.surface, p, seed, ON_SURFACE * self.size);
                 if again.1 < distance {
                     (uv, distance) = again;
                 }
@@ -228,14 +262,14 @@ impl<'a> FaceView<'a> {
         }
         // Newton steps stop at the range's ends: across a seam, start again from the twin.
         for axis in 0..2 {
-            if distance > 1e-9 * self.size
+            if distance > ON_SURFACE * self.size
                 && self.closed[axis]
                 && let Some(end) = self.on_side(axis, uv[axis])
             {
                 let range = self.ranges[axis];
                 let mut twin = uv;
                 twin[axis] = if end { range.start } else { range.end };
-                let again = nearest(self.surface, p, twin, 1e-9 * self.size);
+                let again = nearest(self.surface, p, twin, ON_SURFACE * self.size);
                 if again.1 < distance {
                     (uv, distance) = again;
                 }
@@ -317,10 +351,10 @@ fn sample_edge(
     curve: &crate::geom::BSplineCurve,
     faces: &[&FaceView],
     limits: SamplingLimits,
-) -> Vec<DVec3> {
+) -> SampledEdge {
     let half = 0.5 * limits.tolerance;
     let uv_of =
-        |p: DVec3, near: Option<DVec2>, view: &FaceView| view.invert(p, near, [None; 2]).ok();
+        |p: DVec3, near: Option<DVec2>, view: &FaceView| view.invert(p, None, near, [None; 2]).ok();
     let breaks = curve.span_breaks();
     let minimum = if curve.degree() > 1 { 2 } else { 1 };
     let mut starts: Vec<f64> = Vec::new();
@@ -332,6 +366,12 @@ fn sample_edge(
     let end = *breaks.last().expect("a curve has a range");
     starts.push(end);
     let mut out = vec![curve.point(starts[0])];
+    // Each face's parameters of the last point kept: depth-first and left first, every
+    // piece starts there, so only its end is inverted (from the start's parameters).
+    let mut last_uv: Vec<Option<DVec2>> =
+        faces.iter().map(|view| uv_of(out[0], None, view)).collect();
+    let mut end_uv: Vec<Option<DVec2>> = vec![None; faces.len()];
+    let mut uvs: Vec<Vec<Option<DVec2>>> = last_uv.iter().map(|&uv| vec![uv]).collect();
     for pair in starts.windows(2) {
         // Depth-first, left first: (t0, t1, depth).
         let mut stack = vec![(pair[0], pair[1], 0u32)];
@@ -343,27 +383,25 @@ fn sample_edge(
                     .all(|&s| curve.point(t0 + (t1 - t0) * s).distance(a.lerp(b, s)) <= half);
             let mut crossing = None;
             if ok {
-                for view in faces {
-                    let Some(mut uv_a) = uv_of(a, None, view) else {
+                for (f, view) in faces.iter().enumerate() {
+                    let Some(mut uv_a) = last_uv[f] else {
+                        continue;
+                    };
+                    let Some(mut uv_b) = uv_of(b, Some(uv_a), view) else {
                         continue;
                     };
                     // A start on the seam takes the side of the piece's other end.
-                    if let Some(uv_b) = uv_of(b, Some(uv_a), view)
-                        && view.jumps(uv_a, uv_b)
-                    {
-                        let twin = view.twin(uv_a);
-                        if !view.jumps(twin, uv_b) {
-                            uv_a = twin;
-                        }
+                    if view.jumps(uv_a, uv_b) && !view.jumps(view.twin(uv_a), uv_b) {
+                        uv_a = view.twin(uv_a);
+                        last_uv[f] = Some(uv_a);
+                        uv_b = uv_of(b, Some(uv_a), view).unwrap_or(uv_b);
                     }
-                    let Some(uv_b) = uv_of(b, Some(uv_a), view) else {
-                        continue;
-                    };
                     if view.jumps(uv_a, uv_b) {
                         crossing = Some(seam_crossing(curve, view, t0, t1, uv_a));
                         ok = false;
                         break;
                     }
+                    end_uv[f] = Some(uv_b);
                     ok = [0.25, 0.5, 0.75].iter().all(|&s| {
                         let chord = uv_a.lerp(uv_b, s);
                         view.surface
@@ -377,6 +415,16 @@ fn sample_edge(
                 }
             }
             if ok || depth >= MAX_EDGE_DEPTH {
+                if !ok {
+                    // Kept unrefined: the faces' parameters of its end, from its start.
+                    for (f, view) in faces.iter().enumerate() {
+                        end_uv[f] = last_uv[f].and_then(|near| uv_of(b, Some(near), view));
+                    }
+                }
+                last_uv.clone_from(&end_uv);
+                for (list, &uv) in uvs.iter_mut().zip(&last_uv) {
+                    list.push(uv);
+                }
                 out.push(b);
                 continue;
             }
@@ -390,7 +438,7 @@ fn sample_edge(
             stack.push((t0, middle, depth + 1));
         }
     }
-    out
+    (out, uvs)
 }
 
 /// Where the curve meets a face's seam between t0 and t1 (the parameters jump there),
@@ -407,7 +455,7 @@ fn seam_crossing(
         if middle <= t0 || middle >= t1 {
             break;
         }
-        match view.invert(curve.point(middle), Some(uv0), [None; 2]) {
+        match view.invert(curve.point(middle), None, Some(uv0), [None; 2]) {
             Ok(uv) if !view.jumps(uv0, uv) => t0 = middle,
             _ => t1 = middle,
         }
@@ -425,8 +473,11 @@ struct LoopPoint {
 
 /// Plans one face (steps 2–4): its plan, and the points it adds along seams and poles
 /// (ids from [`EXTRA`] in the plan).
+#[allow(clippy::too_many_arguments)]
 fn plan_face(
     plan: &ShellPlan,
+    seeds: &HashMap<(usize, usize), Vec<Option<DVec2>>>,
+    face_index: usize,
     face: &crate::geom::brep::Face,
     view: &FaceView,
     limits: SamplingLimits,
@@ -449,20 +500,24 @@ fn plan_face(
     let mut first_runs: HashMap<usize, (usize, Vec<DVec2>)> = HashMap::new();
     for bound in &face.bounds {
         let Bound::Edges(chain) = bound else { continue };
-        // (shared id, edge, run) of each point along the loop, each edge's last point left
-        // to the next edge.
-        let mut points: Vec<(u32, usize, usize)> = Vec::new();
+        // (shared id, edge, run, the parameters the edge's sampling found) of each point
+        // along the loop, each edge's last point left to the next edge.
+        let mut points: Vec<(u32, usize, usize, Option<DVec2>)> = Vec::new();
         for o in chain {
             let ids = &plan.edges[o.edge];
-            let run: Vec<u32> = if o.forward {
-                ids.clone()
-            } else {
-                ids.iter().rev().copied().collect()
-            };
+            let found = seeds.get(&(o.edge, face_index));
+            let mut run: Vec<(u32, Option<DVec2>)> = ids
+                .iter()
+                .enumerate()
+                .map(|(k, &id)| (id, found.and_then(|f| f.get(k).copied().flatten())))
+                .collect();
+            if !o.forward {
+                run.reverse();
+            }
             points.extend(
                 run[..run.len() - 1]
                     .iter()
-                    .map(|&id| (id, o.edge, run_number)),
+                    .map(|&(id, seed)| (id, o.edge, run_number, seed)),
             );
             run_number += 1;
         }
@@ -471,8 +526,11 @@ fn plan_face(
         }
         // Start where the parameters are unambiguous: off every seam and pole.
         let mut start = 0;
-        for (k, &(id, _, _)) in points.iter().enumerate() {
-            let uv = view.invert(plan.points[id as usize], None, [None; 2])?;
+        for (k, &(id, _, _, seed)) in points.iter().enumerate() {
+            let uv = match seed {
+                Some(uv) => uv,
+                None => view.invert(plan.points[id as usize], None, None, [None; 2])?,
+            };
             if (0..2).all(|axis| view.on_side(axis, uv[axis]).is_none()) {
                 start = k;
                 break;
@@ -482,7 +540,7 @@ fn plan_face(
         let mut looped: Vec<LoopPoint> = Vec::with_capacity(n);
         let mut near: Option<DVec2> = None;
         for step in 0..n {
-            let (id, edge, run) = points[(start + step) % n];
+            let (id, edge, run, seed) = points[(start + step) % n];
             let mut force = [None; 2];
             if runs[&edge] > 1 {
                 let (first, uvs) = first_runs.entry(edge).or_insert_with(|| (run, Vec::new()));
@@ -499,7 +557,7 @@ fn plan_face(
                     }
                 }
             }
-            let uv = view.invert(plan.points[id as usize], near, force)?;
+            let uv = view.invert(plan.points[id as usize], seed, near, force)?;
             if let Some((first, uvs)) = first_runs.get_mut(&edge)
                 && *first == run
             {

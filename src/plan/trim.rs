@@ -252,8 +252,11 @@ fn triangulate(
 }
 
 /// A point of the parameter plane in the triangulation's scaled coordinates.
+/// Coordinates nearer zero than this are zero to spade, which refuses smaller ones
+/// (`TooSmall`, below about 1.8e-43) — rounding leaves such values on loops along u = 0.
 fn scaled(p: DVec2, scale: DVec2) -> Point2<f64> {
-    Point2::new(p.x * scale.x, p.y * scale.y)
+    let flush = |x: f64| if x.abs() < 1e-40 { 0.0 } else { x };
+    Point2::new(flush(p.x * scale.x), flush(p.y * scale.y))
 }
 
 /// The triangulation of a face: spade's, in scaled coordinates, with the exact parameters
