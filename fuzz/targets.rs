@@ -5,8 +5,8 @@
 
 use knotwork::cli::{Cli, Command, Job};
 use knotwork::io::{
-    read_bpt, read_iges, read_json_scene, read_obj_freeform, write_glb, write_obj_mesh, write_ply,
-    write_stl,
+    read_bpt, read_iges, read_json_scene, read_obj_freeform, read_step, write_glb, write_obj_mesh,
+    write_ply, write_stl,
 };
 use knotwork::{CpuTessellator, Scene, SceneOptions, TessOptions, Tessellator, Tolerance};
 use std::path::PathBuf;
@@ -48,6 +48,19 @@ pub fn json(data: &[u8]) {
 /// always sampled to a tolerance) under [`FUZZ_MEMORY_BUDGET`] and written in every format.
 pub fn iges(data: &[u8]) {
     if let Ok(scene) = read_iges(data).map_err(|e| e.to_string()) {
+        let _ = scene.dropped.iter().map(|d| d.reason.len()).sum::<usize>();
+        let options = TessOptions::DEFAULT.with_tolerance(Tolerance::Relative(5e-2));
+        tessellate_and_write(&scene, options);
+    }
+}
+
+/// Reads STEP text; what it accepts is meshed at 5 % of its diagonal (shells are always
+/// sampled to a tolerance) under [`FUZZ_MEMORY_BUDGET`] and written in every format.
+pub fn step(data: &[u8]) {
+    let Some(text) = text(data) else {
+        return;
+    };
+    if let Ok(scene) = read_step(text).map_err(|e| e.to_string()) {
         let _ = scene.dropped.iter().map(|d| d.reason.len()).sum::<usize>();
         let options = TessOptions::DEFAULT.with_tolerance(Tolerance::Relative(5e-2));
         tessellate_and_write(&scene, options);

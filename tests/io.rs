@@ -1804,12 +1804,13 @@ mod fuzz_targets;
 #[test]
 fn fuzz_corpus_replays() {
     type Target = fn(&[u8]);
-    let targets: [(&str, Target); 6] = [
+    let targets: [(&str, Target); 7] = [
         ("obj", fuzz_targets::obj),
         ("bpt", fuzz_targets::bpt),
         ("json", fuzz_targets::json),
         ("scene", fuzz_targets::scene),
         ("iges", fuzz_targets::iges),
+        ("step", fuzz_targets::step),
         ("cli_args", fuzz_targets::cli_args),
     ];
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz");
@@ -3386,4 +3387,140 @@ fn step_refuses_broken_references_by_entity() {
         scene.dropped
     );
     assert!(!scene.dropped.is_empty());
+}
+
+/// `text` (one of [`step_file`]'s) with `instances` added after its own, numbered on.
+fn with_instances(text: &str, instances: &[String]) -> String {
+    let count = text.lines().filter(|l| l.starts_with('#')).count();
+    let mut added = String::new();
+    for (k, instance) in instances.iter().enumerate() {
+        added += &format!("#{} = {instance};\n", count + 1 + k);
+    }
+    text.replace("ENDSEC;\nEND-ISO", &format!("{added}ENDSEC;\nEND-ISO"))
+}
+
+#[test]
+fn step_assemblies_place_each_instance() {
+    let (a, b, c) = (30.0, 20.0, 10.0);
+    let part = step_box(a, b, c);
+    let n = part.lines().filter(|l| l.starts_with('#')).count();
+    // The box's shape representation is its last instance, its context the one before.
+    let (shape, context) = (n, n - 1);
+    let r = |k: usize| format!("#{}", n + k);
+    let assembly = with_instances(
+        &part,
+        &[
+            "CARTESIAN_POINT('',(0.,0.,0.))".into(), // 1
+            "DIRECTION('',(0.,0.,1.))".into(),       // 2
+            "DIRECTION('',(1.,0.,0.))".into(),       // 3
+            format!("AXIS2_PLACEMENT_3D('',{},{},{})", r(1), r(2), r(3)), // 4: the part's origin
+            "CARTESIAN_POINT('',(100.,0.,0.))".into(), // 5
+            "DIRECTION('',(0.,1.,0.))".into(),       // 6
+            format!("AXIS2_PLACEMENT_3D('',{},{},{})", r(5), r(2), r(6)), // 7: turned 90° about z
+            "CARTESIAN_POINT('',(0.,0.,50.))".into(), // 8
+            format!("AXIS2_PLACEMENT_3D('',{},{},{})", r(8), r(2), r(3)), // 9: lifted
+            format!(
+                "SHAPE_REPRESENTATION('assembly',({},{},{}),#{context})",
+                r(4),
+                r(7),
+                r(9)
+            ), // 10
+            format!("ITEM_DEFINED_TRANSFORMATION('','',{},{})", r(4), r(7)), // 11
+            format!("ITEM_DEFINED_TRANSFORMATION('','',{},{})", r(4), r(9)), // 12
+            format!(
+                "(REPRESENTATION_RELATIONSHIP('','',#{shape},{}) REPRESENTATION_RELATIONSHIP_WITH_TRANSFORMATION({}) SHAPE_REPRESENTATION_RELATIONSHIP())",
+                r(10),
+                r(11)
+            ),
+            format!(
+                "(REPRESENTATION_RELATIONSHIP('','',#{shape},{}) REPRESENTATION_RELATIONSHIP_WITH_TRANSFORMATION({}) SHAPE_REPRESENTATION_RELATIONSHIP())",
+                r(10),
+                r(12)
+            ),
+        ],
+    );
+    let scene = step_scene(&assembly);
+    let names: Vec<&str> = scene
+        .items
+        .iter()
+        .filter_map(|i| i.name.as_deref())
+        .collect();
+    assert_eq!(names, ["box [1]", "box [2]"]);
+    let boxes: Vec<(DVec3, DVec3)> = scene
+        .items
+        .iter()
+        .map(|i| match &i.geometry {
+            knotwork::Geometry::Shell(shell) => shell
+                .vertices()
+                .iter()
+                .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), &p| {
+                    (l.min(p), h.max(p))
+                }),
+            _ => panic!("a shell"),
+        })
+        .collect();
+    // (x, y, z) ↦ (100 − y, x, z): the placement's x axis is the part's y.
+    let close = |p: DVec3, q: DVec3| (p - q).length() < 1e-9;
+    assert!(
+        close(boxes[0].0, DVec3::new(100.0 - b, 0.0, 0.0))
+            && close(boxes[0].1, DVec3::new(100.0, a, c)),
+        "{boxes:?}"
+    );
+    assert!(
+        close(boxes[1].0, DVec3::new(0.0, 0.0, 50.0))
+            && close(boxes[1].1, DVec3::new(a, b, 50.0 + c)),
+        "{boxes:?}"
+    );
+    // Each instance is still a closed solid.
+    let mesh = step_mesh(&scene, 1e-3);
+    for k in 0..2 {
+        assert_eq!(topology(&mesh, &parts_of(&mesh, k)), (0, 0, 0));
+        let (_, volume) = area_and_volume(&mesh, &parts_of(&mesh, k));
+        assert!(
+            (volume - a * b * c).abs() < 1e-9 * a * b * c,
+            "volume {volume}"
+        );
+    }
+}
+
+#[test]
+fn cli_meshes_a_step_part_into_a_glb_node_per_solid() {
+    let dir = scratch_dir("step-cli");
+    let out = dir.join("part.glb");
+    let run = succeeds(&[
+        "tessellate",
+        "data/abc-0000.step",
+        "-o",
+        out.to_str().unwrap(),
+        "--tolerance-rel",
+        "1e-3",
+        "--backend",
+        "cpu",
+    ]);
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(stdout.contains("triangles"), "{stdout}");
+    let gltf = gltf::Gltf::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let names: Vec<&str> = gltf.nodes().filter_map(|n| n.name()).collect();
+    assert_eq!(names, ["Blob3", "Blob2", "Blob1", "Glass", "Base", "Cap"]);
+    validate_with_khronos(&out);
+    // A face that cannot be meshed is named with its entity, the rest is written, and the
+    // exit status says so.
+    let broken = std::fs::read_to_string("data/abc-0000.step")
+        .unwrap()
+        .replace("#227 = SPHERICAL_SURFACE", "#227 = OFFSET_SURFACE");
+    let input = dir.join("broken.step");
+    std::fs::write(&input, broken).unwrap();
+    let run = knotwork(&[
+        "tessellate",
+        input.to_str().unwrap(),
+        "-o",
+        dir.join("broken.glb").to_str().unwrap(),
+    ]);
+    assert_eq!(run.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("ADVANCED_FACE #110") && stderr.contains("#227"),
+        "{stderr}"
+    );
+    assert!(dir.join("broken.glb").exists());
 }

@@ -14,7 +14,7 @@ cd "$(dirname "$0")/../fuzz"
 runs=${1:-10000000}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(obj bpt json scene iges cli_args)
+[ ${#targets[@]} -gt 0 ] || targets=(obj bpt json scene iges step cli_args)
 # Release speed with debug assertions and overflow checks on, as the tests build; no
 # sanitizer: the crate is safe Rust, so what the campaign hunts is panics, hangs and memory
 # growth, which libFuzzer catches itself (its RSS limit) — at 2–3× the speed under ASan.
@@ -24,6 +24,8 @@ for target in "${targets[@]}"; do
   [ "$target" = cli_args ] && seeds=(seeds/cli_args)
   # The shipped IGES parts pass -max_len: small whole files seed the reader's entities too.
   [ "$target" = iges ] && seeds=(seeds/iges ../data)
+  # STEP: small hand-made solids (a box, a cylinder with a seam) and the shipped parts.
+  [ "$target" = step ] && seeds=(seeds/step ../data)
   mkdir -p "corpus/$target"
   start=$(date +%s)
   workers=${FUZZ_WORKERS:-1}

@@ -1131,7 +1131,8 @@ impl<'a> Model<'a> {
                     match parents.get(&at) {
                         None => found.push(transform),
                         Some(list) => {
-                            for &(parent, t) in list {
+                            // Reversed onto the stack: placements come out in file order.
+                            for &(parent, t) in list.iter().rev() {
                                 stack.push((parent, t * transform, depth + 1));
                             }
                         }
