@@ -17,7 +17,9 @@
 //! `cpu_iges`: reading and meshing an IGES file (trimmed faces planned and evaluated in f64)
 //! at 1e-3 of its diagonal — the rounded cube (7 trimmed faces), the Beetle front lid (134
 //! trimmed NURBS faces) and the teapot (32 untrimmed 128 surfaces). tools/compare_occt.py
-//! runs Open CASCADE on the same files.
+//! runs Open CASCADE on the same files. In the same group, STEP parts meshed as closed
+//! solids (every edge once, shared by its faces): abc-0000 (6 solids, 25 faces) and
+//! boxed_sphere (2 solids, 192 faces).
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -186,6 +188,8 @@ fn bench_iges(c: &mut Criterion) {
         "data/single_rounded_cube.iges",
         "data/beetle_front_lid.igs",
         "data/teapot_nurbs.igs",
+        "data/abc-0000.step",
+        "data/boxed_sphere.step",
     ] {
         let path = Path::new(file);
         let mesh = CpuTessellator
