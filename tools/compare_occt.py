@@ -132,7 +132,7 @@ def knotwork(binary, path, tolerance):
              "--tolerance", repr(tolerance)],
             capture_output=True, text=True,
         )
-        summary = re.search(r": (\d+) surfaces?.* in ([0-9.]+) s", run.stdout)
+        summary = re.search(r": (\d+) (?:surfaces?|solids?).* in ([0-9.]+) s", run.stdout)
         if summary is None:
             raise RuntimeError(f"knotwork failed on {path}: {run.stderr}")
         triangles, area, volume = obj_area(out)

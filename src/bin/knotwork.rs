@@ -44,7 +44,10 @@ fn render(
     println!(
         "{}: {}, {}, {} rendered at {}x{} in {:.3} s ({}) -> {}",
         input.display(),
-        count(scene.items.len() - scene.curves().count(), "surface"),
+        {
+            let (surfaces, solids, faces) = scene_counts(&scene);
+            items_summary(surfaces, solids, faces)
+        },
         count(scene.curves().count(), "curve"),
         count(triangles, "triangle"),
         options.width,
@@ -250,6 +253,9 @@ fn default_memory_budget() -> u64 {
 #[derive(Default)]
 struct Tally {
     surfaces: usize,
+    /// B-rep shells (STEP solids), with their faces.
+    solids: usize,
+    faces: usize,
     curves: usize,
     vertices: usize,
     triangles: usize,
@@ -273,7 +279,7 @@ impl Tally {
         });
         format!(
             "{}, {}, {}, {}{merged}{chosen}",
-            count(self.surfaces, "surface"),
+            items_summary(self.surfaces, self.solids, self.faces),
             count(self.curves, "curve"),
             count(self.vertices, "vertex"),
             count(self.triangles, "triangle"),
@@ -338,6 +344,33 @@ fn report_skipped(
         }
     }
     skipped
+}
+
+/// "32 surfaces", or with shells "6 solids (25 faces)" (and the surfaces beside them, if
+/// any).
+fn items_summary(surfaces: usize, solids: usize, faces: usize) -> String {
+    let shells = format!("{} ({})", count(solids, "solid"), count(faces, "face"));
+    match (surfaces, solids) {
+        (_, 0) => count(surfaces, "surface"),
+        (0, _) => shells,
+        _ => format!("{}, {shells}", count(surfaces, "surface")),
+    }
+}
+
+/// The (surfaces, solids, faces of the solids) of a scene: curves are counted apart.
+fn scene_counts(scene: &knotwork::Scene) -> (usize, usize, usize) {
+    let (mut solids, mut faces) = (0, 0);
+    for item in &scene.items {
+        if let knotwork::Geometry::Shell(shell) = &item.geometry {
+            solids += 1;
+            faces += shell.faces().len();
+        }
+    }
+    (
+        scene.items.len() - scene.curves().count() - solids,
+        solids,
+        faces,
+    )
 }
 
 /// "1 surface", "2 surfaces", "1 vertex", "3 vertices".
@@ -407,8 +440,11 @@ fn process(
         knotwork::io::write_mesh_as(output, &mesh, &groups, job.format)?;
         (mesh.vertex_count(), mesh.triangle_count(), skipped)
     };
+    let (surfaces, solids, faces) = scene_counts(&scene);
     Ok(Tally {
-        surfaces: scene.items.len() - scene.curves().count(),
+        surfaces,
+        solids,
+        faces,
         curves: scene.curves().count(),
         vertices,
         triangles,
@@ -510,6 +546,8 @@ fn tessellate(
             Ok(t) => {
                 failed += usize::from(t.dropped > 0);
                 total.surfaces += t.surfaces;
+                total.solids += t.solids;
+                total.faces += t.faces;
                 total.curves += t.curves;
                 total.vertices += t.vertices;
                 total.triangles += t.triangles;
