@@ -3153,6 +3153,12 @@ impl StepWriter {
 
 /// A box [0, a] × [0, b] × [0, c] of 6 planes over 12 lines.
 fn step_box(a: f64, b: f64, c: f64) -> String {
+    step_box_offset(a, b, c, 0.0)
+}
+
+/// [`step_box`] with its top face an OFFSET_SURFACE (by `top_offset`) of a plane below it
+/// (a plain plane for 0).
+fn step_box_offset(a: f64, b: f64, c: f64, top_offset: f64) -> String {
     let mut w = StepWriter::default();
     let corner = |k: usize| {
         DVec3::new(
@@ -3195,8 +3201,13 @@ fn step_box(a: f64, b: f64, c: f64) -> String {
             loop_edges.push((edge.clone(), p < q));
         }
         let x = (corner(corners[1]) - corner(corners[0])).normalize();
-        let plane_at = w.placement(corner(corners[0]), normal, x);
-        let plane = w.add(format!("PLANE('',{plane_at})"));
+        // The top face as an OFFSET_SURFACE of a plane below it, if asked.
+        let lift = if normal == DVec3::Z { top_offset } else { 0.0 };
+        let plane_at = w.placement(corner(corners[0]) - lift * normal, normal, x);
+        let mut plane = w.add(format!("PLANE('',{plane_at})"));
+        if lift != 0.0 {
+            plane = w.add(format!("OFFSET_SURFACE('',{plane},{lift:?},.F.)"));
+        }
         face_refs.push(w.face(&loop_edges, &plane, true));
     }
     w.solid(&face_refs, "box")
@@ -3205,6 +3216,12 @@ fn step_box(a: f64, b: f64, c: f64) -> String {
 /// A closed cylinder of radius r and height h about the z axis: a lateral face with a seam
 /// edge (run once each way), two circles and two discs.
 fn step_cylinder(r: f64, h: f64) -> String {
+    step_cylinder_offset(r, h, 0.0)
+}
+
+/// [`step_cylinder`] with its lateral face an OFFSET_SURFACE (by `offset`) of a cylinder
+/// that much thinner (a plain cylinder for 0).
+fn step_cylinder_offset(r: f64, h: f64, offset: f64) -> String {
     let mut w = StepWriter::default();
     let (v0, v1) = (
         w.vertex(DVec3::new(r, 0.0, 0.0)),
@@ -3222,7 +3239,10 @@ fn step_cylinder(r: f64, h: f64) -> String {
     let seam_line = w.add(format!("LINE('',{seam_origin},{seam_vector})"));
     let seam = w.add(format!("EDGE_CURVE('',{v0},{v1},{seam_line},.T.)"));
     let axis = w.placement(DVec3::ZERO, DVec3::Z, DVec3::X);
-    let cylinder = w.add(format!("CYLINDRICAL_SURFACE('',{axis},{r:?})"));
+    let mut cylinder = w.add(format!("CYLINDRICAL_SURFACE('',{axis},{:?})", r - offset));
+    if offset != 0.0 {
+        cylinder = w.add(format!("OFFSET_SURFACE('',{cylinder},{offset:?},.F.)"));
+    }
     let lateral = w.face(
         &[
             (bottom.clone(), true),
@@ -3507,7 +3527,10 @@ fn cli_meshes_a_step_part_into_a_glb_node_per_solid() {
     // exit status says so.
     let broken = std::fs::read_to_string("data/abc-0000.step")
         .unwrap()
-        .replace("#227 = SPHERICAL_SURFACE", "#227 = OFFSET_SURFACE");
+        .replace(
+            "#227 = SPHERICAL_SURFACE",
+            "#227 = DEGENERATE_TOROIDAL_SURFACE",
+        );
     let input = dir.join("broken.step");
     std::fs::write(&input, broken).unwrap();
     let run = knotwork(&[
@@ -3523,4 +3546,28 @@ fn cli_meshes_a_step_part_into_a_glb_node_per_solid() {
         "{stderr}"
     );
     assert!(dir.join("broken.glb").exists());
+}
+
+#[test]
+fn step_offset_surfaces_of_analytic_bases_are_exact() {
+    // A box whose top is a plane 1.5 below, offset up by 1.5: the same box.
+    let scene = step_scene(&step_box_offset(30.0, 20.0, 10.0, 1.5));
+    assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
+    let mesh = step_mesh(&scene, 1e-3);
+    let parts = parts_of(&mesh, 0);
+    assert_eq!(topology(&mesh, &parts), (0, 0, 0));
+    let (_, volume) = area_and_volume(&mesh, &parts);
+    assert!((volume - 6000.0).abs() <= 1e-9 * 6000.0, "volume {volume}");
+    // A cylinder whose side is a radius-8 cylinder offset by 2: radius 10, closed, and its
+    // volume as close to π r² h as the plain cylinder's mesh.
+    let plain = step_mesh(&step_scene(&step_cylinder(10.0, 25.0)), 1e-3);
+    let offset = step_mesh(&step_scene(&step_cylinder_offset(10.0, 25.0, 2.0)), 1e-3);
+    let parts = parts_of(&offset, 0);
+    assert_eq!(topology(&offset, &parts), (0, 0, 0));
+    let (_, v_offset) = area_and_volume(&offset, &parts);
+    let (_, v_plain) = area_and_volume(&plain, &parts_of(&plain, 0));
+    assert!(
+        (v_offset - v_plain).abs() <= 1e-9 * v_plain,
+        "{v_offset} vs {v_plain}"
+    );
 }

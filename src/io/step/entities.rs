@@ -627,6 +627,20 @@ impl<'a> Model<'a> {
     /// The surface `id` in B-spline form, reaching past every point of `extent` (the face's
     /// edges) where the surface is unbounded.
     fn surface(&self, id: u64, extent: &[DVec3], depth: usize) -> Result<BSplineSurface> {
+        self.offset_surface(id, extent, depth, 0.0)
+    }
+
+    /// As [`surface`](Self::surface), moved `offset` (model units) along its normal
+    /// S_u × S_v: exact for the analytic surfaces (a plane moves, a cylinder's, sphere's or
+    /// torus tube's radius grows by it, a cone's by offset / cos(semi-angle)); other
+    /// surfaces with an offset are refused.
+    fn offset_surface(
+        &self,
+        id: u64,
+        extent: &[DVec3],
+        depth: usize,
+        offset: f64,
+    ) -> Result<BSplineSurface> {
         self.depth_check(id, depth)?;
         let instance = self.instance(id)?;
         let wrap = |e: Error| match e {
@@ -640,13 +654,36 @@ impl<'a> Model<'a> {
         if instance.record("B_SPLINE_SURFACE").is_some()
             || instance.record("B_SPLINE_SURFACE_WITH_KNOTS").is_some()
         {
+            if offset != 0.0 {
+                return Err(problem(
+                    id,
+                    &instance.kind(),
+                    "an offset of a B-spline surface is not read yet",
+                ));
+            }
             return self.bspline_surface(id, instance).map_err(wrap);
         }
         let record = &instance.records[0];
         let rec = Rec { id, record };
+        let offset_radius = |radius: f64| {
+            let moved = radius + offset;
+            if moved > 0.0 {
+                Ok(moved)
+            } else {
+                Err(rec.err(format!("offset by {offset} has no radius left ({moved})")))
+            }
+        };
+        let not_offset = |kind: &str| {
+            if offset == 0.0 {
+                Ok(())
+            } else {
+                Err(rec.err(format!("an offset of a {kind} is not read yet")))
+            }
+        };
         let result = match record.name.as_str() {
             "PLANE" => {
-                let frame = self.frame(rec.reference(1)?)?;
+                let mut frame = self.frame(rec.reference(1)?)?;
+                frame.origin += offset * frame.z;
                 let local: Vec<DVec3> = extent.iter().map(|&p| frame.local(p)).collect();
                 let (low, high) = padded_box(&local);
                 let corners: Vec<DVec3> = [(0, 0), (1, 0), (0, 1), (1, 1)]
@@ -664,16 +701,20 @@ impl<'a> Model<'a> {
             }
             "CYLINDRICAL_SURFACE" | "CONICAL_SURFACE" => {
                 let frame = self.frame(rec.reference(1)?)?;
-                let radius = self.length(&rec, 2)?;
-                let tan = if record.name == "CONICAL_SURFACE" {
+                let (radius, tan) = if record.name == "CONICAL_SURFACE" {
                     let angle = rec.real(3)? * self.angle_scale;
                     if angle.is_nan() || angle.abs() >= FRAC_PI_2 - 1e-9 {
                         return Err(rec.err(format!("has a semi-angle of {angle} rad")));
                     }
-                    angle.tan()
+                    // The offset cone keeps the semi-angle; at the placement's plane its
+                    // radius grows by offset / cos.
+                    (self.length(&rec, 2)? + offset / angle.cos(), angle.tan())
                 } else {
-                    0.0
+                    (offset_radius(self.length(&rec, 2)?)?, 0.0)
                 };
+                if radius <= 0.0 {
+                    return Err(rec.err(format!("offset by {offset} has no radius left")));
+                }
                 let heights: Vec<f64> = extent.iter().map(|&p| frame.local(p).z).collect();
                 let (mut h0, mut h1) = padded_range(&heights);
                 // Stop at the apex: the surface does not go on through it.
@@ -692,7 +733,7 @@ impl<'a> Model<'a> {
             }
             "SPHERICAL_SURFACE" => {
                 let frame = self.frame(rec.reference(1)?)?;
-                let radius = self.length(&rec, 2)?;
+                let radius = offset_radius(self.length(&rec, 2)?)?;
                 ellipsoid(
                     DVec3::ZERO,
                     DVec3::splat(radius),
@@ -703,7 +744,7 @@ impl<'a> Model<'a> {
             }
             "TOROIDAL_SURFACE" => {
                 let frame = self.frame(rec.reference(1)?)?;
-                let (major, minor) = (self.length(&rec, 2)?, self.length(&rec, 3)?);
+                let (major, minor) = (self.length(&rec, 2)?, offset_radius(self.length(&rec, 3)?)?);
                 torus_section(
                     DVec3::ZERO,
                     major,
@@ -714,6 +755,7 @@ impl<'a> Model<'a> {
                 .map(|s| s.mapped(|p| frame.apply(p)))
             }
             "SURFACE_OF_REVOLUTION" => {
+                not_offset("surface of revolution")?;
                 let curve = self.curve(rec.reference(1)?, depth + 1)?;
                 let axis = self.expect(rec.reference(2)?, &["AXIS1_PLACEMENT"])?;
                 let point = self.point(axis.reference(1)?)?;
@@ -725,6 +767,7 @@ impl<'a> Model<'a> {
                 revolve(&profile, point, direction, Interval::new(0.0, TAU))
             }
             "SURFACE_OF_LINEAR_EXTRUSION" => {
+                not_offset("surface of linear extrusion")?;
                 let curve = self.curve(rec.reference(1)?, depth + 1)?;
                 let along = self.vector(rec.reference(2)?)?;
                 if along == DVec3::ZERO {
@@ -733,8 +776,16 @@ impl<'a> Model<'a> {
                 let profile = self.profile(&curve, extent)?;
                 extrude(&profile, along, extent)
             }
-            "RECTANGULAR_TRIMMED_SURFACE" => self.surface(rec.reference(1)?, extent, depth + 1),
-            "OFFSET_SURFACE" => Err(rec.err("offset surfaces are not read yet")),
+            "RECTANGULAR_TRIMMED_SURFACE" => {
+                self.offset_surface(rec.reference(1)?, extent, depth + 1, offset)
+            }
+            "OFFSET_SURFACE" => {
+                let distance = rec.real(2)? * self.length_scale;
+                if !distance.is_finite() {
+                    return Err(rec.err("has no finite distance"));
+                }
+                self.offset_surface(rec.reference(1)?, extent, depth + 1, offset + distance)
+            }
             _ => Err(rec.err("is not a surface knotwork reads")),
         };
         result.map_err(wrap)

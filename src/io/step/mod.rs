@@ -9,7 +9,8 @@
 //! (and rational), `PLANE`, `CYLINDRICAL_SURFACE`, `CONICAL_SURFACE`, `SPHERICAL_SURFACE`,
 //! `TOROIDAL_SURFACE`, `SURFACE_OF_REVOLUTION`, `SURFACE_OF_LINEAR_EXTRUSION` and
 //! `RECTANGULAR_TRIMMED_SURFACE`, each converted exactly to B-spline form (unbounded ones
-//! cut a little beyond the face's edges). Parts are placed by the chains of
+//! cut a little beyond the face's edges), and `OFFSET_SURFACE` of the analytic ones.
+//! Parts are placed by the chains of
 //! `REPRESENTATION_RELATIONSHIP_WITH_TRANSFORMATION` (`ITEM_DEFINED_TRANSFORMATION`)
 //! up to the root assembly, one item per placement. Lengths are converted to millimetres
 //! from the context's `SI_UNIT` or `CONVERSION_BASED_UNIT`; angles to radians.
