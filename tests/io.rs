@@ -3335,19 +3335,20 @@ fn step_cylinder_with_a_seam_edge_meshes_closed_within_its_tolerance() {
             area <= exact_area * (1.0 + 1e-12),
             "area {area} vs {exact_area}"
         );
-        for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
-            let radial = DVec3::new(p.x, p.y, 0.0);
-            let outward = if p.z.abs() < 1e-9 {
-                -DVec3::Z
-            } else if (p.z - h).abs() < 1e-9 {
-                DVec3::Z
-            } else {
-                radial.normalize()
-            };
-            assert!(
-                n.dot(outward) > 0.5 || radial.length() > r * (1.0 - 1e-9),
-                "normal {n} at {p}"
-            );
+        // Normals point out: radially on the side (its part comes first), down on the
+        // bottom disc, up on the top one (faces in file order).
+        let outward = [
+            &(|p: DVec3| DVec3::new(p.x, p.y, 0.0).normalize()) as &dyn Fn(DVec3) -> DVec3,
+            &|_| -DVec3::Z,
+            &|_| DVec3::Z,
+        ];
+        for (part, outward) in parts.iter().zip(outward) {
+            let vertices =
+                part.first_vertex as usize..(part.first_vertex + part.vertex_count) as usize;
+            for k in vertices {
+                let (p, n) = (mesh.positions[k], mesh.normals[k]);
+                assert!(n.dot(outward(p)) > 1.0 - 1e-9, "normal {n} at {p}");
+            }
         }
     }
 }
@@ -3399,7 +3400,7 @@ fn step_refuses_broken_references_by_entity() {
         }
     }
     // A reference to nothing.
-    let dangling = good.replace("PLANE('',#", "PLANE('',#9");
+    let dangling = good.replace("PLANE('',#", "PLANE('',#999999");
     let scene = knotwork::io::read_step(&dangling).unwrap();
     assert!(
         scene.dropped.iter().all(|d| d.reason.contains("dangling")),

@@ -14,7 +14,6 @@ use rayon::prelude::*;
 /// part (item 0, grid 0 × 0) holding the plan's triangles.
 pub fn execute_trimmed(face: &TrimmedSurface, plan: &TrimmedPlan) -> Mesh {
     let surface = face.surface();
-    let (range_u, range_v) = (surface.range_u(), surface.range_v());
     let samples: Vec<_> = plan
         .params
         .par_iter()
@@ -27,12 +26,7 @@ pub fn execute_trimmed(face: &TrimmedSurface, plan: &TrimmedPlan) -> Mesh {
         uvs: plan
             .params
             .iter()
-            .map(|p| {
-                DVec2::new(
-                    (p.x - range_u.start) / range_u.width(),
-                    (p.y - range_v.start) / range_v.width(),
-                )
-            })
+            .map(|&p| range_fraction(surface, p))
             .collect(),
         parts: vec![MeshPart {
             item: 0,
@@ -46,6 +40,15 @@ pub fn execute_trimmed(face: &TrimmedSurface, plan: &TrimmedPlan) -> Mesh {
         indices,
         polylines: Vec::new(),
     }
+}
+
+/// The parameters `p` as fractions of `surface`'s range (a mesh's uv).
+fn range_fraction(surface: &crate::geom::BSplineSurface, p: DVec2) -> DVec2 {
+    let (range_u, range_v) = (surface.range_u(), surface.range_v());
+    DVec2::new(
+        (p.x - range_u.start) / range_u.width(),
+        (p.y - range_v.start) / range_v.width(),
+    )
 }
 
 /// Tolerance of trimmed faces whose options set neither a tolerance nor a longest edge (a
@@ -151,14 +154,8 @@ fn plan_item(
         return plan_face(scene, defaults, diagonal, index, grid_bytes, vertex_bytes)
             .map(ItemPlan::Face);
     };
-    let max_vertices = defaults.memory_budget.map_or(usize::MAX, |budget| {
-        usize::try_from(budget.saturating_sub(grid_bytes) / vertex_bytes).unwrap_or(usize::MAX)
-    });
-    let in_item = |source: Error| Error::InItem {
-        index,
-        name: item.name.clone().unwrap_or_else(|| format!("item {index}")),
-        source: Box::new(source),
-    };
+    let max_vertices = vertex_budget(defaults, grid_bytes, vertex_bytes);
+    let in_item = |source: Error| in_item(scene, index, source);
     let limits = trimmed_limits(&item.grid.unwrap_or(defaults.grid), diagonal).map_err(in_item)?;
     let plan = plan_shell(shell, limits, max_vertices).map_err(in_item)?;
     if !defaults.skip_failed_faces
@@ -200,7 +197,6 @@ pub fn execute_shell(shell: &Shell, plan: &ShellPlan) -> Mesh {
     for (face, face_plan) in shell.faces().iter().zip(&plan.faces) {
         let Ok(face_plan) = face_plan else { continue };
         let surface = &face.surface;
-        let (range_u, range_v) = (surface.range_u(), surface.range_v());
         let samples: Vec<_> = face_plan
             .params
             .par_iter()
@@ -212,10 +208,7 @@ pub fn execute_shell(shell: &Shell, plan: &ShellPlan) -> Mesh {
             mesh.positions
                 .push(shared.map_or(sample.position, |k| plan.points[k as usize]));
             mesh.normals.push(sample.normal * sign);
-            mesh.uvs.push(DVec2::new(
-                (p.x - range_u.start) / range_u.width(),
-                (p.y - range_v.start) / range_v.width(),
-            ));
+            mesh.uvs.push(range_fraction(surface, *p));
         }
         for &[a, b, c] in &face_plan.triangles {
             let triangle = if face.same_sense {
@@ -277,17 +270,28 @@ fn plan_face(
             count: scene.items.len(),
         });
     };
-    // The plan stops at what the budget left over could hold.
-    let max_vertices = defaults.memory_budget.map_or(usize::MAX, |budget| {
-        usize::try_from(budget.saturating_sub(grid_bytes) / vertex_bytes).unwrap_or(usize::MAX)
-    });
+    let max_vertices = vertex_budget(defaults, grid_bytes, vertex_bytes);
     trimmed_limits(&item.grid.unwrap_or(defaults.grid), diagonal)
         .and_then(|limits| plan_trimmed_within(face, limits, max_vertices))
-        .map_err(|source| Error::InItem {
-            index,
-            name: item.name.clone().unwrap_or_else(|| format!("item {index}")),
-            source: Box::new(source),
-        })
+        .map_err(|source| in_item(scene, index, source))
+}
+
+/// The vertices a plan may hold: what the memory budget leaves after `grid_bytes`, at
+/// `vertex_bytes` each (the plan stops there); no limit without a budget.
+fn vertex_budget(defaults: &SceneOptions, grid_bytes: u64, vertex_bytes: u64) -> usize {
+    defaults.memory_budget.map_or(usize::MAX, |budget| {
+        usize::try_from(budget.saturating_sub(grid_bytes) / vertex_bytes).unwrap_or(usize::MAX)
+    })
+}
+
+/// `source` as an error of item `index`, named.
+fn in_item(scene: &Scene, index: usize, source: Error) -> Error {
+    let item = &scene.items[index];
+    Error::InItem {
+        index,
+        name: item.name.clone().unwrap_or_else(|| format!("item {index}")),
+        source: Box::new(source),
+    }
 }
 
 /// The sampling limits of a trimmed face under `options`, relative tolerances taken of

@@ -770,17 +770,16 @@ fn walk_boundary(
                 view.surface.point(t, rv.start)
             }
         };
-        let mut samples = vec![range.start];
-        let mut stack = vec![(range.start, range.end, 0u32)];
+        // Eight pieces first (a seam may be a whole circle), then bisection.
         let pieces = 8;
-        stack.clear();
-        for k in (0..pieces).rev() {
-            stack.push((
-                range.lerp(k as f64 / pieces as f64),
-                range.lerp((k + 1) as f64 / pieces as f64),
-                0,
-            ));
-        }
+        let mut samples = vec![range.start];
+        let mut stack: Vec<(f64, f64, u32)> = (0..pieces)
+            .rev()
+            .map(|k| {
+                let at = |k: u32| range.lerp(f64::from(k) / f64::from(pieces));
+                (at(k), at(k + 1), 0)
+            })
+            .collect();
         while let Some((a, b, depth)) = stack.pop() {
             let (pa, pb) = (at(a), at(b));
             let ok = pa.distance(pb) <= limits.max_edge

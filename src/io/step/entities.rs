@@ -75,6 +75,19 @@ pub struct Model<'a> {
     angle_scale: f64,
 }
 
+/// `error` (of geometry made from `instance`) as that entity's, unless it already names
+/// an entity (the innermost one at fault).
+fn in_entity(id: u64, instance: &Instance, error: Error) -> Error {
+    match error {
+        Error::StepEntity { .. } | Error::InStepEntity { .. } => error,
+        other => Error::InStepEntity {
+            id,
+            kind: instance.kind(),
+            source: Box::new(other),
+        },
+    }
+}
+
 fn problem(id: u64, kind: &str, what: impl Into<String>) -> Error {
     Error::StepEntity {
         id,
@@ -368,14 +381,7 @@ impl<'a> Model<'a> {
     fn curve(&self, id: u64, depth: usize) -> Result<Curve> {
         self.depth_check(id, depth)?;
         let instance = self.instance(id)?;
-        let wrap = |e: Error| match e {
-            Error::StepEntity { .. } | Error::InStepEntity { .. } => e,
-            other => Error::InStepEntity {
-                id,
-                kind: instance.kind(),
-                source: Box::new(other),
-            },
-        };
+        let wrap = |e: Error| in_entity(id, instance, e);
         if instance.record("B_SPLINE_CURVE").is_some()
             || instance.record("B_SPLINE_CURVE_WITH_KNOTS").is_some()
             || instance.record("BEZIER_CURVE").is_some()
@@ -643,14 +649,7 @@ impl<'a> Model<'a> {
     ) -> Result<BSplineSurface> {
         self.depth_check(id, depth)?;
         let instance = self.instance(id)?;
-        let wrap = |e: Error| match e {
-            Error::StepEntity { .. } | Error::InStepEntity { .. } => e,
-            other => Error::InStepEntity {
-                id,
-                kind: instance.kind(),
-                source: Box::new(other),
-            },
-        };
+        let wrap = |e: Error| in_entity(id, instance, e);
         if instance.record("B_SPLINE_SURFACE").is_some()
             || instance.record("B_SPLINE_SURFACE_WITH_KNOTS").is_some()
         {
