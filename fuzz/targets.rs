@@ -129,6 +129,7 @@ pub fn cli_args(data: &[u8]) {
                     tolerance,
                     tolerance_rel,
                     max_edge,
+                    max_angle,
                     format,
                     input_format,
                     weld,
@@ -138,7 +139,7 @@ pub fn cli_args(data: &[u8]) {
                 },
         }) => {
             let job = Job::new(
-                knotwork::cli::tess_options(grid, tolerance, tolerance_rel, max_edge),
+                knotwork::cli::tess_options(grid, tolerance, tolerance_rel, max_edge, max_angle),
                 format,
                 input_format,
                 weld,

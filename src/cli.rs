@@ -69,6 +69,11 @@ pub enum Command {
         /// longer than this (model units).
         #[arg(long, value_parser = parse_tolerance, allow_hyphen_values = true, conflicts_with = "grid")]
         max_edge: Option<f64>,
+        /// Instead of a grid (or beside a tolerance), sample so that the surface normals at
+        /// the two ends of any triangle edge differ by at most this many degrees (inside each
+        /// surface, away from poles and collapsed edges).
+        #[arg(long, value_parser = parse_angle, allow_hyphen_values = true, conflicts_with = "grid")]
+        max_angle: Option<f64>,
         /// At most this many triangles per file: with --tolerance or --tolerance-rel, a file
         /// that needs more is refused; without, each file is sampled to the finest tolerance
         /// that fits (chosen from the plans, printed in the summary).
@@ -248,13 +253,14 @@ pub struct Job {
     pub max_triangles: Option<u64>,
 }
 
-/// The options of `--grid`, `--tolerance`, `--tolerance-rel` and `--max-edge` (at most one
-/// tolerance, and neither with `--grid`: clap refuses those).
+/// The options of `--grid`, `--tolerance`, `--tolerance-rel`, `--max-edge` and
+/// `--max-angle` (at most one tolerance, and none with `--grid`: clap refuses those).
 pub fn tess_options(
     grid: (u32, u32),
     tolerance: Option<f64>,
     tolerance_rel: Option<f64>,
     max_edge: Option<f64>,
+    max_angle: Option<f64>,
 ) -> TessOptions {
     let mut options = TessOptions::DEFAULT.with_grid(grid.0, grid.1);
     match (tolerance, tolerance_rel) {
@@ -262,8 +268,11 @@ pub fn tess_options(
         (None, Some(r)) => options = options.with_tolerance(Tolerance::Relative(r)),
         (None, None) => {}
     }
-    match max_edge {
-        Some(length) => options.with_max_edge(length),
+    if let Some(length) = max_edge {
+        options = options.with_max_edge(length);
+    }
+    match max_angle {
+        Some(degrees) => options.with_max_angle(degrees),
         None => options,
     }
 }
@@ -305,6 +314,17 @@ pub fn parse_tolerance(text: &str) -> Result<f64, String> {
             "{value} is not a tolerance: it must be greater than 0"
         )),
         Err(_) => Err(format!("`{text}` is not a number")),
+    }
+}
+
+/// Parses an angle in degrees, greater than 0 and less than 180.
+pub fn parse_angle(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(value) if value > 0.0 && value < 180.0 => Ok(value),
+        Ok(value) => Err(format!(
+            "{value} is not an angle between normals: it must be greater than 0 and less than 180 (degrees)"
+        )),
+        Err(_) => Err(format!("`{text}` is not a number of degrees")),
     }
 }
 

@@ -96,15 +96,21 @@ pub enum Error {
     #[error("tolerance {value:e} is invalid: it must be a finite number greater than 0")]
     InvalidTolerance { value: f64 },
     #[error(
-        "tolerance {tolerance:e} (longest edge {max_edge:e}) needs more than {segments} segments across one knot span: ask for a larger tolerance or edge"
+        "tolerance {tolerance:e} (longest edge {max_edge:e}, angle {max_angle_degrees}°) needs more than {segments} segments across one knot span: ask for a larger tolerance, edge or angle"
     )]
     ToleranceTooFine {
         tolerance: f64,
         max_edge: f64,
+        /// Degrees (infinite: no angle limit).
+        max_angle_degrees: f64,
         segments: u32,
     },
     #[error("longest edge {value:e} is invalid: it must be a finite number greater than 0")]
     InvalidMaxEdge { value: f64 },
+    #[error(
+        "angle {degrees:e}° is invalid: it must be a number of degrees greater than 0 and below 180"
+    )]
+    InvalidMaxAngle { degrees: f64 },
     #[error(
         "{what} cannot be sampled to a tolerance yet: give them a grid (JSON \"grid\" or --grid)"
     )]

@@ -21,6 +21,11 @@ pub struct TessOptions {
     /// Sample so that no triangle edge is longer than this (model units, > 0), instead of a
     /// grid; with a tolerance, both hold.
     pub max_edge: Option<f64>,
+    /// Sample so that the surface normals at the two ends of any triangle edge differ by at
+    /// most this (degrees, in (0, 180)), instead of a grid; with a tolerance or an edge
+    /// length, all hold. Inside each surface and away from its degenerate points (see
+    /// [`crate::geom::SamplingLimits::max_angle`]).
+    pub max_angle: Option<f64>,
 }
 
 /// The largest distance allowed between a mesh and its surface, which an adaptive plan
@@ -43,6 +48,7 @@ impl TessOptions {
         grid_v: 33,
         tolerance: None,
         max_edge: None,
+        max_angle: None,
     };
 
     /// Sets the number of vertices per surface along u and v (and samples on that grid, not
@@ -53,6 +59,23 @@ impl TessOptions {
             grid_v,
             tolerance: None,
             max_edge: None,
+            max_angle: None,
+        }
+    }
+
+    /// Whether these options sample to limits (a tolerance, an edge length or an angle)
+    /// rather than on a grid.
+    pub const fn is_adaptive(&self) -> bool {
+        self.tolerance.is_some() || self.max_edge.is_some() || self.max_angle.is_some()
+    }
+
+    /// Samples every surface so that the normals at the ends of any triangle edge differ by
+    /// at most `degrees`, as adaptively as [`TessOptions::with_tolerance`] (with a tolerance
+    /// or an edge length too, all hold).
+    pub const fn with_max_angle(self, degrees: f64) -> Self {
+        Self {
+            max_angle: Some(degrees),
+            ..self
         }
     }
 

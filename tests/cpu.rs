@@ -1793,6 +1793,94 @@ fn the_teapot_meets_each_tolerance_with_second_order_growth() {
     }
 }
 
+/// The largest angle (degrees) between the normals at the ends of any triangle edge of
+/// `mesh`, leaving out edges with an end at a vertex where `skip` holds.
+fn largest_edge_turn(mesh: &Mesh, skip: impl Fn(usize) -> bool) -> f64 {
+    let mut largest = 0.0f64;
+    for t in mesh.indices.chunks(3) {
+        for k in 0..3 {
+            let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+            if !skip(a) && !skip(b) {
+                largest = largest.max(mesh.normals[a].angle_between(mesh.normals[b]).to_degrees());
+            }
+        }
+    }
+    largest
+}
+
+/// `--max-angle`: the normals at the ends of every triangle edge differ by at most the
+/// limit — on a torus (rational, no degenerate point), on the teapot (every edge, its poles
+/// included) and on a sphere (edges off its two pole vertices, next to which the rates are
+/// not bounded) — alone and beside a tolerance, which still holds; halving the angle takes
+/// about four times the triangles (segments grow as 1/angle in each direction), and the
+/// bound is not loose by orders (alone, the largest turn at least a third of the limit).
+#[test]
+fn max_angle_holds_between_the_normals_of_every_edge() {
+    let teapot = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt"))
+        .unwrap()
+        .surface_list();
+    let cases: [(&str, Vec<BSplineSurface>, bool, &[f64]); 3] = [
+        ("torus", vec![common::torus(2.0, 0.5)], false, &[20.0, 10.0]),
+        ("teapot", teapot, false, &[20.0, 10.0]),
+        ("sphere", vec![common::sphere(1.0)], true, &[30.0]),
+    ];
+    for (name, surfaces, skip_poles, angles) in cases {
+        let diagonal = surfaces
+            .iter()
+            .map(|s| s.control_box_diagonal())
+            .fold(0.0, f64::max);
+        let mut triangles = Vec::new();
+        for &degrees in angles {
+            let alone = TessOptions::DEFAULT.with_max_angle(degrees);
+            let tolerance = 1e-3 * diagonal;
+            let both = alone.with_tolerance(Tolerance::Absolute(tolerance));
+            for options in [alone, both] {
+                let mesh = CpuTessellator.tessellate(&surfaces, &options).unwrap();
+                let at_pole =
+                    |v: usize| skip_poles && (mesh.uvs[v].y == 0.0 || mesh.uvs[v].y == 1.0);
+                let turn = largest_edge_turn(&mesh, at_pole);
+                println!(
+                    "{name} at {degrees}°{}: {} triangles, largest turn {turn:.2}°",
+                    if options.tolerance.is_some() {
+                        " and 1e-3"
+                    } else {
+                        ""
+                    },
+                    mesh.indices.len() / 3
+                );
+                assert!(
+                    turn <= degrees * (1.0 + 1e-9),
+                    "{name}: {turn}° > {degrees}°"
+                );
+                if options.tolerance.is_none() {
+                    assert!(
+                        turn >= degrees / 3.0,
+                        "{name}: {turn}° for {degrees}°: bound loose"
+                    );
+                }
+                // (worst_deviation measures a pole's fan at the pole vertex's one uv, not
+                // each triangle's own: the sphere's tolerance is tested elsewhere.)
+                if options.tolerance.is_none() {
+                    triangles.push(mesh.indices.len() as f64 / 3.0);
+                } else if !skip_poles {
+                    let worst = worst_deviation(&surfaces, &mesh);
+                    assert!(
+                        worst <= tolerance * (1.0 + 1e-9),
+                        "{name}: {worst:e} > {tolerance:e}"
+                    );
+                }
+            }
+        }
+        if let [coarse, fine] = triangles[..] {
+            let growth = fine / coarse;
+            assert!(
+                (2.5..=6.0).contains(&growth),
+                "{name}: halving the angle took {growth}× the triangles"
+            );
+        }
+    }
+}
+
 /// A tolerance that is not a finite positive number is refused with the surface it came
 /// with, one too fine to reach within the segment cap is refused as such, and directly
 /// evaluated Coons patches (no control net to bound) ask for a grid instead.
@@ -1818,6 +1906,11 @@ fn invalid_tolerances_are_refused_by_name() {
         let options = TessOptions::DEFAULT.with_max_edge(bad);
         let err = CpuTessellator.tessellate(&surfaces, &options).unwrap_err();
         assert!(matches!(err.root(), Error::InvalidMaxEdge { .. }), "{err}");
+    }
+    for bad in [0.0, -10.0, 180.0, 270.0, f64::NAN, f64::INFINITY] {
+        let options = TessOptions::DEFAULT.with_max_angle(bad);
+        let err = CpuTessellator.tessellate(&surfaces, &options).unwrap_err();
+        assert!(matches!(err.root(), Error::InvalidMaxAngle { .. }), "{err}");
     }
     let too_fine = TessOptions::DEFAULT.with_tolerance(Tolerance::Relative(1e-15));
     let err = CpuTessellator.tessellate(&surfaces, &too_fine).unwrap_err();
@@ -1876,10 +1969,7 @@ fn uv_polygon(corners: &[glam::DVec2]) -> TrimLoop {
 
 /// The mesh of a trimmed face at `tolerance` (model units), planned and run on the CPU.
 fn trimmed_mesh(face: &TrimmedSurface, tolerance: f64) -> Mesh {
-    let limits = SamplingLimits {
-        tolerance,
-        max_edge: f64::INFINITY,
-    };
+    let limits = SamplingLimits::tolerance(tolerance);
     let plan = plan_trimmed(face, limits).unwrap();
     knotwork::cpu::execute_trimmed(face, &plan)
 }
@@ -2171,16 +2261,7 @@ fn bad_trim_loops_are_refused_by_name() {
     };
     let problem = |outer: TrimLoop, holes: Vec<TrimLoop>| -> (usize, String) {
         let face = TrimmedSurface::try_new(plane.clone(), ParamMap::SAME, Some(outer), holes)
-            .and_then(|face| {
-                plan_trimmed(
-                    &face,
-                    SamplingLimits {
-                        tolerance: 1e-3,
-                        max_edge: f64::INFINITY,
-                    },
-                )
-                .map(|_| ())
-            });
+            .and_then(|face| plan_trimmed(&face, SamplingLimits::tolerance(1e-3)).map(|_| ()));
         match face {
             Err(Error::InvalidTrimLoop {
                 loop_index,

@@ -92,6 +92,7 @@ fn main() -> ExitCode {
             tolerance,
             tolerance_rel,
             max_edge,
+            max_angle,
             max_triangles,
             backend,
             format,
@@ -101,7 +102,7 @@ fn main() -> ExitCode {
             max_memory,
         } => {
             let job = Job::new(
-                knotwork::cli::tess_options(grid, tolerance, tolerance_rel, max_edge),
+                knotwork::cli::tess_options(grid, tolerance, tolerance_rel, max_edge, max_angle),
                 format,
                 input_format,
                 weld,

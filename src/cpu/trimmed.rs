@@ -3,7 +3,7 @@
 use crate::error::{Error, Result};
 use crate::geom::brep::Shell;
 use crate::geom::{SamplingLimits, TrimmedSurface};
-use crate::mesh::{Mesh, MeshPart, TessOptions, Tolerance};
+use crate::mesh::{Mesh, MeshPart, TessOptions};
 use crate::plan::{ShellPlan, TrimmedPlan, plan_shell, plan_trimmed_within};
 use crate::scene::{Geometry, Scene, SceneOptions};
 use glam::DVec2;
@@ -297,26 +297,5 @@ fn in_item(scene: &Scene, index: usize, source: Error) -> Error {
 /// The sampling limits of a trimmed face under `options`, relative tolerances taken of
 /// `diagonal`.
 fn trimmed_limits(options: &TessOptions, diagonal: f64) -> Result<SamplingLimits> {
-    let tolerance = match options.tolerance {
-        Some(Tolerance::Absolute(t)) => t,
-        Some(Tolerance::Relative(r)) => {
-            if !(r.is_finite() && r > 0.0) {
-                return Err(Error::InvalidTolerance { value: r });
-            }
-            r * diagonal
-        }
-        None if options.max_edge.is_some() => f64::INFINITY,
-        None => TRIMMED_DEFAULT_TOLERANCE_REL * diagonal,
-    };
-    if !(tolerance > 0.0 && (tolerance.is_finite() || options.tolerance.is_none())) {
-        return Err(Error::InvalidTolerance { value: tolerance });
-    }
-    let max_edge = options.max_edge.unwrap_or(f64::INFINITY);
-    if !(max_edge > 0.0 && (max_edge.is_finite() || options.max_edge.is_none())) {
-        return Err(Error::InvalidMaxEdge { value: max_edge });
-    }
-    Ok(SamplingLimits {
-        tolerance,
-        max_edge,
-    })
+    crate::plan::sampling_limits(options, diagonal, TRIMMED_DEFAULT_TOLERANCE_REL * diagonal)
 }

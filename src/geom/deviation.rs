@@ -14,7 +14,8 @@ use super::piecewise::split_bezier;
 use glam::{DVec3, DVec4};
 
 /// Upper bounds of |S_u|, |S_v| (model units per parameter unit) and of |S_uu|, |S_uv|,
-/// |S_vv| (per parameter unit squared) over a parameter rectangle.
+/// |S_vv| (per parameter unit squared) over a parameter rectangle, and of the unit normal's
+/// rates |N_u|, |N_v| (radians per parameter unit) where they were asked for.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct DerivativeBound {
     pub u: f64,
@@ -22,15 +23,38 @@ pub struct DerivativeBound {
     pub uu: f64,
     pub uv: f64,
     pub vv: f64,
+    /// |N_u| and |N_v| over the rectangle except within
+    /// [`NORMAL_EXEMPT_FRACTION`](super::normal_turn::NORMAL_EXEMPT_FRACTION) of its width of
+    /// points where S_u × S_v vanishes (see [`BezierPatch::normal_rates`]); 0 when no angle
+    /// limit asked for them.
+    pub normal_u: f64,
+    pub normal_v: f64,
 }
 
-/// What a sampling must meet: a deviation and, optionally, an edge length (model units).
+/// What a sampling must meet: a deviation and, optionally, an edge length (model units) and
+/// an angle between the normals at the two ends of any edge.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SamplingLimits {
     /// Largest distance between a triangle and the surface (> 0; infinite: no limit).
     pub tolerance: f64,
     /// Longest triangle edge (> 0; infinite: no limit).
     pub max_edge: f64,
+    /// Largest angle between the surface normals at the two ends of a triangle edge
+    /// (radians, in (0, π); infinite: no limit). Holds inside each surface, away from
+    /// degenerate points (see [`DerivativeBound::normal_u`]); across a crease the normals
+    /// differ by the crease's own angle.
+    pub max_angle: f64,
+}
+
+impl SamplingLimits {
+    /// A deviation and nothing else.
+    pub const fn tolerance(tolerance: f64) -> Self {
+        SamplingLimits {
+            tolerance,
+            max_edge: f64::INFINITY,
+            max_angle: f64::INFINITY,
+        }
+    }
 }
 
 impl DerivativeBound {
@@ -46,13 +70,40 @@ impl DerivativeBound {
         0.125 * (h * h * self.uu + 2.0 * h * k * self.uv + k * k * self.vv)
     }
 
+    /// The largest angle (radians) between the normals at the ends of an edge of parameter
+    /// extents (h, k) inside the rectangle: h·|N_u| + k·|N_v| (the length of the normal's
+    /// path on the unit sphere).
+    pub fn normal_turn(&self, h: f64, k: f64) -> f64 {
+        h * self.normal_u + k * self.normal_v
+    }
+
+    /// Whether every triangle inside a grid cell of size (h, k) meets `limits`: its
+    /// deviation, and the edge length and normal turn of the cell's diagonal (the longest
+    /// any edge inside it can have).
+    pub fn allows(&self, h: f64, k: f64, limits: SamplingLimits) -> bool {
+        self.deviation(h, k) <= limits.tolerance
+            && self.edge_length(h, k) <= limits.max_edge
+            && self.normal_turn(h, k) <= limits.max_angle
+    }
+
+    /// The larger of two bounds in every component: a bound over the union of their
+    /// rectangles.
+    pub fn max(self, other: DerivativeBound) -> DerivativeBound {
+        DerivativeBound {
+            u: self.u.max(other.u),
+            v: self.v.max(other.v),
+            uu: self.uu.max(other.uu),
+            uv: self.uv.max(other.uv),
+            vv: self.vv.max(other.vv),
+            normal_u: self.normal_u.max(other.normal_u),
+            normal_v: self.normal_v.max(other.normal_v),
+        }
+    }
+
     /// The fewest grid cells (n_u · n_v, each ≥ 1) over a `width_u` × `width_v` rectangle
-    /// whose cells, of size (h, k) = (width_u / n_u, width_v / n_v), meet `limits`: the
-    /// [`deviation`](Self::deviation) at most the tolerance and the
-    /// [`edge_length`](Self::edge_length) of the cell's diagonal — the longest edge any
-    /// triangle inside it can have — at most the longest edge. Counts are capped at
-    /// `max_segments` per direction; at the cap the limits may be exceeded, which the caller
-    /// reports.
+    /// whose cells, of size (h, k) = (width_u / n_u, width_v / n_v), meet `limits` (see
+    /// [`allows`](Self::allows)). Counts are capped at `max_segments` per direction; at the
+    /// cap the limits may be exceeded, which the caller reports.
     pub fn segments(
         &self,
         (width_u, width_v): (f64, f64),
@@ -60,19 +111,20 @@ impl DerivativeBound {
         max_segments: u32,
     ) -> (u32, u32) {
         let budget = 8.0 * limits.tolerance;
-        let meets = |h: f64, k: f64| {
-            self.deviation(h, k) <= limits.tolerance && self.edge_length(h, k) <= limits.max_edge
-        };
+        // The limits linear in (h, k): a·h + b·k ≤ limit (edge length, normal turn).
+        let linear = [
+            (self.u, self.v, limits.max_edge),
+            (self.normal_u, self.normal_v, limits.max_angle),
+        ];
         // The fewest v-segments for a u-spacing h: the largest k with
-        // M_vv·k² + 2·M_uv·h·k ≤ 8·tol − M_uu·h² and h·|S_u| + k·|S_v| ≤ longest edge.
+        // M_vv·k² + 2·M_uv·h·k ≤ 8·tol − M_uu·h² and every linear limit.
         let rows_for = |h: f64| -> Option<u32> {
             let rest = budget - self.uu * h * h;
-            let edge_rest = limits.max_edge - self.u * h;
-            if rest <= 0.0 || edge_rest <= 0.0 {
+            if rest <= 0.0 {
                 return None;
             }
             let b = self.uv * h;
-            let by_deviation = if rest.is_infinite() {
+            let mut k = if rest.is_infinite() {
                 f64::INFINITY
             } else if self.vv > 0.0 {
                 rest / (b + (b * b + self.vv * rest).sqrt())
@@ -81,15 +133,18 @@ impl DerivativeBound {
             } else {
                 f64::INFINITY
             };
-            let by_edge = if self.v > 0.0 {
-                edge_rest / self.v
-            } else {
-                f64::INFINITY
-            };
-            let k = by_deviation.min(by_edge);
+            for (along_u, along_v, limit) in linear {
+                let linear_rest = limit - along_u * h;
+                if linear_rest <= 0.0 {
+                    return None;
+                }
+                if along_v > 0.0 {
+                    k = k.min(linear_rest / along_v);
+                }
+            }
             let mut n = (width_v / k).ceil().max(1.0);
             // ceil of a rounded quotient: step past a count that still misses by rounding.
-            while n < f64::from(max_segments) && !meets(h, width_v / n) {
+            while n < f64::from(max_segments) && !self.allows(h, width_v / n, limits) {
                 n += 1.0;
             }
             Some(n.min(f64::from(max_segments)) as u32)
@@ -98,8 +153,10 @@ impl DerivativeBound {
         // over the trade between the two directions (the product is minimised over whole
         // numbers: the continuous optimum would round up in both).
         let least = |needed: f64| (needed.floor() + 1.0).min(f64::from(max_segments)) as u32;
-        let least_u = least(width_u * (self.uu / budget).sqrt())
-            .max(least(width_u * self.u / limits.max_edge));
+        let least_u = linear
+            .iter()
+            .map(|&(along_u, _, limit)| least(width_u * along_u / limit))
+            .fold(least(width_u * (self.uu / budget).sqrt()), u32::max);
         let mut best = (max_segments, max_segments);
         let mut best_cells = u64::from(max_segments) * u64::from(max_segments);
         let last_u = least_u
@@ -195,6 +252,24 @@ impl BezierPatch {
             uv: general_uv.min(self.ruled_uv_bound().unwrap_or(f64::INFINITY)),
             vv: (scale_vv * second_vv.0 + 2.0 * w_v * g_v + scale_vv * second_vv.1 * radius)
                 / least_weight,
+            normal_u: 0.0,
+            normal_v: 0.0,
+        }
+    }
+
+    /// [`derivative_bound`](Self::derivative_bound) with the normal rates too when `limits`
+    /// has an angle limit (they cost a subdivision of the patch).
+    pub fn derivative_bound_for(&self, limits: SamplingLimits) -> DerivativeBound {
+        let bound = self.derivative_bound();
+        if limits.max_angle.is_finite() {
+            let (normal_u, normal_v) = self.normal_rates();
+            DerivativeBound {
+                normal_u,
+                normal_v,
+                ..bound
+            }
+        } else {
+            bound
         }
     }
 

@@ -29,7 +29,8 @@ pub(crate) struct Piecewise<T> {
     pub coeffs: Vec<T>,
 }
 
-fn binomial(n: usize, k: usize) -> f64 {
+/// The binomial coefficient C(n, k), as f64.
+pub(crate) fn binomial(n: usize, k: usize) -> f64 {
     (0..k).fold(1.0, |c, i| c * (n - i) as f64 / (i + 1) as f64)
 }
 

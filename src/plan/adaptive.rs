@@ -91,7 +91,13 @@ pub fn surface_cells(surface: &BSplineSurface, limits: SamplingLimits) -> Result
     for (patch, &(c, r)) in patches.iter().zip(&placed) {
         let clipped_u = overlap(patch.range_u, range_u).unwrap();
         let clipped_v = overlap(patch.range_v, range_v).unwrap();
-        let (n_u, n_v) = segments_of(patch.derivative_bound(), clipped_u, clipped_v);
+        // How finely to cut the span follows the rates the normal reaches in it; each
+        // cell's own rates are then bounded.
+        let mut bound = patch.derivative_bound();
+        if limits.max_angle.is_finite() {
+            (bound.normal_u, bound.normal_v) = patch.normal_rate_estimate();
+        }
+        let (n_u, n_v) = segments_of(bound, clipped_u, clipped_v);
         cells_u[c] = cells_u[c].max(cells_for(n_u));
         cells_v[r] = cells_v[r].max(cells_for(n_v));
     }
@@ -132,12 +138,13 @@ pub fn surface_cells(surface: &BSplineSurface, limits: SamplingLimits) -> Result
         for (a, &(u0, u1, u)) in along_u[c].iter().enumerate() {
             let strip = patch.restricted_u(u0, u1);
             for (b, &(v0, v1, v)) in along_v[r].iter().enumerate() {
-                let bound = strip.restricted_v(v0, v1).derivative_bound();
+                let bound = strip.restricted_v(v0, v1).derivative_bound_for(limits);
                 let segments = segments_of(bound, u, v);
                 if segments.0.max(segments.1) >= MAX_CELL_SEGMENTS {
                     return Err(Error::ToleranceTooFine {
                         tolerance: limits.tolerance,
                         max_edge: limits.max_edge,
+                        max_angle_degrees: limits.max_angle.to_degrees(),
                         segments: MAX_CELL_SEGMENTS,
                     });
                 }

@@ -52,10 +52,7 @@ impl GridLayout {
                 found: options.len(),
             });
         }
-        if options
-            .iter()
-            .any(|o| o.tolerance.is_some() || o.max_edge.is_some())
-        {
+        if options.iter().any(TessOptions::is_adaptive) {
             return Err(Error::NoToleranceFor {
                 what: "directly evaluated Coons patches",
             });
@@ -459,40 +456,57 @@ fn surface_sampling(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Res
                 index,
                 source: Box::new(source),
             };
-            if o.tolerance.is_none() && o.max_edge.is_none() {
+            if !o.is_adaptive() {
                 return Ok(Sampling::Grid(o.grid_u, o.grid_v));
             }
-            let tolerance = match o.tolerance {
-                None => f64::INFINITY,
-                Some(Tolerance::Absolute(t)) => t,
-                Some(Tolerance::Relative(r)) => {
-                    if !(r.is_finite() && r > 0.0) {
-                        return Err(in_surface(Error::InvalidTolerance { value: r }));
-                    }
-                    r * relative_to.expect("computed when any tolerance is relative")
-                }
-            };
-            if !(tolerance > 0.0 && (tolerance.is_finite() || o.tolerance.is_none())) {
-                return Err(in_surface(Error::InvalidTolerance { value: tolerance }));
-            }
-            let max_edge = o.max_edge.unwrap_or(f64::INFINITY);
-            if !(max_edge > 0.0 && (max_edge.is_finite() || o.max_edge.is_none())) {
-                return Err(in_surface(Error::InvalidMaxEdge { value: max_edge }));
-            }
-            surface_cells(
-                surface,
-                SamplingLimits {
-                    tolerance,
-                    max_edge,
-                },
-            )
-            .map(Sampling::Cells)
-            .map_err(in_surface)
+            let diagonal = relative_to.unwrap_or(f64::NAN);
+            let limits = sampling_limits(o, diagonal, f64::INFINITY).map_err(in_surface)?;
+            surface_cells(surface, limits)
+                .map(Sampling::Cells)
+                .map_err(in_surface)
         })
         .collect::<Vec<_>>()
         // In surface order, so that the error reported is the first surface's.
         .into_iter()
         .collect()
+}
+
+/// The limits `options` (which ask for some) sample to: relative tolerances taken of
+/// `diagonal`; without a tolerance, `unset` unless an edge length or angle limits instead
+/// (then no tolerance). Refuses values out of their ranges.
+pub(crate) fn sampling_limits(
+    options: &TessOptions,
+    diagonal: f64,
+    unset: f64,
+) -> Result<SamplingLimits> {
+    let tolerance = match options.tolerance {
+        Some(Tolerance::Absolute(t)) => t,
+        Some(Tolerance::Relative(r)) => {
+            if !(r.is_finite() && r > 0.0) {
+                return Err(Error::InvalidTolerance { value: r });
+            }
+            r * diagonal
+        }
+        None if options.max_edge.is_some() || options.max_angle.is_some() => f64::INFINITY,
+        None => unset,
+    };
+    if !(tolerance > 0.0 && (tolerance.is_finite() || options.tolerance.is_none())) {
+        return Err(Error::InvalidTolerance { value: tolerance });
+    }
+    let max_edge = options.max_edge.unwrap_or(f64::INFINITY);
+    if !(max_edge > 0.0 && (max_edge.is_finite() || options.max_edge.is_none())) {
+        return Err(Error::InvalidMaxEdge { value: max_edge });
+    }
+    let max_angle = match options.max_angle {
+        None => f64::INFINITY,
+        Some(degrees) if degrees > 0.0 && degrees < 180.0 => degrees.to_radians(),
+        Some(degrees) => return Err(Error::InvalidMaxAngle { degrees }),
+    };
+    Ok(SamplingLimits {
+        tolerance,
+        max_edge,
+        max_angle,
+    })
 }
 
 /// The diagonal of the box around the control points of all `surfaces` (model units).

@@ -388,10 +388,7 @@ impl FaceTriangulation {
                 let extent = high - low;
                 let bound = bounds.over(low, high);
                 let centroid = (a + b + c) / 3.0;
-                if (bound.deviation(extent.x, extent.y) > limits.tolerance
-                    || bound.edge_length(extent.x, extent.y) > limits.max_edge)
-                    && !keep_off(centroid)
-                {
+                if !bound.allows(extent.x, extent.y, limits) && !keep_off(centroid) {
                     splits.push(centroid);
                 }
             }
@@ -462,9 +459,11 @@ fn loop_polylines(
         let low = points.iter().fold(points[0], |low, &p| low.min(p));
         let high = points.iter().fold(points[0], |high, &p| high.max(p));
         let extent = high - low;
-        let bound = bounds.over(low, high);
-        bound.deviation(extent.x, extent.y) <= tolerance
-            && bound.edge_length(extent.x, extent.y) <= limits.max_edge
+        let limits = SamplingLimits {
+            tolerance,
+            ..limits
+        };
+        bounds.over(low, high).allows(extent.x, extent.y, limits)
     };
     let too_fine = || Error::TrimmedTooFine {
         vertices: max_vertices,
@@ -1002,12 +1001,7 @@ impl CellBounds {
         let mut bound = DerivativeBound::default();
         for b in touched(&self.rows, low.y, high.y) {
             for a in touched(&self.columns, low.x, high.x) {
-                let cell = &self.bounds[b * self.columns.len() + a];
-                bound.u = bound.u.max(cell.u);
-                bound.v = bound.v.max(cell.v);
-                bound.uu = bound.uu.max(cell.uu);
-                bound.uv = bound.uv.max(cell.uv);
-                bound.vv = bound.vv.max(cell.vv);
+                bound = bound.max(self.bounds[b * self.columns.len() + a]);
             }
         }
         bound
