@@ -30,6 +30,13 @@ const TIGHTNESS: f64 = 1.5;
 /// found across the patch is kept however loose (see [`TIGHTNESS`]).
 const NEGLIGIBLE: f64 = 0.25;
 
+/// A patch with a piece left out whose bound turns the normal by more than this across the
+/// patch (radians) gets no normal rates at all: next to the left-out point the rate grows
+/// as 1/distance (a corner where the derivatives are parallel, a fold — not a pole, where
+/// the bound stays finite), and meeting the angle there would take segments by the
+/// thousand for a limit that cannot hold at the point anyway.
+const UNBOUNDED_TURN: f64 = 2.0 * std::f64::consts::PI;
+
 /// At [`NORMAL_EXEMPT_FRACTION`] a piece is kept only if the least coefficient of |m|² is
 /// this fraction of |m|² at its centre: next to a zero of |m| (within about 2.5 of its
 /// widths) the piece is left out rather than kept with a bound that is loose by its
@@ -146,11 +153,13 @@ impl BezierPatch {
     /// at the pieces' centres (or [`NEGLIGIBLE`]) is kept; others are cut in quarters. At
     /// [`NORMAL_EXEMPT_FRACTION`] of the patch's widths a piece is kept if its |m|² is
     /// conditioned ([`LOOSE_CONDITION`]), else left out: it is next to a point where S_u × S_v
-    /// vanishes.
+    /// vanishes. (0, 0) — no angle limit — for a patch beside such a point whose bound is
+    /// past [`UNBOUNDED_TURN`].
     pub fn normal_rates(&self) -> (f64, f64) {
         let mut rates = (0.0f64, 0.0f64);
         let mut found = (0.0f64, 0.0f64);
         let widths = (self.range_u.width(), self.range_v.width());
+        let mut left_out = false;
         let mut pending = vec![(self.clone(), 1.0)];
         while let Some((piece, fraction)) = pending.pop() {
             let (m, m_u, m_v) = piece.normal_polynomial();
@@ -204,7 +213,12 @@ impl BezierPatch {
                         pending.push((strip.restricted_v(v0, v1), 0.5 * fraction));
                     }
                 }
+            } else {
+                left_out = true;
             }
+        }
+        if left_out && rates.0 * widths.0 + rates.1 * widths.1 > UNBOUNDED_TURN {
+            return (0.0, 0.0);
         }
         rates
     }
