@@ -111,6 +111,12 @@ pub enum Error {
         "angle {degrees:e}° is invalid: it must be a number of degrees greater than 0 and below 180"
     )]
     InvalidMaxAngle { degrees: f64 },
+    #[error("seam {seam} {reason}")]
+    InvalidSeam { seam: usize, reason: String },
+    #[error(
+        "seam {seam}: its sides are {gap:e} apart at the same fraction of their ranges (at most {allowed:e} allowed): they are not one curve, run either way, at the same parameters"
+    )]
+    SeamGap { seam: usize, gap: f64, allowed: f64 },
     #[error(
         "{what} cannot be sampled to a tolerance yet: give them a grid (JSON \"grid\" or --grid)"
     )]

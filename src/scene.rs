@@ -3,11 +3,12 @@
 //! scenes. Every item keeps its position in every output: parts and polylines carry their
 //! item's index, the mesh's parts are in item order, writers emit groups in item order.
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::geom::brep::Shell;
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface, TrimmedSurface};
 use crate::mesh::{GridMesh, Mesh, Mesh32, Polyline, TessOptions};
+use crate::plan::{Seam, SurfacePlan, SurfaceSide};
 use rayon::prelude::*;
 
 /// What one item of a scene is.
@@ -75,6 +76,10 @@ pub struct Scene {
     pub notes: Vec<String>,
     /// Parts of the file that could not be read, each with its reason; the rest was.
     pub dropped: Vec<Dropped>,
+    /// Sides of surfaces that are one edge of the model, as the file says (JSON `seams`):
+    /// surfaces sampled to a tolerance share their vertices there whatever their control
+    /// points. Here [`SurfaceSide::surface`] is the index of a surface item in `items`.
+    pub seams: Vec<Seam>,
 }
 
 /// A part of a file a reader could not turn into an item, and why.
@@ -206,6 +211,39 @@ impl Scene {
             .collect()
     }
 
+    /// [`Scene::seams`] with surfaces numbered as in [`Scene::surface_list`] (what
+    /// [`SurfacePlan::with_seams`] takes). A seam naming an item that is not a surface is
+    /// [`Error::InvalidSeam`].
+    pub fn surface_seams(&self) -> Result<Vec<Seam>> {
+        let mut surface_index = Vec::with_capacity(self.items.len());
+        let mut count = 0;
+        for item in &self.items {
+            let is_surface = matches!(item.geometry, Geometry::Surface(_));
+            surface_index.push(is_surface.then_some(count));
+            count += usize::from(is_surface);
+        }
+        let renumber = |seam: usize, side: SurfaceSide| match surface_index.get(side.surface) {
+            Some(&Some(surface)) => Ok(SurfaceSide { surface, ..side }),
+            _ => Err(Error::InvalidSeam {
+                seam,
+                reason: format!(
+                    "names item {}, which is not a B-spline surface (of {} items)",
+                    side.surface,
+                    self.items.len()
+                ),
+            }),
+        };
+        self.seams
+            .iter()
+            .enumerate()
+            .map(|(k, seam)| {
+                Ok(Seam {
+                    sides: [renumber(k, seam.sides[0])?, renumber(k, seam.sides[1])?],
+                })
+            })
+            .collect()
+    }
+
     /// The items whose geometry `wanted` accepts, in order.
     fn of_kind(&self, wanted: fn(&Geometry) -> bool) -> impl Iterator<Item = &Item> {
         self.items.iter().filter(move |item| wanted(&item.geometry))
@@ -256,18 +294,37 @@ pub trait Tessellator {
         surfaces: &[BSplineSurface],
         options: &[TessOptions],
         mesh: &mut Mesh,
-    ) -> Result<()>;
+    ) -> Result<()> {
+        self.execute_surfaces(&SurfacePlan::new(surfaces, options)?, surfaces, mesh)
+    }
     /// As [`Tessellator::tessellate_each_into`], into an f32 [`Mesh32`] (what GPUs and the
-    /// binary formats carry): the GPU reads back without widening; the default rounds the
-    /// f64 result. Its polylines are left alone.
+    /// binary formats carry). Its polylines are left alone.
     fn tessellate_each_into_f32(
         &self,
         surfaces: &[BSplineSurface],
         options: &[TessOptions],
         mesh: &mut Mesh32,
     ) -> Result<()> {
+        self.execute_surfaces_f32(&SurfacePlan::new(surfaces, options)?, surfaces, mesh)
+    }
+    /// Executes `plan` (made for `surfaces`) into `mesh`, replacing its surfaces and reusing
+    /// its allocations; its polylines are left alone. On error `mesh` is left unchanged.
+    fn execute_surfaces(
+        &self,
+        plan: &SurfacePlan,
+        surfaces: &[BSplineSurface],
+        mesh: &mut Mesh,
+    ) -> Result<()>;
+    /// As [`Tessellator::execute_surfaces`], into an f32 [`Mesh32`]: the GPU reads back
+    /// without widening; the default rounds the f64 result.
+    fn execute_surfaces_f32(
+        &self,
+        plan: &SurfacePlan,
+        surfaces: &[BSplineSurface],
+        mesh: &mut Mesh32,
+    ) -> Result<()> {
         let mut wide = Mesh::default();
-        self.tessellate_each_into(surfaces, options, &mut wide)?;
+        self.execute_surfaces(plan, surfaces, &mut wide)?;
         mesh.replace_grids(Mesh32::from(wide));
         Ok(())
     }
@@ -297,9 +354,10 @@ pub trait Tessellator {
         let trimmed =
             crate::cpu::mesh_trimmed_faces(scene, defaults, grid_bytes, F64_VERTEX_BYTES)?;
         let mut mesh = Mesh::default();
-        self.tessellate_each_into(
-            &scene.surface_list(),
-            &scene.surface_grids(defaults.grid),
+        let surfaces = scene.surface_list();
+        self.execute_surfaces(
+            &surface_plan(scene, &surfaces, defaults)?,
+            &surfaces,
             &mut mesh,
         )?;
         let (coons, polylines) = patches_and_curves(self, scene, defaults)?;
@@ -318,11 +376,9 @@ pub trait Tessellator {
         let grid_bytes = check_memory(scene, defaults, vertex_bytes)?;
         let trimmed = crate::cpu::mesh_trimmed_faces(scene, defaults, grid_bytes, vertex_bytes)?;
         let mut mesh = Mesh32::default();
-        self.tessellate_each_into_f32(
-            &scene.surface_list(),
-            &scene.surface_grids(defaults.grid),
-            &mut mesh,
-        )?;
+        let surfaces = scene.surface_list();
+        let plan = surface_plan(scene, &surfaces, defaults)?;
+        self.execute_surfaces_f32(&plan, &surfaces, &mut mesh)?;
         let (coons, polylines) = patches_and_curves(self, scene, defaults)?;
         mesh.append(Mesh32::from(coons))?;
         mesh.append(Mesh32::from(trimmed))?;
@@ -330,6 +386,20 @@ pub trait Tessellator {
         put_in_item_order(scene, &mut mesh);
         Ok(mesh)
     }
+}
+
+/// The plan of `scene`'s `surfaces` (its [`Scene::surface_list`]) under `defaults`, joined
+/// along the scene's seams.
+pub fn surface_plan(
+    scene: &Scene,
+    surfaces: &[BSplineSurface],
+    defaults: &SceneOptions,
+) -> Result<SurfacePlan> {
+    SurfacePlan::with_seams(
+        surfaces,
+        &scene.surface_grids(defaults.grid),
+        &scene.surface_seams()?,
+    )
 }
 
 /// Bytes per vertex of an f64 [`Mesh`]: position, normal (3 × f64 each), uv (2 × f64).
@@ -357,9 +427,10 @@ fn grid_layouts(
     scene: &Scene,
     defaults: &SceneOptions,
 ) -> Result<(crate::plan::GridLayout, crate::plan::GridLayout)> {
-    let surfaces = crate::plan::SurfacePlan::layout_only(
+    let surfaces = SurfacePlan::layout_only(
         &scene.surface_list(),
         &scene.surface_grids(defaults.grid),
+        &scene.surface_seams()?,
     )?;
     let coons = crate::plan::GridLayout::new(
         scene.coons_patches().count(),

@@ -766,10 +766,10 @@ fn f32_output_is_the_f64_mesh_rounded() {
 fn default_f32_tessellation_keeps_the_mesh_on_error() {
     struct Failing;
     impl Tessellator for Failing {
-        fn tessellate_each_into(
+        fn execute_surfaces(
             &self,
+            _: &knotwork::plan::SurfacePlan,
             _: &[BSplineSurface],
-            _: &[TessOptions],
             _: &mut knotwork::Mesh,
         ) -> Result<(), Error> {
             Err(Error::GridTooSmall { nu: 1, nv: 1 })
@@ -2469,4 +2469,120 @@ fn view_frames_stay_within_their_pixel_tolerance() {
             }
         }
     }
+}
+
+/// The open edges of `mesh` (used by one triangle) with both ends where `on` holds.
+fn open_edges_where(mesh: &Mesh, on: impl Fn(DVec3) -> bool) -> usize {
+    let mut uses = std::collections::HashMap::new();
+    for t in mesh.indices.chunks(3) {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            *uses.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    uses.iter()
+        .filter(|&(&(a, b), &n)| {
+            n == 1 && on(mesh.positions[a as usize]) && on(mesh.positions[b as usize])
+        })
+        .count()
+}
+
+/// Sides a file names as one seam share their vertices, whatever their control points:
+/// data/seams.json's right patch has a knot at v = 0.5 its left neighbour lacks (the same
+/// boundary curve, other control points, so nothing finds the seam by itself). Sampled to a
+/// tolerance, the two come out as one piece with no open edge and no repeated vertex on the
+/// shared side (x = 3), within the tolerance — run either way along the side — while
+/// without the seam they are two pieces open along it. Sides that are not one curve, and a
+/// side named twice, are refused with the seam's index.
+#[test]
+#[cfg(feature = "json")]
+fn seams_a_file_names_share_their_vertices() {
+    use knotwork::plan::{Side, SurfaceSide};
+    use knotwork::{Geometry, Scene, SceneOptions};
+    let scene = knotwork::io::read_scene(std::path::Path::new("data/seams.json")).unwrap();
+    assert_eq!(scene.seams.len(), 1);
+    let surfaces = scene.surface_list();
+    let tolerance = 1e-3 * scene.control_box_diagonal();
+    let defaults = SceneOptions {
+        grid: TessOptions::DEFAULT.with_tolerance(Tolerance::Absolute(tolerance)),
+        ..SceneOptions::default()
+    };
+    let on_seam = |p: DVec3| (p.x - 3.0).abs() < 1e-12;
+    let joined = CpuTessellator.tessellate_scene(&scene, &defaults).unwrap();
+    let apart = Scene {
+        seams: Vec::new(),
+        ..scene.clone()
+    };
+    let apart = CpuTessellator.tessellate_scene(&apart, &defaults).unwrap();
+    assert_eq!(open_edges_and_pieces(&apart).1, 2);
+    assert!(open_edges_where(&apart, on_seam) > 0);
+    assert_eq!(open_edges_and_pieces(&joined).1, 1);
+    assert_eq!(open_edges_where(&joined, on_seam), 0);
+    let mut on_side: Vec<f64> = joined
+        .positions
+        .iter()
+        .filter(|p| on_seam(**p))
+        .map(|p| p.y)
+        .collect();
+    on_side.sort_by(f64::total_cmp);
+    assert!(on_side.len() > 4, "{} vertices on the seam", on_side.len());
+    assert!(
+        on_side.windows(2).all(|w| w[1] - w[0] > 1e-9),
+        "{on_side:?}"
+    );
+    let worst = worst_deviation(&surfaces, &joined);
+    assert!(worst <= tolerance, "{worst:e} > {tolerance:e}");
+
+    // The right patch run the other way along v: the seam's direction comes from its ends.
+    let right = &surfaces[1];
+    let flipped: Vec<DVec3> = (0..right.count_v())
+        .rev()
+        .flat_map(|j| (0..right.count_u()).map(move |i| right.control_point(i, j)))
+        .collect();
+    let flipped = BSplineSurface::try_new(
+        right.knots_u().clone(),
+        right.knots_v().clone(),
+        &flipped,
+        None,
+    )
+    .unwrap();
+    let mut reversed = scene.clone();
+    reversed.items[1].geometry = Geometry::Surface(flipped);
+    let mesh = CpuTessellator
+        .tessellate_scene(&reversed, &defaults)
+        .unwrap();
+    assert_eq!(open_edges_and_pieces(&mesh).1, 1);
+    assert_eq!(open_edges_where(&mesh, on_seam), 0);
+
+    // The left patch's u1 side with the right's far side (x = 6): not one curve.
+    let mut far = scene.clone();
+    far.seams[0].sides[1].side = Side::Right;
+    let error = CpuTessellator
+        .tessellate_scene(&far, &defaults)
+        .unwrap_err();
+    assert!(
+        matches!(error.root(), Error::SeamGap { seam: 0, gap, .. } if *gap > 1.0),
+        "{error}"
+    );
+    // A side joined twice.
+    let mut twice = scene.clone();
+    twice.seams.push(knotwork::plan::Seam {
+        sides: [
+            SurfaceSide {
+                surface: 1,
+                side: Side::Left,
+            },
+            SurfaceSide {
+                surface: 0,
+                side: Side::Bottom,
+            },
+        ],
+    });
+    let error = CpuTessellator
+        .tessellate_scene(&twice, &defaults)
+        .unwrap_err();
+    assert!(
+        matches!(error.root(), Error::InvalidSeam { seam: 1, .. }),
+        "{error}"
+    );
+    assert!(error.to_string().contains("u0"), "{error}");
 }

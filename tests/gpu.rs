@@ -2106,3 +2106,36 @@ fn view_frames_go_into_the_callers_buffers() {
         "indirect buffer",
     );
 }
+
+/// A seam a file names (data/seams.json: sides with different control points) runs on the
+/// GPU as on the CPU — through the tessellator and through a batch made from the scene: the
+/// same triangles (one piece, shared seam vertices) and vertices within the GPU's bars.
+#[test]
+#[cfg(feature = "json")]
+fn file_seams_run_alike_on_both_executors() {
+    let Some(context) = gpu() else { return };
+    let scene = knotwork::io::read_scene(std::path::Path::new("data/seams.json")).unwrap();
+    let defaults = knotwork::SceneOptions {
+        grid: TessOptions::DEFAULT.with_tolerance(Tolerance::Relative(1e-3)),
+        ..knotwork::SceneOptions::default()
+    };
+    let cpu = CpuTessellator.tessellate_scene(&scene, &defaults).unwrap();
+    assert_eq!(common::open_edges_and_pieces(&cpu).1, 1);
+    let gpu = tessellator_on(context)
+        .tessellate_scene(&scene, &defaults)
+        .unwrap();
+    let batch = GpuBatch::from_scene(context, &scene, &defaults).unwrap();
+    batch.dispatch().unwrap();
+    let from_batch = batch.read_mesh().unwrap();
+    let size = scene.control_box_diagonal();
+    for (name, mesh) in [("tessellator", &gpu), ("batch", &from_batch)] {
+        assert_eq!(mesh.indices, cpu.indices, "{name}");
+        let worst = mesh
+            .positions
+            .iter()
+            .zip(&cpu.positions)
+            .map(|(a, b)| (*a - *b).length())
+            .fold(0.0, f64::max);
+        assert!(worst <= POSITION_REL_BAR * size, "{name}: {worst:e}");
+    }
+}

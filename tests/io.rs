@@ -3572,3 +3572,75 @@ fn step_offset_surfaces_of_analytic_bases_are_exact() {
         "{v_offset} vs {v_plain}"
     );
 }
+
+/// JSON `seams`: read into item indices (a two-sheet hyperboloid before a patch makes them differ
+/// from the entries' indices); a seam naming a surface the file lacks, a side that is no
+/// side, an entry that is several surfaces, or a field it does not know is an error naming
+/// the seam and its line.
+#[test]
+fn json_seams_name_items_and_their_errors_name_the_seam() {
+    let text = std::fs::read_to_string("data/seams.json").unwrap();
+    let scene = knotwork::io::read_json_scene(&text).unwrap();
+    let sides = scene.seams[0].sides;
+    assert_eq!(
+        (sides[0].surface, sides[0].side),
+        (0, knotwork::plan::Side::Right)
+    );
+    assert_eq!(
+        (sides[1].surface, sides[1].side),
+        (1, knotwork::plan::Side::Left)
+    );
+    // A two-sheet hyperboloid (two surfaces, items 0 and 1) first: the patches are items 2
+    // and 3.
+    let sheets = r#"{ "kind": "hyperboloid_two_sheets", "centre": [0, 0, 0], "radii": [1, 1, 1], "height": 3 },"#;
+    let with_sheets = text
+        .replacen(
+            "\"surfaces\": [",
+            &format!("\"surfaces\": [\n    {sheets}"),
+            1,
+        )
+        .replace("[[0, \"u1\"], [1, \"u0\"]]", "[[1, \"u1\"], [2, \"u0\"]]");
+    let scene = knotwork::io::read_json_scene(&with_sheets).unwrap();
+    assert_eq!(scene.surfaces().count(), 4);
+    assert_eq!(
+        scene.seams[0].sides.map(|s| s.surface),
+        [2, 3],
+        "{:?}",
+        scene.seams
+    );
+    let line = 1 + text.lines().position(|l| l.contains("\"sides\"")).unwrap();
+    let error = |from: &str, to: &str| {
+        let text = text.replace(from, to);
+        knotwork::io::read_json_scene(&text)
+            .unwrap_err()
+            .to_string()
+    };
+    let seam = "[[0, \"u1\"], [1, \"u0\"]]";
+    for (wrong, says) in [
+        (
+            "[[0, \"u1\"], [2, \"u0\"]]",
+            "names surface 2, but the file has 2 surfaces",
+        ),
+        ("[[0, \"u1\"], [1, \"u2\"]]", "side `u2` of surface 1"),
+        ("[[0, \"u1\"]]", "invalid length 1"),
+    ] {
+        let message = error(seam, wrong);
+        assert!(
+            message.contains(&format!("line {line}"))
+                && message.contains("seam 0")
+                && message.contains(says),
+            "{message}"
+        );
+    }
+    let message = error("\"sides\"", "\"side\"");
+    assert!(message.contains("unknown field `side`"), "{message}");
+    // An entry that is two surfaces cannot be named.
+    let message =
+        knotwork::io::read_json_scene(&with_sheets.replace("[[1, \"u1\"]", "[[0, \"u1\"]"))
+            .unwrap_err()
+            .to_string();
+    assert!(
+        message.contains("surface 0 is not one untrimmed B-spline surface"),
+        "{message}"
+    );
+}

@@ -192,26 +192,22 @@ impl GpuOrCpu {
 }
 
 impl Tessellator for GpuOrCpu {
-    fn tessellate_each_into(
+    fn execute_surfaces(
         &self,
+        plan: &knotwork::plan::SurfacePlan,
         surfaces: &[knotwork::BSplineSurface],
-        options: &[TessOptions],
         mesh: &mut knotwork::Mesh,
     ) -> knotwork::Result<()> {
-        self.either(mesh, |t, mesh| {
-            t.tessellate_each_into(surfaces, options, mesh)
-        })
+        self.either(mesh, |t, mesh| t.execute_surfaces(plan, surfaces, mesh))
     }
 
-    fn tessellate_each_into_f32(
+    fn execute_surfaces_f32(
         &self,
+        plan: &knotwork::plan::SurfacePlan,
         surfaces: &[knotwork::BSplineSurface],
-        options: &[TessOptions],
         mesh: &mut knotwork::Mesh32,
     ) -> knotwork::Result<()> {
-        self.either(mesh, |t, mesh| {
-            t.tessellate_each_into_f32(surfaces, options, mesh)
-        })
+        self.either(mesh, |t, mesh| t.execute_surfaces_f32(plan, surfaces, mesh))
     }
 
     fn tessellate_coons_into(

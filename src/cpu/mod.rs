@@ -54,22 +54,22 @@ pub fn execute_curves(plan: &CurvePlan, curves: &[BSplineCurve]) -> Result<Vec<P
 }
 
 impl Tessellator for CpuTessellator {
-    fn tessellate_each_into(
+    fn execute_surfaces(
         &self,
+        plan: &SurfacePlan,
         surfaces: &[BSplineSurface],
-        options: &[TessOptions],
         mesh: &mut Mesh,
     ) -> Result<()> {
-        tessellate_grid_into(surfaces, options, mesh)
+        execute_surfaces(plan, surfaces, mesh)
     }
 
-    fn tessellate_each_into_f32(
+    fn execute_surfaces_f32(
         &self,
+        plan: &SurfacePlan,
         surfaces: &[BSplineSurface],
-        options: &[TessOptions],
         mesh: &mut Mesh32,
     ) -> Result<()> {
-        execute_surfaces_f32(&SurfacePlan::new(surfaces, options)?, surfaces, mesh)
+        execute_surfaces_f32(plan, surfaces, mesh)
     }
 
     fn tessellate_coons_into(

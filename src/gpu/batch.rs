@@ -453,6 +453,7 @@ impl GpuBatch {
     /// grid or sample count where it asks for one, else on `defaults`. Trimmed faces are
     /// planned and evaluated on the CPU ([`crate::cpu::mesh_trimmed_faces`]) and uploaded
     /// once into [`GpuBatch::trimmed_mesh`]; updates and reloads leave them as they are.
+    /// Surfaces are joined along the scene's seams ([`Scene::seams`]) until a reload.
     pub fn from_scene(
         context: &GpuContext,
         scene: &Scene,
@@ -466,7 +467,8 @@ impl GpuBatch {
         let descriptor = BatchDescriptor::each(&surfaces, &scene.surface_grids(defaults.grid))
             .with_coons(&coons, &scene.coons_grids(defaults.grid))
             .with_curves(&curves, &scene.curve_samples(defaults.samples));
-        let mut batch = Self::new(context, &descriptor)?;
+        let plan = crate::scene::surface_plan(scene, &surfaces, defaults)?;
+        let mut batch = Self::with_plan(context, &descriptor, &plan)?;
         batch.trimmed = upload_trimmed(context, scene, defaults)?;
         Ok(batch)
     }
@@ -590,12 +592,12 @@ impl GpuBatch {
     /// planned within the batch's limits, reusing every buffer the new contents fit. On
     /// error the batch is left empty (it dispatches nothing) until the next reload.
     pub fn reload(&mut self, surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<()> {
-        let packed = surfaces::pack(
-            &SurfacePlan::new(surfaces, options)?,
-            surfaces,
-            &self.limits,
-            self.placement,
-        )?;
+        self.reload_plan(&SurfacePlan::new(surfaces, options)?, surfaces)
+    }
+
+    /// As [`GpuBatch::reload`], executing `plan` (made for `surfaces`) as it is.
+    pub fn reload_plan(&mut self, plan: &SurfacePlan, surfaces: &[BSplineSurface]) -> Result<()> {
+        let packed = surfaces::pack(plan, surfaces, &self.limits, self.placement)?;
         self.load(packed, surfaces)
     }
 

@@ -2,7 +2,7 @@
 //! with one readback batch kept and reloaded across calls, so re-tessellating every frame or
 //! every file allocates nothing once the largest job has been seen.
 
-use super::batch::{BatchDescriptor, GpuBatch};
+use super::batch::GpuBatch;
 use super::context::GpuContext;
 use super::coons;
 use super::curves::CurveWork;
@@ -12,6 +12,7 @@ use crate::error::Result;
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
 use crate::mesh::{Mesh, Mesh32, Polyline, TessOptions};
+use crate::plan::SurfacePlan;
 use std::sync::Mutex;
 
 /// The GPU tessellator: uploads, dispatches and reads back on its context.
@@ -66,24 +67,21 @@ impl GpuTessellator {
 }
 
 impl GpuTessellator {
-    /// Loads `surfaces` into the kept readback batch (reloading it, or creating it the first
-    /// time), dispatches it and reads it with `read`.
+    /// Loads `plan` (made for `surfaces`) into the kept readback batch (reloading it, or
+    /// creating it the first time), dispatches it and reads it with `read`.
     fn run<T>(
         &self,
+        plan: &SurfacePlan,
         surfaces: &[BSplineSurface],
-        options: &[TessOptions],
         read: impl FnOnce(&GpuBatch) -> Result<T>,
     ) -> Result<T> {
         let mut kept = lock(&self.batch);
         let batch = match kept.take() {
             Some(mut batch) => {
-                batch.reload(surfaces, options)?;
+                batch.reload_plan(plan, surfaces)?;
                 batch
             }
-            None => GpuBatch::new(
-                &self.context,
-                &BatchDescriptor::each(surfaces, options).for_readback(),
-            )?,
+            None => GpuBatch::from_plan(&self.context, plan, surfaces)?,
         };
         let batch = kept.insert(batch);
         batch.dispatch()?;
@@ -97,24 +95,24 @@ fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 }
 
 impl Tessellator for GpuTessellator {
-    fn tessellate_each_into(
+    fn execute_surfaces(
         &self,
+        plan: &SurfacePlan,
         surfaces: &[BSplineSurface],
-        options: &[TessOptions],
         mesh: &mut Mesh,
     ) -> Result<()> {
         // Read in f64: each surface's origin is added exactly.
-        mesh.replace_grids(self.run(surfaces, options, GpuBatch::read_mesh)?);
+        mesh.replace_grids(self.run(plan, surfaces, GpuBatch::read_mesh)?);
         Ok(())
     }
 
-    fn tessellate_each_into_f32(
+    fn execute_surfaces_f32(
         &self,
+        plan: &SurfacePlan,
         surfaces: &[BSplineSurface],
-        options: &[TessOptions],
         mesh: &mut Mesh32,
     ) -> Result<()> {
-        self.run(surfaces, options, |batch| batch.read_into(mesh))
+        self.run(plan, surfaces, |batch| batch.read_into(mesh))
     }
 
     fn tessellate_coons_into(

@@ -24,6 +24,13 @@
 //! breakpoints default to [0, 1]. A surface that is one B-spline may be trimmed: `trim` (its
 //! outer loop) and `holes` (loops) are arrays of curve objects whose x and y are (u, v) of
 //! its B-spline form, each starting where the one before ends.
+//!
+//! `seams` (optional) says which sides of surfaces are one edge of the model:
+//! `{"sides": [[0, "u1"], [3, "u0"]]}` joins the side u = end of surface 0 (its index in
+//! `surfaces`, an entry that is one B-spline surface) with the side u = start of surface 3
+//! (sides `u0`, `u1`, `v0`, `v1`). Sampled to a tolerance, the two share their vertices
+//! whatever their control points (one may have knots the other lacks); they must be the same
+//! curve at the same fractions of their ranges, in either direction.
 
 use crate::error::{Error, Result};
 use crate::geom::patches::{self, Blend, CoonsBoundaries, CoonsPatch, HermiteCorners};
@@ -32,6 +39,7 @@ use crate::geom::{
     bezier_curve, curves, shapes,
 };
 use crate::mesh::{TessOptions, Tolerance};
+use crate::plan::{Seam, Side, SurfaceSide};
 use crate::scene::{Geometry, Item, Scene};
 use glam::DVec3;
 use serde::Deserialize;
@@ -686,7 +694,7 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
             Error::syntax("a scene is an object with `surfaces` and `curves` arrays").at_line(1),
         );
     };
-    let (surface_lines, curve_lines) = item_lines(text);
+    let [surface_lines, curve_lines, seam_lines] = item_lines(text);
     let mut list = |key: &str| -> Result<Vec<serde_json::Value>> {
         match top.remove(key) {
             None => Ok(Vec::new()),
@@ -694,13 +702,15 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
             Some(_) => Err(Error::syntax(format!("`{key}` must be an array of items"))),
         }
     };
-    let (surfaces, curves) = (list("surfaces")?, list("curves")?);
+    let (surfaces, curves, seams) = (list("surfaces")?, list("curves")?, list("seams")?);
     if let Some(key) = top.keys().next() {
         return Err(Error::syntax(format!(
-            "unknown field `{key}` at the top level, expected `surfaces` or `curves`"
+            "unknown field `{key}` at the top level, expected `surfaces`, `curves` or `seams`"
         )));
     }
     let mut scene = Scene::default();
+    // The items each surface entry became (a two-sheet hyperboloid is two surfaces).
+    let mut entry_items = Vec::with_capacity(surfaces.len());
     // Items in file order: the surfaces, then the curves.
     for (index, value) in surfaces.into_iter().enumerate() {
         let line = surface_lines.get(index).copied().unwrap_or(1);
@@ -784,6 +794,7 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
                 .map_err(|e| in_surface(e).at_line(line))?;
             vec![Geometry::Trimmed(Box::new(face))]
         };
+        entry_items.push(scene.items.len()..scene.items.len() + geometries.len());
         scene
             .items
             .extend(geometries.into_iter().map(|geometry| Item {
@@ -811,7 +822,62 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
             ..Item::new(Geometry::Curve(curve.build().map_err(in_curve)?))
         });
     }
+    for (index, value) in seams.into_iter().enumerate() {
+        let line = seam_lines.get(index).copied().unwrap_or(1);
+        scene
+            .seams
+            .push(seam(&scene, &entry_items, value, index).map_err(|e| e.at_line(line))?);
+    }
     Ok(scene)
+}
+
+/// One entry of `seams`: `{"sides": [[surface, side], [surface, side]]}`, a surface named by
+/// its index in `surfaces` (an entry that is one B-spline surface), a side by its label
+/// (`u0`, `u1`, `v0`, `v1`), turned into item indices through `entry_items`.
+fn seam(
+    scene: &Scene,
+    entry_items: &[std::ops::Range<usize>],
+    value: serde_json::Value,
+    index: usize,
+) -> Result<Seam> {
+    #[derive(Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct JsonSeam {
+        sides: [(usize, String); 2],
+    }
+    let refuse = |message: String| Error::syntax(format!("seam {index}: {message}"));
+    let JsonSeam { sides } = serde_json::from_value(value).map_err(|e| {
+        refuse(format!(
+            "{e} (a seam is {{\"sides\": [[surface, \"u0\"|\"u1\"|\"v0\"|\"v1\"], [surface, side]]}})"
+        ))
+    })?;
+    let side = |(entry, label): &(usize, String)| -> Result<SurfaceSide> {
+        let Some(items) = entry_items.get(*entry) else {
+            return Err(refuse(format!(
+                "names surface {entry}, but the file has {} surfaces",
+                entry_items.len()
+            )));
+        };
+        let one_surface =
+            items.len() == 1 && matches!(scene.items[items.start].geometry, Geometry::Surface(_));
+        if !one_surface {
+            return Err(refuse(format!(
+                "surface {entry} is not one untrimmed B-spline surface (a Coons patch, a trimmed face or a two-sheet hyperboloid cannot be named)"
+            )));
+        }
+        let side = Side::from_label(label).ok_or_else(|| {
+            refuse(format!(
+                "side `{label}` of surface {entry}: a side is `u0`, `u1`, `v0` or `v1`"
+            ))
+        })?;
+        Ok(SurfaceSide {
+            surface: items.start,
+            side,
+        })
+    };
+    Ok(Seam {
+        sides: [side(&sides[0])?, side(&sides[1])?],
+    })
 }
 
 /// One item of a scene file, its item-level fields (`grid`, `name`, `samples`) taken apart
@@ -880,14 +946,15 @@ impl ItemFields {
     }
 }
 
-/// The line on which each element of the top-level `surfaces` and `curves` arrays starts
-/// (a scan of the text that follows strings and nesting; for error messages only).
-fn item_lines(text: &str) -> (Vec<usize>, Vec<usize>) {
-    let (mut surfaces, mut curves) = (Vec::new(), Vec::new());
+/// The line on which each element of the top-level `surfaces`, `curves` and `seams` arrays
+/// starts (a scan of the text that follows strings and nesting; for error messages only).
+fn item_lines(text: &str) -> [Vec<usize>; 3] {
+    const ARRAYS: [&str; 3] = ["surfaces", "curves", "seams"];
+    let mut lines: [Vec<usize>; 3] = Default::default();
     let (mut line, mut depth) = (1usize, 0usize);
     let (mut in_string, mut escaped) = (false, false);
     let (mut string, mut last_key) = (String::new(), String::new());
-    let mut array: Option<bool> = None;
+    let mut array: Option<usize> = None;
     for c in text.chars() {
         if c == '\n' {
             line += 1;
@@ -913,17 +980,11 @@ fn item_lines(text: &str) -> (Vec<usize>, Vec<usize>) {
             }
             '{' | '[' => {
                 if depth == 1 && c == '[' {
-                    array = match last_key.as_str() {
-                        "surfaces" => Some(true),
-                        "curves" => Some(false),
-                        _ => None,
-                    };
-                } else if depth == 2 {
-                    match array {
-                        Some(true) => surfaces.push(line),
-                        Some(false) => curves.push(line),
-                        None => {}
-                    }
+                    array = ARRAYS.iter().position(|&key| key == last_key);
+                } else if depth == 2
+                    && let Some(array) = array
+                {
+                    lines[array].push(line);
                 }
                 depth += 1;
             }
@@ -936,5 +997,5 @@ fn item_lines(text: &str) -> (Vec<usize>, Vec<usize>) {
             _ => {}
         }
     }
-    (surfaces, curves)
+    lines
 }

@@ -55,6 +55,8 @@ pub struct CellGrid {
     pub columns: usize,
     pub rows: usize,
     pub cells: Vec<Cell>,
+    /// The limits the cells were planned for.
+    pub limits: SamplingLimits,
 }
 
 /// The cells of `surface` for `limits`: every triangle made from them lies within the
@@ -161,6 +163,7 @@ pub fn surface_cells(surface: &BSplineSurface, limits: SamplingLimits) -> Result
         columns,
         rows,
         cells,
+        limits,
     })
 }
 
@@ -549,11 +552,35 @@ pub(crate) fn zip_chains(a: &[u32], b: &[u32], out: &mut Vec<u32>) {
 
 /// A side of a cell or of a surface's range (the discriminants index per-side arrays).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Side {
+pub enum Side {
+    /// v at the start of its range: `v0` in files.
     Bottom = 0,
+    /// u at the end of its range: `u1`.
     Right = 1,
+    /// v at the end of its range: `v1`.
     Top = 2,
+    /// u at the start of its range: `u0`.
     Left = 3,
+}
+
+impl Side {
+    /// The side's name in files: `u0`, `u1`, `v0` or `v1` (the parameter fixed, and at
+    /// which end of its range).
+    pub fn label(self) -> &'static str {
+        match self {
+            Side::Bottom => "v0",
+            Side::Right => "u1",
+            Side::Top => "v1",
+            Side::Left => "u0",
+        }
+    }
+
+    /// The side a file's name (`u0`, `u1`, `v0`, `v1`) stands for.
+    pub fn from_label(label: &str) -> Option<Side> {
+        [Side::Bottom, Side::Right, Side::Top, Side::Left]
+            .into_iter()
+            .find(|side| side.label() == label)
+    }
 }
 
 fn gcd(mut a: u32, mut b: u32) -> u32 {

@@ -12,9 +12,10 @@ mod trim;
 pub mod view;
 
 pub use adaptive::{
-    Cell, CellGrid, MAX_CELL_SEGMENTS, MAX_CELLS_PER_SPAN, SEGMENTS_PER_CELL, surface_cells,
+    Cell, CellGrid, MAX_CELL_SEGMENTS, MAX_CELLS_PER_SPAN, SEGMENTS_PER_CELL, Side, surface_cells,
 };
 pub use brep::{FacePlan, ShellPlan, plan_shell};
+pub use seams::{Seam, SurfaceSide};
 pub use tables::{AxisSamples, BEZIER_DEGREE, BezierSegment, ROW_PADDING, SpanRun};
 pub use trim::{MAX_TRIMMED_VERTICES, TrimmedPlan, plan_trimmed, plan_trimmed_within};
 
@@ -116,10 +117,22 @@ impl SurfacePlan {
     /// Plans surface k on the grid of `options[k]`, or where it sets a tolerance, on the
     /// cells of [`surface_cells`] (a relative tolerance taken of the diagonal of the box of
     /// all `surfaces`' control points). Counts are checked against u32 before anything is
-    /// allocated. Errors name the surface.
+    /// allocated. Errors name the surface. Surfaces sampled to a tolerance are joined where
+    /// their control points show a shared side (see [`seams`]).
     pub fn new(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Self> {
+        Self::with_seams(surfaces, options, &[])
+    }
+
+    /// As [`SurfacePlan::new`], joining also the sides `seams` name (a file's connectivity),
+    /// whatever their control points: a seam naming a surface out of range or a side twice is
+    /// [`Error::InvalidSeam`], one whose sides are not one curve [`Error::SeamGap`].
+    pub fn with_seams(
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        seams: &[Seam],
+    ) -> Result<Self> {
         let sampling = surface_sampling(surfaces, options)?;
-        let seams = SeamSamples::new(surfaces, &sampling)?;
+        let seams = SeamSamples::new(surfaces, &sampling, seams)?;
         // Vertices are laid out now; triangles once they are made (poles drop some).
         let layout = layout_of(&sampling, &seams.triangles())?;
         let joined = sampling.iter().any(|s| matches!(s, Sampling::Cells(_)));
@@ -216,11 +229,15 @@ impl SurfacePlan {
         })
     }
 
-    /// The layout [`SurfacePlan::new`] gives these surfaces, without its tables and
+    /// The layout [`SurfacePlan::with_seams`] gives these surfaces, without its tables and
     /// triangles: what a memory check needs.
-    pub fn layout_only(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<GridLayout> {
+    pub fn layout_only(
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        seams: &[Seam],
+    ) -> Result<GridLayout> {
         let sampling = surface_sampling(surfaces, options)?;
-        let seams = SeamSamples::new(surfaces, &sampling)?;
+        let seams = SeamSamples::new(surfaces, &sampling, seams)?;
         layout_of(&sampling, &seams.triangles())
     }
 
@@ -300,9 +317,10 @@ struct SeamSamples<'a> {
 }
 
 impl<'a> SeamSamples<'a> {
-    /// Finds the seams of the adaptive surfaces of `sampling` and merges their samples
-    /// (vertices numbered as the layout will: checked against u32 here first).
-    fn new(surfaces: &[BSplineSurface], sampling: &'a [Sampling]) -> Result<Self> {
+    /// Joins the `asked` seams and those the control points show among the adaptive
+    /// surfaces of `sampling`, and merges their samples (vertices numbered as the layout
+    /// will: checked against u32 here first).
+    fn new(surfaces: &[BSplineSurface], sampling: &'a [Sampling], asked: &[Seam]) -> Result<Self> {
         // The cells' own triangles (seams add more): a job too large for u32 is refused
         // here with counts that mean something.
         let own_triangles: Vec<u64> = sampling
@@ -320,7 +338,8 @@ impl<'a> SeamSamples<'a> {
                 Sampling::Grid(..) => None,
             })
             .collect();
-        let tolerance = seams::point_tolerance(surfaces);
+        let diagonal = model_diagonal(surfaces);
+        let tolerance = seams::point_tolerance(diagonal);
         let vertices: Vec<Option<adaptive::CellVertices>> = cells
             .iter()
             .zip(&without_seams.parts)
@@ -332,16 +351,21 @@ impl<'a> SeamSamples<'a> {
         let adaptive: Vec<bool> = cells.iter().map(Option::is_some).collect();
         let mut external: Vec<[Vec<(f64, u32)>; 4]> = vec![Default::default(); surfaces.len()];
         let mut same = Vec::new();
-        for seam in seams::find_seams(surfaces, &adaptive) {
+        let mut joined = seams::asked_seams(surfaces, &adaptive, asked)?;
+        joined.extend(seams::find_seams(surfaces, &adaptive, &joined));
+        for seam in joined {
+            let grid = |surface: usize| cells[surface].expect("seams join adaptive surfaces");
             let side_samples = |(surface, side): (usize, adaptive::Side)| {
-                let grid = cells[surface].expect("seams join adaptive surfaces");
-                grid.side_samples(vertices[surface].as_ref().expect("planned"), side)
+                grid(surface).side_samples(vertices[surface].as_ref().expect("planned"), side)
             };
-            let (pairs, [first_lacks, second_lacks]) = seams::merge_samples(
-                &side_samples(seam.first),
-                &side_samples(seam.second),
-                seam.reversed,
+            let (first, second) = (side_samples(seam.first), side_samples(seam.second));
+            let allowed = seams::allowed_gap(
+                [seam.first.0, seam.second.0].map(|k| grid(k).limits.tolerance),
+                diagonal,
             );
+            seams::check_gap(surfaces, &seam, &first, &second, allowed)?;
+            let (pairs, [first_lacks, second_lacks]) =
+                seams::merge_samples(&first, &second, seam.reversed);
             same.extend(pairs);
             external[seam.first.0][seam.first.1 as usize] = first_lacks;
             external[seam.second.0][seam.second.1 as usize] = second_lacks;

@@ -6,10 +6,17 @@
 //! surface's), and each side's grid cells along the seam take in the other side's samples
 //! (see [`super::CellGrid::push_triangles`]). So the mesh is closed across the seam by shared
 //! indices, not by equal floats.
+//!
+//! A file may also say which sides are one ([`Seam`], JSON `seams`): then the sides need not
+//! have the same control points — one may have knots inserted the other lacks — but they
+//! must be the same curve at the same fractions of their ranges (run either way), which the
+//! plan checks at every sample of both sides ([`Error::SeamGap`]).
 
 use super::adaptive::Side;
+use crate::error::{Error, Result};
 use crate::geom::BSplineSurface;
 use glam::DVec3;
+use std::collections::{HashMap, HashSet};
 
 /// Samples of two sides closer than this (as fractions of the side) are one.
 const SAME_FRACTION: f64 = 1e-12;
@@ -129,29 +136,188 @@ pub(crate) fn pole_sides(surface: &BSplineSurface, tolerance: f64) -> [bool; 4] 
         .map(|side| side_curve(surface, side).is_some_and(|c| c.is_point(tolerance)))
 }
 
-/// How close control points must be to coincide: [`SAME_POINT_REL`] of the diagonal of the
-/// box around all `surfaces`' control points.
-pub(crate) fn point_tolerance(surfaces: &[BSplineSurface]) -> f64 {
-    let (low, high) = surfaces.iter().map(BSplineSurface::control_box).fold(
-        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-        |(low, high), (a, b)| (low.min(a), high.max(b)),
-    );
-    SAME_POINT_REL * (high - low).length()
+/// How close control points must be to coincide: [`SAME_POINT_REL`] of `diagonal`, that of
+/// the box around all the surfaces' control points ([`super::model_diagonal`]).
+pub(crate) fn point_tolerance(diagonal: f64) -> f64 {
+    SAME_POINT_REL * diagonal
 }
 
-/// Two surfaces' sides that are one seam.
+/// A side of one surface of a plan: the surface's index in the list planned, and which side
+/// of its evaluation range.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) struct Seam {
+pub struct SurfaceSide {
+    pub surface: usize,
+    pub side: Side,
+}
+
+/// Two sides of different surfaces that are one edge of the model, as a file's connectivity
+/// says: both are sampled alike and share their vertices. The sides must be the same curve
+/// at the same fractions of their ranges, in the same or the opposite direction (which one
+/// is found from their ends). Seams join surfaces sampled to a tolerance; a seam with a
+/// surface sampled on a grid is left alone.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Seam {
+    pub sides: [SurfaceSide; 2],
+}
+
+/// Two surfaces' sides that a plan joins.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Joined {
     pub first: (usize, Side),
     pub second: (usize, Side),
     /// The second side runs the other way.
     pub reversed: bool,
+    /// The index of the [`Seam`] that asked for it; `None` where found from the control
+    /// points.
+    pub asked: Option<usize>,
 }
 
-/// The seams among the sides of the surfaces sampled to a tolerance (`adaptive[k]`): each
+/// The point of `surface` at `fraction` ∈ [0, 1] of its evaluation range along `side`.
+fn side_point(surface: &BSplineSurface, side: Side, fraction: f64) -> DVec3 {
+    let (range_u, range_v) = (surface.range_u(), surface.range_v());
+    let (u, v) = match side {
+        Side::Bottom => (range_u.lerp(fraction), range_v.start),
+        Side::Top => (range_u.lerp(fraction), range_v.end),
+        Side::Left => (range_u.start, range_v.lerp(fraction)),
+        Side::Right => (range_u.end, range_v.lerp(fraction)),
+    };
+    surface.point(u, v)
+}
+
+/// The seams a file asked for among the surfaces sampled to a tolerance (`adaptive[k]`),
+/// each run the way its sides' ends say. Refuses a seam naming a surface out of range, a
+/// side twice, or two sides of one surface.
+pub(crate) fn asked_seams(
+    surfaces: &[BSplineSurface],
+    adaptive: &[bool],
+    seams: &[Seam],
+) -> Result<Vec<Joined>> {
+    let mut used = HashSet::new();
+    let mut joined = Vec::with_capacity(seams.len().min(4 * surfaces.len()));
+    for (index, seam) in seams.iter().enumerate() {
+        let refuse = |reason: String| Error::InvalidSeam {
+            seam: index,
+            reason,
+        };
+        for side in seam.sides {
+            if side.surface >= surfaces.len() {
+                return Err(refuse(format!(
+                    "names surface {} of {}",
+                    side.surface,
+                    surfaces.len()
+                )));
+            }
+            if !used.insert((side.surface, side.side as usize)) {
+                return Err(refuse(format!(
+                    "names side {} of surface {}, which an earlier seam joins already",
+                    side.side.label(),
+                    side.surface
+                )));
+            }
+        }
+        let [a, b] = seam.sides;
+        if a.surface == b.surface {
+            return Err(refuse(format!(
+                "joins two sides of surface {} (a surface closed on itself needs no seam)",
+                a.surface
+            )));
+        }
+        if !(adaptive[a.surface] && adaptive[b.surface]) {
+            continue;
+        }
+        let ends = |s: SurfaceSide| {
+            let surface = &surfaces[s.surface];
+            (
+                side_point(surface, s.side, 0.0),
+                side_point(surface, s.side, 1.0),
+            )
+        };
+        let ((a0, a1), (b0, b1)) = (ends(a), ends(b));
+        let reversed =
+            (a0 - b1).length() + (a1 - b0).length() < (a0 - b0).length() + (a1 - b1).length();
+        joined.push(Joined {
+            first: (a.surface, a.side),
+            second: (b.surface, b.side),
+            reversed,
+            asked: Some(index),
+        });
+    }
+    Ok(joined)
+}
+
+/// How far apart the two sides of a seam a file asked for may be, as a fraction of the
+/// finer of their surfaces' tolerances: the seam's vertices are one surface's, so the other
+/// surface's triangles may be this much further from it than its tolerance.
+const SEAM_GAP_FRACTION: f64 = 0.01;
+
+/// Where neither surface of a seam has a tolerance (edge lengths or angles only), the
+/// sides' gap allowed as a fraction of the model's diagonal.
+const SEAM_GAP_REL: f64 = 1e-6;
+
+/// The gap allowed between the sides of a seam whose surfaces were planned to `tolerances`
+/// (model units, infinite: none), in a model of this `diagonal`.
+pub(crate) fn allowed_gap(tolerances: [f64; 2], diagonal: f64) -> f64 {
+    let finer = tolerances[0].min(tolerances[1]);
+    if finer.is_finite() {
+        SEAM_GAP_FRACTION * finer
+    } else {
+        SEAM_GAP_REL * diagonal
+    }
+}
+
+/// Checks that the two sides of `seam` (asked for by a file) are one curve at the samples
+/// `first` and `second` of each (fractions along its side): the largest distance between
+/// the sides at the same fraction at most `allowed` (model units), else [`Error::SeamGap`].
+pub(crate) fn check_gap(
+    surfaces: &[BSplineSurface],
+    seam: &Joined,
+    first: &[(f64, u32)],
+    second: &[(f64, u32)],
+    allowed: f64,
+) -> Result<()> {
+    let Some(index) = seam.asked else {
+        return Ok(());
+    };
+    let flip = |f: f64| if seam.reversed { 1.0 - f } else { f };
+    let gap_at = |f: f64| {
+        let on_first = side_point(&surfaces[seam.first.0], seam.first.1, f);
+        let on_second = side_point(&surfaces[seam.second.0], seam.second.1, flip(f));
+        (on_first - on_second).length()
+    };
+    let fractions = first
+        .iter()
+        .map(|&(f, _)| f)
+        .chain(second.iter().map(|&(f, _)| flip(f)));
+    let gap = fractions.map(gap_at).fold(0.0, f64::max);
+    if gap > allowed {
+        return Err(Error::SeamGap {
+            seam: index,
+            gap,
+            allowed,
+        });
+    }
+    Ok(())
+}
+
+/// The seams among the sides of the surfaces sampled to a tolerance (`adaptive[k]`) that
+/// their control points show, leaving out the sides in `taken` (seams asked for): each
 /// side in one seam at most (the first match, in surface and side order).
-pub(crate) fn find_seams(surfaces: &[BSplineSurface], adaptive: &[bool]) -> Vec<Seam> {
-    let tolerance = point_tolerance(surfaces);
+pub(crate) fn find_seams(
+    surfaces: &[BSplineSurface],
+    adaptive: &[bool],
+    taken: &[Joined],
+) -> Vec<Joined> {
+    let tolerance = point_tolerance(super::model_diagonal(surfaces));
+    let asked: HashSet<(usize, usize)> = taken
+        .iter()
+        .flat_map(|j| {
+            [
+                (j.first.0, j.first.1 as usize),
+                (j.second.0, j.second.1 as usize),
+            ]
+        })
+        .collect();
+    let asked = &asked;
     let sides = [Side::Bottom, Side::Right, Side::Top, Side::Left];
     let curves: Vec<((usize, Side), SideCurve)> = surfaces
         .iter()
@@ -160,6 +326,7 @@ pub(crate) fn find_seams(surfaces: &[BSplineSurface], adaptive: &[bool]) -> Vec<
         .flat_map(|(k, surface)| {
             sides
                 .iter()
+                .filter(move |&&side| !asked.contains(&(k, side as usize)))
                 .filter_map(move |&side| side_curve(surface, side).map(|c| ((k, side), c)))
         })
         // A side collapsed to a point (a pole) is no seam: every pole of that point would
@@ -170,7 +337,7 @@ pub(crate) fn find_seams(surfaces: &[BSplineSurface], adaptive: &[bool]) -> Vec<
     // size (both orders), so that matching is not quadratic in the sides.
     let key = |p: DVec3| (p / (tolerance * 16.0)).floor().as_i64vec3().to_array();
     let ends = |c: &SideCurve| (key(c.points[0]), key(c.points[c.points.len() - 1]));
-    let mut by_ends: std::collections::HashMap<_, Vec<usize>> = std::collections::HashMap::new();
+    let mut by_ends: HashMap<_, Vec<usize>> = HashMap::new();
     for (index, (_, curve)) in curves.iter().enumerate() {
         by_ends.entry(ends(curve)).or_default().push(index);
     }
@@ -198,10 +365,11 @@ pub(crate) fn find_seams(surfaces: &[BSplineSurface], adaptive: &[bool]) -> Vec<
         if let Some((other, reversed)) = found {
             taken[index] = true;
             taken[other] = true;
-            seams.push(Seam {
+            seams.push(Joined {
                 first: (*surface, *side),
                 second: curves[other].0,
                 reversed,
+                asked: None,
             });
         }
     }

@@ -264,7 +264,7 @@ impl ViewPlan {
                 Side::Right => (0..rows).map(|b| cell_at(s, columns - 1, b)).collect(),
             }
         };
-        let tolerance = super::seams::point_tolerance(surfaces);
+        let tolerance = super::seams::point_tolerance(super::model_diagonal(surfaces));
         for (s, surface) in surfaces.iter().enumerate() {
             for (side, is_pole) in SIDES.iter().zip(pole_sides(surface, tolerance)) {
                 if is_pole {
@@ -275,7 +275,7 @@ impl ViewPlan {
             }
         }
         let all = vec![true; surfaces.len()];
-        for seam in find_seams(surfaces, &all) {
+        for seam in find_seams(surfaces, &all, &[]) {
             let (first, second) = (
                 along(seam.first.0, seam.first.1),
                 along(seam.second.0, seam.second.1),
