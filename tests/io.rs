@@ -1719,9 +1719,42 @@ fn tolerances_reach_the_plan_from_the_cli_and_json() {
     };
     let both = error(", \"grid\": [9, 9], \"tolerance\": 1e-3");
     assert!(
-        both.contains("surface 0 (sphere): give one of `grid`, `tolerance` and `tolerance_rel`"),
+        both.contains("surface 0 (sphere): give `grid` (an exact grid) or limits"),
         "{both}"
     );
+    let both = error(", \"tolerance\": 1e-3, \"tolerance_rel\": 1e-3");
+    assert!(
+        both.contains("give one of `tolerance` and `tolerance_rel`"),
+        "{both}"
+    );
+    let steep = error(",\n \"max_angle\": 180");
+    assert!(
+        steep.contains("line 1") && steep.contains("angle 1.8e2° is invalid"),
+        "{steep}"
+    );
+    let negative = error(", \"max_edge\": -1");
+    assert!(negative.contains("surface 0"), "{negative}");
+    // An item's own edge length and angle, alone and beside its tolerance: every edge
+    // within the length, and the angle takes more triangles than the tolerance alone.
+    let longest_edge = |mesh: &knotwork::Mesh| {
+        mesh.indices
+            .chunks(3)
+            .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+            .map(|(a, b)| (mesh.positions[a as usize] - mesh.positions[b as usize]).length())
+            .fold(0.0, f64::max)
+    };
+    let scene = knotwork::io::read_json_scene(&sphere(", \"max_edge\": 0.1")).unwrap();
+    let short = CpuTessellator
+        .tessellate_scene(&scene, &Default::default())
+        .unwrap();
+    assert!(longest_edge(&short) <= 0.1, "{}", longest_edge(&short));
+    let scene =
+        knotwork::io::read_json_scene(&sphere(", \"tolerance_rel\": 1e-2, \"max_angle\": 5"))
+            .unwrap();
+    let turned = CpuTessellator
+        .tessellate_scene(&scene, &Default::default())
+        .unwrap();
+    assert!(turned.indices.len() > 2 * coarse.indices.len());
     let zero = error(", \"tolerance\": 0");
     assert!(
         zero.contains("surface 0: tolerance 0e0 is invalid"),

@@ -14,9 +14,8 @@ meshes of the same surfaces:
 
 The deviation of every mesh is measured by the same code: points of the true surface at
 random parameters (Open CASCADE's evaluation of the same patches, uniform in each patch's
-parameter range, POINTS_PER_PATCH of them), each point's distance to the nearest triangle of
-the mesh (candidates: the triangles around its nearest vertices; exact point–triangle
-distance). Prints one Markdown table row per file and REL.
+parameter range, POINTS_PER_PATCH of them), each point's exact distance to the nearest
+triangle of the mesh (any patch's). Prints one Markdown table row per file and REL.
 
 Needs numpy, scipy and cadquery-ocp (`pip install scipy cadquery-ocp`); Open CASCADE is a
 comparison tool only, never a dependency of the crate.
@@ -38,8 +37,7 @@ from OCP.BRep import BRep_Builder, BRep_Tool
 from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
 from OCP.BRepMesh import BRepMesh_IncrementalMesh
 from OCP.Geom import Geom_BSplineSurface
-from OCP.TColgp import TColgp_Array2OfPnt
-from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal, TColStd_Array2OfReal
+from OCP.OCP.collections import Array1_double, Array1_int, Array2_double, Array2_gp_Pnt
 from OCP.TopAbs import TopAbs_FACE
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopLoc import TopLoc_Location
@@ -125,15 +123,15 @@ def occt_surface(patch):
             else:
                 values.append(k)
                 counts.append(1)
-        a, m = TColStd_Array1OfReal(1, len(values)), TColStd_Array1OfInteger(1, len(values))
+        a, m = Array1_double(1, len(values)), Array1_int(1, len(values))
         for k, (value, count) in enumerate(zip(values, counts)):
             a.SetValue(k + 1, value)
             m.SetValue(k + 1, count)
         return a, m
 
     nv, nu = len(patch.points), len(patch.points[0])
-    poles = TColgp_Array2OfPnt(1, nu, 1, nv)
-    weights = TColStd_Array2OfReal(1, nu, 1, nv)
+    poles = Array2_gp_Pnt(1, nu, 1, nv)
+    weights = Array2_double(1, nu, 1, nv)
     for j in range(nv):
         for i in range(nu):
             poles.SetValue(i + 1, j + 1, gp_Pnt(*patch.points[j][i]))
@@ -188,23 +186,38 @@ def closest_on_triangles(p, a, b, c):
 
 
 def deviation(points, positions, triangles):
-    """The largest distance from `points` to the mesh."""
+    """The largest distance from `points` to the mesh, exactly: first an upper bound for
+    every point (the triangles around its nearest vertices), then, from the largest bound
+    down, the exact distance over every triangle whose centroid is near enough to matter,
+    until no bound left exceeds the largest exact distance found."""
     tree = cKDTree(positions)
     around = [[] for _ in range(len(positions))]
     for t, tri in enumerate(triangles):
         for v in tri:
             around[v].append(t)
-    worst = 0.0
+    corners = positions[triangles]
+    centroids = corners.mean(axis=1)
+    reach = float(np.linalg.norm(corners - centroids[:, None, :], axis=-1).max())
+    centroid_tree = cKDTree(centroids)
+    bounds = np.empty(len(points))
     for start in range(0, len(points), 20000):
         chunk = points[start:start + 20000]
         _, nearest = tree.query(chunk, NEAREST_VERTICES)
         candidates = [sorted({t for v in row for t in around[v]}) for row in nearest]
         width = max(len(c) for c in candidates)
         index = np.array([c + [c[0]] * (width - len(c)) for c in candidates])
-        tri = triangles[index]
-        d = closest_on_triangles(chunk, positions[tri[..., 0]], positions[tri[..., 1]],
-                                 positions[tri[..., 2]])
-        worst = max(worst, float(d.min(axis=1).max()))
+        tri = corners[index]
+        d = closest_on_triangles(chunk, tri[..., 0, :], tri[..., 1, :], tri[..., 2, :])
+        bounds[start:start + len(chunk)] = d.min(axis=1)
+    worst = 0.0
+    for k in np.argsort(-bounds):
+        if bounds[k] <= worst:
+            break
+        near = np.array(centroid_tree.query_ball_point(points[k], bounds[k] + reach))
+        tri = corners[near][None]
+        exact = closest_on_triangles(points[k][None], tri[..., 0, :], tri[..., 1, :],
+                                     tri[..., 2, :]).min()
+        worst = max(worst, float(exact))
     return worst
 
 

@@ -17,9 +17,11 @@
 //!
 //! Points are Cartesian and listed u fastest; `weights` (optional) makes a net rational;
 //! `range_u`/`range_v` (optional) restrict evaluation to part of the knot domain; `grid`
-//! (optional) overrides the tessellation grid for that surface, or `tolerance` (model units)
-//! or `tolerance_rel` (of the scene's control-point box diagonal) samples it to a deviation
-//! instead (one of the three), `samples` the polyline length
+//! (optional) overrides the tessellation grid for that surface, or limits sample it
+//! adaptively instead: `tolerance` (model units) or `tolerance_rel` (of the scene's
+//! control-point box diagonal) a deviation, `max_edge` (model units) an edge length,
+//! `max_angle` (degrees) the turn of the normal along an edge — any of them together, not with
+//! `grid`; `samples` the polyline length
 //! of a curve; `name` (optional) names its mesh in glTF output. Angles are in degrees. Bezier
 //! breakpoints default to [0, 1]. A surface that is one B-spline may be trimmed: `trim` (its
 //! outer loop) and `holes` (loops) are arrays of curve objects whose x and y are (u, v) of
@@ -39,7 +41,7 @@ use crate::geom::{
     bezier_curve, curves, shapes,
 };
 use crate::mesh::{TessOptions, Tolerance};
-use crate::plan::{Seam, Side, SurfaceSide};
+use crate::plan::{Seam, Side, SurfaceSide, sampling_limits};
 use crate::scene::{Geometry, Item, Scene};
 use glam::DVec3;
 use serde::Deserialize;
@@ -723,6 +725,8 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
                 "grid",
                 "tolerance",
                 "tolerance_rel",
+                "max_edge",
+                "max_angle",
                 "name",
                 "trim",
                 "holes",
@@ -733,32 +737,51 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
         let grid: Option<[u32; 2]> = item.field("grid")?;
         let tolerance: Option<f64> = item.field("tolerance")?;
         let tolerance_rel: Option<f64> = item.field("tolerance_rel")?;
+        let max_edge: Option<f64> = item.field("max_edge")?;
+        let max_angle: Option<f64> = item.field("max_angle")?;
         let name: Option<String> = item.field("name")?;
-        let asked = [grid.is_some(), tolerance.is_some(), tolerance_rel.is_some()];
-        if asked.iter().filter(|&&a| a).count() > 1 {
-            return Err(item.error("give one of `grid`, `tolerance` and `tolerance_rel`"));
+        if tolerance.is_some() && tolerance_rel.is_some() {
+            return Err(item.error("give one of `tolerance` and `tolerance_rel`"));
+        }
+        let limited = tolerance.is_some()
+            || tolerance_rel.is_some()
+            || max_edge.is_some()
+            || max_angle.is_some();
+        if grid.is_some() && limited {
+            return Err(item.error(
+                "give `grid` (an exact grid) or limits (`tolerance` or `tolerance_rel`, `max_edge`, `max_angle`), not both",
+            ));
         }
         let shape: Shape = item.geometry()?;
         let in_surface = |e: Error| Error::InSurface {
             index,
             source: Box::new(e),
         };
-        let sampled_to = |tolerance: Tolerance| match tolerance {
-            Tolerance::Absolute(value) | Tolerance::Relative(value)
-                if !(value.is_finite() && value > 0.0) =>
-            {
-                Err(in_surface(Error::InvalidTolerance { value }).at_line(line))
-            }
-            _ => Ok(TessOptions::DEFAULT.with_tolerance(tolerance)),
-        };
-        let grid = match (grid, tolerance, tolerance_rel) {
-            (Some([nu, nv]), ..) if nu < 2 || nv < 2 => {
+        let grid = match grid {
+            Some([nu, nv]) if nu < 2 || nv < 2 => {
                 return Err(in_surface(Error::GridTooSmall { nu, nv }));
             }
-            (Some([nu, nv]), ..) => Some(TessOptions::DEFAULT.with_grid(nu, nv)),
-            (_, Some(t), _) => Some(sampled_to(Tolerance::Absolute(t))?),
-            (.., Some(r)) => Some(sampled_to(Tolerance::Relative(r))?),
-            _ => None,
+            Some([nu, nv]) => Some(TessOptions::DEFAULT.with_grid(nu, nv)),
+            None if limited => {
+                let mut options = TessOptions::DEFAULT;
+                if let Some(t) = tolerance {
+                    options = options.with_tolerance(Tolerance::Absolute(t));
+                }
+                if let Some(r) = tolerance_rel {
+                    options = options.with_tolerance(Tolerance::Relative(r));
+                }
+                if let Some(length) = max_edge {
+                    options = options.with_max_edge(length);
+                }
+                if let Some(degrees) = max_angle {
+                    options = options.with_max_angle(degrees);
+                }
+                // Out-of-range values are refused here, at the item's line (a relative
+                // tolerance is checked as a fraction: the diagonal does not matter).
+                sampling_limits(&options, 1.0, 1.0).map_err(|e| in_surface(e).at_line(line))?;
+                Some(options)
+            }
+            None => None,
         };
         let built = shape.build().map_err(in_surface)?;
         let geometries = if trim.is_none() && holes.is_none() {
