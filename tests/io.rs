@@ -3676,4 +3676,26 @@ fn json_seams_name_items_and_their_errors_name_the_seam() {
         message.contains("surface 0 is not one untrimmed B-spline surface"),
         "{message}"
     );
+    // From the CLI, a seam whose sides are not one curve fails at planning, naming the file
+    // and the seam, and writes nothing.
+    let dir = scratch_dir("seams");
+    let (input, out) = (dir.join("far.json"), dir.join("far.obj"));
+    std::fs::write(&input, text.replace("[1, \"u0\"]]", "[1, \"u1\"]]")).unwrap();
+    let run = knotwork(&[
+        "tessellate",
+        input.to_str().unwrap(),
+        "--tolerance-rel",
+        "1e-3",
+        "--backend",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success());
+    assert!(
+        stderr.contains("far.json: seam 0: its sides are") && !out.exists(),
+        "{stderr}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -155,6 +155,15 @@ fn main() -> ExitCode {
     }
 }
 
+/// `error`, from tessellating `input`, naming the file (errors from reading it do already).
+fn naming(input: &Path, error: knotwork::Error) -> knotwork::Error {
+    if error.to_string().contains(&*input.to_string_lossy()) {
+        error
+    } else {
+        error.in_file(input)
+    }
+}
+
 /// The tessellator `backend` asks for.
 fn tessellator(backend: Backend) -> knotwork::Result<Box<dyn Tessellator + Sync>> {
     Ok(match backend {
@@ -504,7 +513,8 @@ fn tessellate(
     let batch = inputs.len() > 1 || inputs.iter().any(|p| p.is_dir()) || output.is_dir();
     let tessellator = tessellator(backend)?;
     if !batch {
-        let tally = process(&inputs[0], output, tessellator.as_ref(), job)?;
+        let tally = process(&inputs[0], output, tessellator.as_ref(), job)
+            .map_err(|error| naming(&inputs[0], error))?;
         println!(
             "{}: {} in {:.3} s ({}) -> {}",
             inputs[0].display(),
@@ -538,7 +548,8 @@ fn tessellate(
     progress.finish_and_clear();
     let mut total = Tally::default();
     let mut failed = 0;
-    for (input, result) in &results {
+    let file_count = results.len();
+    for (input, result) in results {
         match result {
             Ok(t) => {
                 failed += usize::from(t.dropped > 0);
@@ -554,13 +565,7 @@ fn tessellate(
             }
             Err(error) => {
                 failed += 1;
-                // The error names the file itself when it came from reading it.
-                let message = error.to_string();
-                if message.contains(&*input.to_string_lossy()) {
-                    eprintln!("error: {message}")
-                } else {
-                    eprintln!("error: {}: {message}", input.display())
-                }
+                eprintln!("error: {}", naming(&input, error));
             }
         }
     }
@@ -575,7 +580,7 @@ fn tessellate(
     }
     println!(
         "{} ({failed} failed): {} in {seconds:.3} s, {:.1} M vertices/s ({}) -> {}",
-        count(results.len(), "file"),
+        count(file_count, "file"),
         total.summary(),
         total.vertices as f64 / seconds / 1e6,
         tessellator.name(),
