@@ -2473,16 +2473,9 @@ fn view_frames_stay_within_their_pixel_tolerance() {
 
 /// The open edges of `mesh` (used by one triangle) with both ends where `on` holds.
 fn open_edges_where(mesh: &Mesh, on: impl Fn(DVec3) -> bool) -> usize {
-    let mut uses = std::collections::HashMap::new();
-    for t in mesh.indices.chunks(3) {
-        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            *uses.entry((a.min(b), a.max(b))).or_insert(0) += 1;
-        }
-    }
-    uses.iter()
-        .filter(|&(&(a, b), &n)| {
-            n == 1 && on(mesh.positions[a as usize]) && on(mesh.positions[b as usize])
-        })
+    open_edges(mesh)
+        .into_iter()
+        .filter(|&(a, b)| on(mesh.positions[a as usize]) && on(mesh.positions[b as usize]))
         .count()
 }
 

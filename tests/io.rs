@@ -787,17 +787,9 @@ fn adaptive_teapot_is_closed_by_shared_indices() {
     // The true boundary, from a fine grid welded: its open edges' vertices.
     let grid = teapot_mesh(65);
     let (grid, _) = grid.weld(knotwork::mesh::WELD_REL_TOLERANCE * grid.bounding_box_diagonal());
-    let mut uses = std::collections::HashMap::new();
-    for t in grid.indices.chunks(3) {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            *uses.entry((a.min(b), a.max(b))).or_insert(0) += 1;
-        }
-    }
-    let boundary: Vec<(glam::DVec3, glam::DVec3)> = uses
-        .iter()
-        .filter(|(_, n)| **n == 1)
-        .map(|(&(a, b), _)| (grid.positions[a as usize], grid.positions[b as usize]))
+    let boundary: Vec<(glam::DVec3, glam::DVec3)> = common::open_edges(&grid)
+        .into_iter()
+        .map(|(a, b)| (grid.positions[a as usize], grid.positions[b as usize]))
         .collect();
     let near_boundary = |p: glam::DVec3| {
         boundary.iter().any(|&(a, b)| {

@@ -352,7 +352,7 @@ impl<'a> SeamSamples<'a> {
         let mut external: Vec<[Vec<(f64, u32)>; 4]> = vec![Default::default(); surfaces.len()];
         let mut same = Vec::new();
         let mut joined = seams::asked_seams(surfaces, &adaptive, asked)?;
-        joined.extend(seams::find_seams(surfaces, &adaptive, &joined));
+        joined.extend(seams::find_seams(surfaces, &adaptive, &joined, tolerance));
         for seam in joined {
             let grid = |surface: usize| cells[surface].expect("seams join adaptive surfaces");
             let side_samples = |(surface, side): (usize, adaptive::Side)| {

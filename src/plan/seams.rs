@@ -301,13 +301,14 @@ pub(crate) fn check_gap(
 
 /// The seams among the sides of the surfaces sampled to a tolerance (`adaptive[k]`) that
 /// their control points show, leaving out the sides in `taken` (seams asked for): each
-/// side in one seam at most (the first match, in surface and side order).
+/// side in one seam at most (the first match, in surface and side order). Control points
+/// within `tolerance` ([`point_tolerance`]) coincide.
 pub(crate) fn find_seams(
     surfaces: &[BSplineSurface],
     adaptive: &[bool],
     taken: &[Joined],
+    tolerance: f64,
 ) -> Vec<Joined> {
-    let tolerance = point_tolerance(super::model_diagonal(surfaces));
     let asked: HashSet<(usize, usize)> = taken
         .iter()
         .flat_map(|j| {

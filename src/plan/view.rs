@@ -275,7 +275,7 @@ impl ViewPlan {
             }
         }
         let all = vec![true; surfaces.len()];
-        for seam in find_seams(surfaces, &all, &[]) {
+        for seam in find_seams(surfaces, &all, &[], tolerance) {
             let (first, second) = (
                 along(seam.first.0, seam.first.1),
                 along(seam.second.0, seam.second.1),

@@ -176,6 +176,20 @@ pub fn worst_deviation(surfaces: &[BSplineSurface], mesh: &knotwork::Mesh) -> f6
     worst
 }
 
+/// The edges (vertex pairs, lower index first) used by exactly one triangle of `mesh`.
+pub fn open_edges(mesh: &knotwork::Mesh) -> Vec<(u32, u32)> {
+    let mut uses = std::collections::HashMap::new();
+    for t in mesh.indices.chunks(3) {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            *uses.entry((a.min(b), a.max(b))).or_insert(0u32) += 1;
+        }
+    }
+    uses.into_iter()
+        .filter(|&(_, n)| n == 1)
+        .map(|(edge, _)| edge)
+        .collect()
+}
+
 /// Edges used by exactly one triangle, and the number of pieces connected through shared
 /// edges (a single shared vertex — the handle's lower end touches the body at one point —
 /// does not join two pieces of surface).
