@@ -561,6 +561,60 @@ impl CurveReport {
     }
 }
 
+/// One case of the whole suite and what it measured.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    pub name: String,
+    pub measured: Measured,
+}
+
+/// A surface case's report (grid, view-dependent or Coons) or a curve case's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Measured {
+    Surface(Report),
+    Curve(CurveReport),
+}
+
+impl Outcome {
+    pub fn passes(&self) -> bool {
+        match &self.measured {
+            Measured::Surface(report) => report.passes(),
+            Measured::Curve(report) => report.passes(),
+        }
+    }
+}
+
+/// Runs every case — [`suite`], [`view_suite`], [`coons_suite`] and [`curve_suite`] — on
+/// `gpu`'s adapter against the f64 reference, in that order.
+pub fn run_all(gpu: &crate::GpuTessellator) -> Result<Vec<Outcome>> {
+    let mut outcomes = Vec::new();
+    let mut push = |name: String, measured| outcomes.push(Outcome { name, measured });
+    for case in suite() {
+        // Both executors run one plan; compared vertex for vertex.
+        let options = vec![case.options; case.surfaces.len()];
+        let report = compare_executors(gpu.context(), &case.surfaces, &options)?;
+        push(case.name, Measured::Surface(report));
+    }
+    for case in view_suite() {
+        let report = compare_view(gpu.context(), &case.surfaces, &case.view)?;
+        push(case.name, Measured::Surface(report));
+    }
+    for case in coons_suite() {
+        let options = vec![case.options; case.patches.len()];
+        let mut mesh = Mesh::default();
+        gpu.tessellate_coons_into(&case.patches, &options, &mut mesh)?;
+        let report = compare_coons(&case.patches, &options, &mesh)?;
+        push(case.name, Measured::Surface(report));
+    }
+    for case in curve_suite() {
+        let samples = vec![case.samples; case.curves.len()];
+        let polylines = gpu.tessellate_curves(&case.curves, &samples)?;
+        let report = compare_curves(&case.curves, &samples, &polylines)?;
+        push(case.name, Measured::Curve(report));
+    }
+    Ok(outcomes)
+}
+
 /// Compares `polylines` (from any backend) with the f64 reference for `curves`, curve k
 /// sampled `samples[k]` times.
 pub fn compare_curves(

@@ -19,6 +19,8 @@
 //! - [`cpu`] and [`gpu`] — the executors of a plan: [`CpuTessellator`] in f64 on rayon,
 //!   [`GpuTessellator`] and [`GpuBatch`] in f32 WGSL compute kernels on wgpu; the same plan
 //!   gives the same layout, vertex for vertex, which [`conformance`] checks.
+//! - [`backend`] — an executor by name (`auto`, `gpu`, `cpu`), as the CLI and the Python
+//!   package choose one; [`conformance`] — the GPU-vs-f64 suite users run on their adapter.
 //! - [`mesh`] — [`Mesh`] (f64: the reference, OBJ) and [`Mesh32`] (f32: what GPUs, glTF, PLY
 //!   and STL carry), in one layout.
 //! - [`io`] — readers (OBJ free-form, `.bpt`, JSON) and writers (OBJ, PLY, STL, glb) of
@@ -51,6 +53,7 @@
 
 #[cfg(feature = "cli")]
 pub mod cli;
+pub mod backend;
 pub mod conformance;
 pub mod cpu;
 pub mod error;

@@ -5,7 +5,7 @@ use knotwork::cli::{Backend, Cli, Command, Job};
 use knotwork::io::{MeshFormat, SceneFormat};
 use knotwork::mesh::WELD_REL_TOLERANCE;
 use knotwork::{
-    CpuTessellator, GpuContext, GpuTessellator, SceneOptions, TessOptions, Tessellator,
+    GpuContext, GpuTessellator, SceneOptions, TessOptions, Tessellator,
 };
 use rayon::prelude::*;
 use std::io::IsTerminal;
@@ -135,7 +135,7 @@ fn main() -> ExitCode {
             render(&input, &output, grid, &options)
         }
         Command::Info => {
-            println!("{}", info());
+            println!("{}", knotwork::backend::adapters_report());
             Ok(true)
         }
         Command::Conformance { export: Some(dir) } => knotwork::conformance::export_suite(&dir)
@@ -164,83 +164,18 @@ fn naming(input: &Path, error: knotwork::Error) -> knotwork::Error {
     }
 }
 
-/// The tessellator `backend` asks for.
-fn tessellator(backend: Backend) -> knotwork::Result<Box<dyn Tessellator + Sync>> {
-    Ok(match backend {
-        Backend::Cpu => Box::new(CpuTessellator),
-        Backend::Gpu => Box::new(GpuTessellator::new()?),
-        Backend::Auto => match GpuTessellator::new() {
-            Ok(gpu) => Box::new(GpuOrCpu { gpu }),
-            Err(_) => Box::new(CpuTessellator),
-        },
-    })
-}
-
-/// `--backend auto` with an adapter: the GPU, and the CPU for a job the GPU cannot hold
-/// (its buffers over the device's limits), with a note saying so.
-struct GpuOrCpu {
-    gpu: GpuTessellator,
-}
-
-impl GpuOrCpu {
-    /// `job` on the GPU, or on the CPU where the GPU refuses it as too large; `state` is what
-    /// the job fills.
-    fn either<S: ?Sized, T>(
-        &self,
-        state: &mut S,
-        job: impl Fn(&dyn Tessellator, &mut S) -> knotwork::Result<T>,
-    ) -> knotwork::Result<T> {
-        match job(&self.gpu, state) {
-            Err(e) if matches!(e.root(), knotwork::Error::GpuJobTooLarge { .. }) => {
-                eprintln!("note: the GPU cannot hold this job ({e}); the CPU tessellates it");
-                job(&CpuTessellator, state)
-            }
-            result => result,
-        }
-    }
-}
-
-impl Tessellator for GpuOrCpu {
-    fn execute_surfaces(
-        &self,
-        plan: &knotwork::plan::SurfacePlan,
-        surfaces: &[knotwork::BSplineSurface],
-        mesh: &mut knotwork::Mesh,
-    ) -> knotwork::Result<()> {
-        self.either(mesh, |t, mesh| t.execute_surfaces(plan, surfaces, mesh))
-    }
-
-    fn execute_surfaces_f32(
-        &self,
-        plan: &knotwork::plan::SurfacePlan,
-        surfaces: &[knotwork::BSplineSurface],
-        mesh: &mut knotwork::Mesh32,
-    ) -> knotwork::Result<()> {
-        self.either(mesh, |t, mesh| t.execute_surfaces_f32(plan, surfaces, mesh))
-    }
-
-    fn tessellate_coons_into(
-        &self,
-        patches: &[knotwork::geom::patches::CoonsPatch],
-        options: &[TessOptions],
-        mesh: &mut knotwork::Mesh,
-    ) -> knotwork::Result<()> {
-        self.either(mesh, |t, mesh| {
-            t.tessellate_coons_into(patches, options, mesh)
-        })
-    }
-
-    fn tessellate_curves(
-        &self,
-        curves: &[knotwork::BSplineCurve],
-        samples: &[u32],
-    ) -> knotwork::Result<Vec<knotwork::Polyline>> {
-        self.either(&mut (), |t, _| t.tessellate_curves(curves, samples))
-    }
-
-    fn name(&self) -> String {
-        format!("{}; the CPU for jobs it cannot hold", self.gpu.name())
-    }
+/// The tessellator `backend` asks for; a job `auto` moves from the GPU to the CPU is noted
+/// on stderr.
+fn tessellator(backend: Backend) -> knotwork::Result<Box<dyn Tessellator + Send + Sync>> {
+    let backend = match backend {
+        Backend::Auto => knotwork::backend::Backend::Auto,
+        Backend::Gpu => knotwork::backend::Backend::Gpu,
+        Backend::Cpu => knotwork::backend::Backend::Cpu,
+    };
+    knotwork::backend::tessellator(
+        backend,
+        Box::new(|e| eprintln!("note: the GPU cannot hold this job ({e}); the CPU tessellates it")),
+    )
 }
 
 /// Half the machine's memory (MemTotal of /proc/meminfo), or 8 GiB where that is unknown.
@@ -592,7 +527,7 @@ fn tessellate(
 /// Runs the conformance suite on the default adapter; prints a table and a verdict.
 fn conformance() -> knotwork::Result<bool> {
     use knotwork::conformance::{
-        self, DEGENERATE_NORMAL_BAR, NORMAL_BAR, POSITION_REL_BAR, TANGENT_REL_BAR,
+        self, DEGENERATE_NORMAL_BAR, Measured, NORMAL_BAR, POSITION_REL_BAR, TANGENT_REL_BAR,
     };
     let gpu = GpuTessellator::new()?;
     println!("adapter: {}", gpu.context().adapter_summary());
@@ -603,55 +538,35 @@ fn conformance() -> knotwork::Result<bool> {
         "{:<48} {:>14} {:>14} {:>14} {:>9}  result",
         "case", "position/diag", "normal (rad)", "degen. (rad)", "uv"
     );
-    let mut all_pass = true;
-    let mut surface_row = |name: &str, report: conformance::Report| {
-        all_pass &= report.passes();
-        println!(
-            "{:<48} {:>14.3e} {:>14.3e} {:>14.3e} {:>9.1e}  {}",
-            name,
-            report.worst_position,
-            report.worst_normal,
-            report.worst_degenerate_normal,
-            report.worst_uv,
-            if report.passes() { "pass" } else { "FAIL" }
-        );
-    };
-    for case in conformance::suite() {
-        // Both executors run one plan; compared vertex for vertex.
-        let options = vec![case.options; case.surfaces.len()];
-        let report = conformance::compare_executors(gpu.context(), &case.surfaces, &options)?;
-        surface_row(&case.name, report);
+    let outcomes = conformance::run_all(&gpu)?;
+    let mut curve_header = false;
+    for outcome in &outcomes {
+        let result = if outcome.passes() { "pass" } else { "FAIL" };
+        match outcome.measured {
+            Measured::Surface(report) => println!(
+                "{:<48} {:>14.3e} {:>14.3e} {:>14.3e} {:>9.1e}  {result}",
+                outcome.name,
+                report.worst_position,
+                report.worst_normal,
+                report.worst_degenerate_normal,
+                report.worst_uv,
+            ),
+            Measured::Curve(report) => {
+                if !curve_header {
+                    curve_header = true;
+                    println!(
+                        "{:<48} {:>14} {:>14}  result",
+                        "curve case", "position/size", "tangent (rel)"
+                    );
+                }
+                println!(
+                    "{:<48} {:>14.3e} {:>14.3e}  {result}",
+                    outcome.name, report.worst_position, report.worst_tangent,
+                );
+            }
+        }
     }
-    for case in conformance::view_suite() {
-        let report = conformance::compare_view(gpu.context(), &case.surfaces, &case.view)?;
-        surface_row(&case.name, report);
-    }
-    for case in conformance::coons_suite() {
-        let options = vec![case.options; case.patches.len()];
-        let mut mesh = knotwork::Mesh::default();
-        gpu.tessellate_coons_into(&case.patches, &options, &mut mesh)?;
-        surface_row(
-            &case.name,
-            conformance::compare_coons(&case.patches, &options, &mesh)?,
-        );
-    }
-    println!(
-        "{:<48} {:>14} {:>14}  result",
-        "curve case", "position/size", "tangent (rel)"
-    );
-    for case in conformance::curve_suite() {
-        let samples = vec![case.samples; case.curves.len()];
-        let polylines = gpu.tessellate_curves(&case.curves, &samples)?;
-        let report = conformance::compare_curves(&case.curves, &samples, &polylines)?;
-        all_pass &= report.passes();
-        println!(
-            "{:<48} {:>14.3e} {:>14.3e}  {}",
-            case.name,
-            report.worst_position,
-            report.worst_tangent,
-            if report.passes() { "pass" } else { "FAIL" }
-        );
-    }
+    let all_pass = outcomes.iter().all(|o| o.passes());
     println!(
         "verdict: {}",
         if all_pass {
@@ -663,40 +578,3 @@ fn conformance() -> knotwork::Result<bool> {
     Ok(all_pass)
 }
 
-/// Adapters, backends, device types, drivers and the limits that decide chunking.
-fn info() -> String {
-    let instance = knotwork::gpu::headless_instance();
-    let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
-    let mut out = String::new();
-    if adapters.is_empty() {
-        out.push_str("no GPU adapter found: `--backend auto` uses the CPU (on Debian, `apt-get install mesa-vulkan-drivers` gives a software adapter)\n");
-    }
-    for (index, adapter) in adapters.iter().enumerate() {
-        let a = adapter.get_info();
-        let l = adapter.limits();
-        let f = adapter.features();
-        out.push_str(&format!(
-            "adapter {index}: {}\n  backend {:?}, device type {:?}, driver {} {}\n  max_buffer_size {} MiB, max_storage_buffer_binding_size {} MiB, max_compute_workgroups_per_dimension {}, max_compute_invocations_per_workgroup {}\n  mappable primary buffers: {}, timestamp queries: {}, shader f64: {}\n",
-            a.name,
-            a.backend,
-            a.device_type,
-            a.driver,
-            a.driver_info,
-            l.max_buffer_size >> 20,
-            l.max_storage_buffer_binding_size >> 20,
-            l.max_compute_workgroups_per_dimension,
-            l.max_compute_invocations_per_workgroup,
-            f.contains(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS),
-            f.contains(wgpu::Features::TIMESTAMP_QUERY),
-            f.contains(wgpu::Features::SHADER_F64),
-        ));
-    }
-    match GpuContext::new() {
-        Ok(context) => out.push_str(&format!(
-            "default adapter (used by --backend gpu|auto): {}",
-            context.adapter_summary()
-        )),
-        Err(error) => out.push_str(&format!("default adapter: none ({error})")),
-    }
-    out
-}
