@@ -405,6 +405,54 @@ pub fn surface_plan(
 /// Bytes per vertex of an f64 [`Mesh`]: position, normal (3 × f64 each), uv (2 × f64).
 const F64_VERTEX_BYTES: u64 = 64;
 
+/// Why each trimmed face or shell face of `scene` that has no part among `items` (the
+/// parts' item indices of its mesh, tessellated with `defaults` and
+/// [`SceneOptions::skip_failed_faces`]) was left out: one reason per face, in item order.
+pub fn left_out_faces(
+    scene: &Scene,
+    defaults: &SceneOptions,
+    items: impl Iterator<Item = u32>,
+) -> Vec<String> {
+    let mut parts: std::collections::HashMap<u32, usize> = std::collections::HashMap::new();
+    for item in items {
+        *parts.entry(item).or_default() += 1;
+    }
+    let mut reasons = Vec::new();
+    for (index, item) in scene.items.iter().enumerate() {
+        let meshed = parts.get(&(index as u32)).copied().unwrap_or(0);
+        match &item.geometry {
+            // A shell has one part per face: one short means a face was left out.
+            Geometry::Shell(shell) if meshed < shell.faces().len() => {
+                match crate::cpu::shell_plan(scene, defaults, index) {
+                    Ok(plan) => reasons.extend(plan.faces.into_iter().filter_map(|f| f.err())),
+                    Err(error) => reasons.push(error.to_string()),
+                }
+            }
+            Geometry::Trimmed(_) if meshed == 0 => {
+                reasons.push(match crate::cpu::trimmed_face_plan(scene, defaults, index) {
+                    Err(error) => error.to_string(),
+                    Ok(_) => format!("item {index}: meshing it took more memory than was left"),
+                })
+            }
+            _ => {}
+        }
+    }
+    reasons
+}
+
+/// Half the machine's memory (MemTotal of /proc/meminfo), or 8 GiB where that is unknown:
+/// the default [`SceneOptions::memory_budget`] of the CLI and the Python package.
+pub fn default_memory_budget() -> u64 {
+    let total = std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|info| {
+            let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
+            let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+            Some(kib * 1024)
+        });
+    total.map_or(8 << 30, |bytes| bytes / 2)
+}
+
 /// Bytes the mesh of `scene` takes at `vertex_bytes` per vertex (with its u32 indices and its
 /// f64 polylines), from the layout alone.
 pub fn scene_mesh_bytes(scene: &Scene, defaults: &SceneOptions, vertex_bytes: u64) -> Result<u64> {

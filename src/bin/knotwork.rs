@@ -107,7 +107,7 @@ fn main() -> ExitCode {
                 input_format,
                 weld,
                 samples,
-                max_memory.unwrap_or_else(default_memory_budget),
+                max_memory.unwrap_or_else(knotwork::scene::default_memory_budget),
             )
             .with_max_triangles(max_triangles);
             tessellate(&inputs, &output, backend, &job)
@@ -178,18 +178,6 @@ fn tessellator(backend: Backend) -> knotwork::Result<Box<dyn Tessellator + Send 
     )
 }
 
-/// Half the machine's memory (MemTotal of /proc/meminfo), or 8 GiB where that is unknown.
-fn default_memory_budget() -> u64 {
-    let total = std::fs::read_to_string("/proc/meminfo")
-        .ok()
-        .and_then(|info| {
-            let line = info.lines().find(|l| l.starts_with("MemTotal:"))?;
-            let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-            Some(kib * 1024)
-        });
-    total.map_or(8 << 30, |bytes| bytes / 2)
-}
-
 /// Counts for one file.
 #[derive(Default)]
 struct Tally {
@@ -245,46 +233,19 @@ fn report_reading(input: &Path, scene: &knotwork::Scene) -> usize {
     scene.dropped.len()
 }
 
-/// Prints why each trimmed face that has no part among `items` (its plan failed and it was
-/// skipped) was left out; returns how many.
+/// Prints why each face left out of a mesh whose parts came from `items` was left out;
+/// returns how many.
 fn report_skipped(
     input: &Path,
     scene: &knotwork::Scene,
     defaults: &SceneOptions,
     items: impl Iterator<Item = u32>,
 ) -> usize {
-    let mut parts: std::collections::HashMap<u32, usize> = std::collections::HashMap::new();
-    for item in items {
-        *parts.entry(item).or_default() += 1;
+    let reasons = knotwork::scene::left_out_faces(scene, defaults, items);
+    for reason in &reasons {
+        eprintln!("error: {}: face left out: {reason}", input.display());
     }
-    let meshed: std::collections::HashSet<u32> = parts.keys().copied().collect();
-    let mut skipped = 0;
-    for (index, item) in scene.items.iter().enumerate() {
-        // A shell has one part per face: one short means a face was left out.
-        if let knotwork::Geometry::Shell(shell) = &item.geometry
-            && parts.get(&(index as u32)).copied().unwrap_or(0) < shell.faces().len()
-        {
-            let reasons = match knotwork::cpu::shell_plan(scene, defaults, index) {
-                Ok(plan) => plan.faces.into_iter().filter_map(|f| f.err()).collect(),
-                Err(error) => vec![error.to_string()],
-            };
-            for reason in reasons {
-                skipped += 1;
-                eprintln!("error: {}: face left out: {reason}", input.display());
-            }
-        }
-        if matches!(item.geometry, knotwork::Geometry::Trimmed(_))
-            && !meshed.contains(&(index as u32))
-        {
-            skipped += 1;
-            let reason = match knotwork::cpu::trimmed_face_plan(scene, defaults, index) {
-                Err(error) => error.to_string(),
-                Ok(_) => format!("item {index}: meshing it took more memory than was left"),
-            };
-            eprintln!("error: {}: face left out: {reason}", input.display());
-        }
-    }
-    skipped
+    reasons.len()
 }
 
 /// "32 surfaces", or with shells "6 solids (25 faces)" (and the surfaces beside them, if
