@@ -440,10 +440,14 @@ pub fn output_targets(
     let mut targets = Vec::with_capacity(files.len());
     let mut taken: HashMap<PathBuf, &PathBuf> = HashMap::new();
     for input in files {
-        let name = input
+        // The stem with the format's extension appended: `part.v2.step` gives `part.v2.obj`
+        // (replacing the stem's own last dot-part would make it collide with `part.v3`).
+        let mut name = input
             .file_stem()
             .map_or_else(|| "mesh".into(), |s| s.to_owned());
-        let target = output.join(name).with_extension(extension);
+        name.push(".");
+        name.push(extension);
+        let target = output.join(name);
         if let Some(first) = taken.insert(target.clone(), input) {
             return Err(Error::OutputCollision {
                 output: target,

@@ -288,6 +288,16 @@ impl Error {
         }
     }
 
+    /// This error from working on the file at `path`, naming it unless it already does (read
+    /// errors do; errors from tessellating what was read do not).
+    pub fn naming_file(self, path: &std::path::Path) -> Error {
+        if self.to_string().contains(&*path.to_string_lossy()) {
+            self
+        } else {
+            self.in_file(path)
+        }
+    }
+
     pub(crate) fn syntax(message: impl Into<String>) -> Error {
         Error::Syntax {
             message: message.into(),

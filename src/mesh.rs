@@ -111,7 +111,10 @@ impl Default for TessOptions {
 /// index_count`. A surface sampled to a tolerance is no single grid: grid_u = grid_v = 0,
 /// and its vertices are its cells' (see [`crate::plan::surface_cells`]). After [`Mesh::weld`] its triangles may use vertices shared with other parts;
 /// the vertex range is then the span of the vertices its triangles use.
+/// Laid out as seven u32 in field order (`repr(C)`), so bindings can view a slice of parts
+/// as a table without copying it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(C)]
 pub struct MeshPart {
     /// The item the part came from: its index among the tessellated items (a scene's item
     /// index for [`crate::Tessellator::tessellate_scene`], else the position in the input).

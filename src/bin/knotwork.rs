@@ -155,15 +155,6 @@ fn main() -> ExitCode {
     }
 }
 
-/// `error`, from tessellating `input`, naming the file (errors from reading it do already).
-fn naming(input: &Path, error: knotwork::Error) -> knotwork::Error {
-    if error.to_string().contains(&*input.to_string_lossy()) {
-        error
-    } else {
-        error.in_file(input)
-    }
-}
-
 /// The tessellator `backend` asks for; a job `auto` moves from the GPU to the CPU is noted
 /// on stderr.
 fn tessellator(backend: Backend) -> knotwork::Result<Box<dyn Tessellator + Send + Sync>> {
@@ -410,7 +401,7 @@ fn tessellate(
     let tessellator = tessellator(backend)?;
     if !batch {
         let tally = process(&inputs[0], output, tessellator.as_ref(), job)
-            .map_err(|error| naming(&inputs[0], error))?;
+            .map_err(|error| error.naming_file(&inputs[0]))?;
         println!(
             "{}: {} in {:.3} s ({}) -> {}",
             inputs[0].display(),
@@ -461,7 +452,7 @@ fn tessellate(
             }
             Err(error) => {
                 failed += 1;
-                eprintln!("error: {}", naming(&input, error));
+                eprintln!("error: {}", error.naming_file(&input));
             }
         }
     }

@@ -1119,6 +1119,13 @@ impl<'a> Model<'a> {
             ));
         }
         scene.notes.extend(notes);
+        if scene.items.is_empty() && scene.dropped.is_empty() {
+            // As IGES files with no surface: an empty mesh would pass for a meshed part.
+            return Err(Error::syntax(format!(
+                "no B-rep in the file (knotwork meshes MANIFOLD_SOLID_BREP, BREP_WITH_VOIDS, SHELL_BASED_SURFACE_MODEL and free CLOSED_SHELL/OPEN_SHELL; it holds {} instances of other kinds)",
+                self.file.instances.len()
+            )));
+        }
         Ok(scene)
     }
 

@@ -1,0 +1,859 @@
+//! knotwork's Python binding: `read` a surface file into a `Scene`, `tessellate` a scene or a
+//! file into a `Mesh` whose arrays are numpy views of the memory knotwork filled (no copy),
+//! `conformance` and `info`. The GIL is released while knotwork reads, tessellates and
+//! writes; knotwork's errors become `knotwork.Error` with the file, line, entity and item
+//! they name.
+
+use knotwork::backend::Backend;
+use knotwork::io::{MeshFormat, SceneFormat};
+use knotwork::mesh::{Mesh32, MeshPart, Polyline, Vertex};
+use knotwork::scene::{ItemGroup, SceneOptions, Tessellator};
+use knotwork::{Geometry, TessOptions, Tolerance};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyException, PyIndexError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList, PyTuple};
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+
+create_exception!(
+    knotwork,
+    Error,
+    PyException,
+    "An error knotwork reported: its message as the CLI prints it, and where it was found — \
+     attributes `file` (str or None), `line` (1-based int or None), `entity` (e.g. \
+     'entity 144 (directory entry 57)' or '#12 (ADVANCED_FACE)', or None) and `item` (the \
+     scene item's index, or None)."
+);
+
+/// `error` as a `knotwork.Error` carrying the file, line, entity and item its wrappers name
+/// (the outermost of each).
+fn python_error(error: knotwork::Error) -> PyErr {
+    use knotwork::Error as E;
+    let (mut file, mut line, mut entity, mut item) = (None, None, None, None);
+    let mut at = &error;
+    loop {
+        at = match at {
+            E::InFile { path, source } => {
+                file.get_or_insert_with(|| path.display().to_string());
+                source
+            }
+            E::Io { path, .. } => {
+                file.get_or_insert_with(|| path.display().to_string());
+                break;
+            }
+            E::AtLine { line: l, source } => {
+                line.get_or_insert(*l);
+                source
+            }
+            E::InEntity {
+                kind,
+                directory,
+                source,
+            } => {
+                entity.get_or_insert_with(|| format!("entity {kind} (directory entry {directory})"));
+                source
+            }
+            E::InStepEntity { id, kind, source } => {
+                entity.get_or_insert_with(|| format!("#{id} ({kind})"));
+                source
+            }
+            E::StepEntity { id, kind, .. } => {
+                entity.get_or_insert_with(|| format!("#{id} ({kind})"));
+                break;
+            }
+            E::InItem { index, source, .. } => {
+                item.get_or_insert(*index);
+                source
+            }
+            E::InSurface { source, .. } | E::InCurve { source, .. } => source,
+            _ => break,
+        };
+    }
+    let message = error.to_string();
+    Python::attach(|py| {
+        let err = Error::new_err(message);
+        let value = err.value(py);
+        // Setting an attribute on a fresh exception object cannot fail.
+        let _ = value.setattr("file", file);
+        let _ = value.setattr("line", line);
+        let _ = value.setattr("entity", entity);
+        let _ = value.setattr("item", item);
+        err
+    })
+}
+
+/// Runs `job` with the GIL released; knotwork's error becomes `knotwork.Error`.
+fn detached<T: Send>(
+    py: Python<'_>,
+    job: impl FnOnce() -> knotwork::Result<T> + Send,
+) -> PyResult<T> {
+    py.detach(job).map_err(python_error)
+}
+
+/// The scene format a name or extension gives (`obj`, `bpt`, `json`, `iges`/`igs`,
+/// `step`/`stp`).
+fn scene_format(name: Option<&str>) -> PyResult<Option<SceneFormat>> {
+    name.map(|name| {
+        SceneFormat::from_extension(name.trim_start_matches('.')).ok_or_else(|| {
+            PyValueError::new_err(format!(
+                "format {name:?} is not a surface format (obj, bpt, json, iges, step)"
+            ))
+        })
+    })
+    .transpose()
+}
+
+/// A surface file's contents: items in file order, each with a kind and a name.
+#[pyclass(frozen, name = "Scene", module = "knotwork")]
+struct PyScene {
+    scene: Arc<knotwork::Scene>,
+    path: Option<PathBuf>,
+}
+
+/// One item of a scene.
+#[pyclass(frozen, get_all, name = "Item", module = "knotwork")]
+struct PyItem {
+    /// Position in the scene (the `item` of the mesh parts it becomes).
+    index: usize,
+    /// "surface", "coons", "curve", "trimmed" (a trimmed face) or "shell" (a B-rep solid or
+    /// shell's faces).
+    kind: &'static str,
+    /// The file's name for it (OBJ `g`, JSON `name`, STEP product), if any.
+    name: Option<String>,
+}
+
+#[pymethods]
+impl PyItem {
+    fn __repr__(&self) -> String {
+        match &self.name {
+            Some(name) => format!("Item({}, {:?}, name={name:?})", self.index, self.kind),
+            None => format!("Item({}, {:?})", self.index, self.kind),
+        }
+    }
+}
+
+fn kind(geometry: &Geometry) -> &'static str {
+    match geometry {
+        Geometry::Surface(_) => "surface",
+        Geometry::Coons(_) => "coons",
+        Geometry::Curve(_) => "curve",
+        Geometry::Trimmed(_) => "trimmed",
+        Geometry::Shell(_) => "shell",
+    }
+}
+
+#[pymethods]
+impl PyScene {
+    /// The items, in file order.
+    #[getter]
+    fn items(&self) -> Vec<PyItem> {
+        (self.scene.items.iter().enumerate())
+            .map(|(index, item)| PyItem {
+                index,
+                kind: kind(&item.geometry),
+                name: item.name.clone(),
+            })
+            .collect()
+    }
+
+    /// The file it was read from.
+    #[getter]
+    fn path(&self) -> Option<String> {
+        self.path.as_ref().map(|p| p.display().to_string())
+    }
+
+    /// What the reader passed over on purpose (entity types it does not read), one line each.
+    #[getter]
+    fn notes(&self) -> Vec<String> {
+        self.scene.notes.clone()
+    }
+
+    /// Parts of the file that could not be read, as (what, reason); the rest was.
+    #[getter]
+    fn dropped(&self) -> Vec<(String, String)> {
+        (self.scene.dropped.iter())
+            .map(|d| (d.what.clone(), d.reason.clone()))
+            .collect()
+    }
+
+    fn __len__(&self) -> usize {
+        self.scene.items.len()
+    }
+
+    fn __repr__(&self) -> String {
+        let mut counts: Vec<(&str, usize)> = Vec::new();
+        for item in &self.scene.items {
+            match counts.iter_mut().find(|(k, _)| *k == kind(&item.geometry)) {
+                Some((_, n)) => *n += 1,
+                None => counts.push((kind(&item.geometry), 1)),
+            }
+        }
+        let counts: Vec<String> = counts.iter().map(|(k, n)| format!("{n} {k}")).collect();
+        match &self.path {
+            Some(path) => format!("Scene({:?}: {})", path.display().to_string(), counts.join(", ")),
+            None => format!("Scene({})", counts.join(", ")),
+        }
+    }
+}
+
+/// Reads a surface file — OBJ free-form (.obj), tea-set patches (.bpt), knotwork JSON
+/// (.json), IGES (.igs, .iges) or STEP (.stp, .step) — into a Scene. `format` overrides the
+/// extension ("obj", "bpt", "json", "iges", "step"). Raises knotwork.Error naming the file,
+/// line and entity of what is wrong; parts that cannot be read but leave the rest usable are
+/// listed in `Scene.dropped` instead. The GIL is released while reading.
+#[pyfunction]
+#[pyo3(signature = (path, format = None))]
+fn read(py: Python<'_>, path: PathBuf, format: Option<&str>) -> PyResult<PyScene> {
+    let format = scene_format(format)?;
+    let scene = detached(py, || knotwork::io::read_scene_as(&path, format))?;
+    Ok(PyScene {
+        scene: Arc::new(scene),
+        path: Some(path),
+    })
+}
+
+/// Tessellators by backend, made once per process (a GPU device is slow to open).
+static TESSELLATORS: Mutex<Vec<(Backend, Arc<dyn Tessellator + Send + Sync>)>> =
+    Mutex::new(Vec::new());
+/// Jobs `backend="auto"` moved from the GPU to the CPU since they were last reported.
+static FALLBACKS: Mutex<Vec<String>> = Mutex::new(Vec::new());
+
+fn tessellator(backend: Backend) -> knotwork::Result<Arc<dyn Tessellator + Send + Sync>> {
+    let mut made = TESSELLATORS.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, t)) = made.iter().find(|(b, _)| *b == backend) {
+        return Ok(t.clone());
+    }
+    let note: knotwork::backend::FallbackNote = Box::new(|error| {
+        let mut notes = FALLBACKS.lock().unwrap_or_else(|e| e.into_inner());
+        notes.push(format!(
+            "the GPU cannot hold this job ({error}); the CPU tessellated it"
+        ));
+    });
+    let t: Arc<dyn Tessellator + Send + Sync> = knotwork::backend::tessellator(backend, note)?.into();
+    made.push((backend, t.clone()));
+    Ok(t)
+}
+
+/// What a file or a Scene gives `tessellate`.
+enum Source {
+    Scene(Arc<knotwork::Scene>),
+    Path(PathBuf),
+}
+
+impl<'py> FromPyObject<'_, 'py> for Source {
+    type Error = PyErr;
+
+    fn extract(object: Borrowed<'_, 'py, PyAny>) -> PyResult<Self> {
+        if let Ok(scene) = object.cast::<PyScene>() {
+            return Ok(Source::Scene(scene.get().scene.clone()));
+        }
+        match object.extract::<PathBuf>() {
+            Ok(path) => Ok(Source::Path(path)),
+            Err(_) => Err(pyo3::exceptions::PyTypeError::new_err(format!(
+                "tessellate takes a knotwork.Scene or a path (str or os.PathLike), not {}",
+                object.get_type().name()?
+            ))),
+        }
+    }
+}
+
+/// `grid=`: one count for both directions or a (u, v) pair.
+#[derive(FromPyObject)]
+enum Grid {
+    Square(u32),
+    Pair(u32, u32),
+}
+
+/// The element type of a mesh's positions, normals and uvs.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Precision {
+    F32,
+    F64,
+}
+
+fn precision(py: Python<'_>, dtype: &Bound<'_, PyAny>) -> PyResult<Precision> {
+    // Accepts "float32", numpy.float32, numpy.dtype("f4") and the like.
+    let name: String = py
+        .import("numpy")?
+        .getattr("dtype")?
+        .call1((dtype,))?
+        .getattr("name")?
+        .extract()?;
+    match name.as_str() {
+        "float32" => Ok(Precision::F32),
+        "float64" => Ok(Precision::F64),
+        other => Err(PyValueError::new_err(format!(
+            "dtype {other} is not float32 or float64"
+        ))),
+    }
+}
+
+/// The options of `tessellate`'s keywords, refused as the CLI refuses them (a grid with a
+/// tolerance, two tolerances).
+fn options(
+    grid: Option<Grid>,
+    tolerance: Option<f64>,
+    tolerance_rel: Option<f64>,
+    max_edge: Option<f64>,
+    max_angle: Option<f64>,
+    max_triangles: Option<u64>,
+) -> PyResult<TessOptions> {
+    if tolerance.is_some() && tolerance_rel.is_some() {
+        return Err(PyValueError::new_err(
+            "give tolerance (model units) or tolerance_rel (of the diagonal), not both",
+        ));
+    }
+    let adaptive = tolerance.or(tolerance_rel).or(max_edge).or(max_angle).is_some()
+        || max_triangles.is_some();
+    let (nu, nv) = match grid {
+        Some(_) if adaptive => {
+            return Err(PyValueError::new_err(
+                "grid samples a fixed grid: it cannot go with tolerance, tolerance_rel, max_edge, max_angle or max_triangles",
+            ));
+        }
+        Some(Grid::Square(n)) => (n, n),
+        Some(Grid::Pair(nu, nv)) => (nu, nv),
+        None => (TessOptions::DEFAULT.grid_u, TessOptions::DEFAULT.grid_v),
+    };
+    let mut options = TessOptions::DEFAULT.with_grid(nu, nv);
+    if let Some(t) = tolerance {
+        options = options.with_tolerance(Tolerance::Absolute(t));
+    }
+    if let Some(r) = tolerance_rel {
+        options = options.with_tolerance(Tolerance::Relative(r));
+    }
+    if let Some(length) = max_edge {
+        options = options.with_max_edge(length);
+    }
+    if let Some(degrees) = max_angle {
+        options = options.with_max_angle(degrees);
+    }
+    Ok(options)
+}
+
+/// Tessellates a Scene, or the surface file at a path, into a Mesh.
+///
+/// Sampling (as the CLI's options of the same names):
+///   grid: vertices per surface, n or (nu, nv) (default 33); a JSON item's own grid wins.
+///   tolerance: instead of a grid, the largest distance between mesh and surface (model
+///     units), guaranteed from bounds on the surface's second derivatives.
+///   tolerance_rel: as tolerance, a fraction of the diagonal of the control points' box
+///     (e.g. 1e-3). Trimmed faces and STEP solids use 1e-3 of it when nothing is given.
+///   max_edge: no triangle edge longer than this (model units); max_angle: normals at the
+///     ends of a triangle edge within this many degrees. Either alone or with a tolerance.
+///   max_triangles: at most this many triangles; without a tolerance, the finest tolerance
+///     that fits is chosen.
+///   samples: points per curve polyline (>= 2).
+/// backend: "auto" (the GPU if there is an adapter, else the CPU), "gpu" (wgpu compute
+///   shaders, f32) or "cpu" (the f64 reference path).
+/// dtype: "float64" or "float32" for positions, normals and uvs (numpy.float32 and the like
+///   work too); "float32" keeps GPU results as the GPU wrote them, half the memory.
+/// max_memory: bytes the mesh may take (default: half the machine's memory); a job needing
+///   more is refused before anything is allocated.
+///
+/// The GIL is released while knotwork reads and tessellates. Raises knotwork.Error (with
+/// file, line, entity, item) for what knotwork refuses, ValueError for options that do not
+/// go together. Faces that could not be meshed are left out, listed in Mesh.left_out and
+/// warned about (knotwork.IncompleteMeshWarning).
+#[pyfunction]
+#[pyo3(signature = (source, *, grid = None, tolerance = None, tolerance_rel = None, max_edge = None, max_angle = None, max_triangles = None, samples = 65, backend = "auto", dtype = None, max_memory = None))]
+#[allow(clippy::too_many_arguments)]
+fn tessellate(
+    py: Python<'_>,
+    source: Source,
+    grid: Option<Grid>,
+    tolerance: Option<f64>,
+    tolerance_rel: Option<f64>,
+    max_edge: Option<f64>,
+    max_angle: Option<f64>,
+    max_triangles: Option<u64>,
+    samples: u32,
+    backend: &str,
+    dtype: Option<Bound<'_, PyAny>>,
+    max_memory: Option<u64>,
+) -> PyResult<PyMesh> {
+    let options = options(grid, tolerance, tolerance_rel, max_edge, max_angle, max_triangles)?;
+    if samples < 2 {
+        return Err(PyValueError::new_err(format!(
+            "samples is {samples}: a polyline needs at least 2"
+        )));
+    }
+    if max_triangles == Some(0) {
+        return Err(PyValueError::new_err("max_triangles must be at least 1"));
+    }
+    let backend: Backend = backend
+        .parse()
+        .map_err(|e: knotwork::Error| PyValueError::new_err(e.to_string()))?;
+    let precision = match dtype {
+        Some(dtype) => precision(py, &dtype)?,
+        None => Precision::F64,
+    };
+    let mesh = detached(py, || {
+        let (scene, path) = match source {
+            Source::Scene(scene) => (scene, None),
+            Source::Path(path) => (Arc::new(knotwork::io::read_scene(&path)?), Some(path)),
+        };
+        let name_file = |error: knotwork::Error| match &path {
+            Some(path) => error.naming_file(path),
+            None => error,
+        };
+        tessellate_scene(&scene, options, samples, max_triangles, max_memory, backend, precision)
+            .map_err(name_file)
+    })?;
+    let warnings = py.import("warnings")?;
+    let category = py.import("knotwork")?.getattr("IncompleteMeshWarning")?;
+    let fallbacks = std::mem::take(&mut *FALLBACKS.lock().unwrap_or_else(|e| e.into_inner()));
+    for message in mesh.left_out.iter().chain(&fallbacks) {
+        warnings.call_method1("warn", (message, &category, 2))?;
+    }
+    Ok(mesh)
+}
+
+/// The GIL-free part of `tessellate`.
+fn tessellate_scene(
+    scene: &knotwork::Scene,
+    grid: TessOptions,
+    samples: u32,
+    max_triangles: Option<u64>,
+    max_memory: Option<u64>,
+    backend: Backend,
+    precision: Precision,
+) -> knotwork::Result<PyMesh> {
+    let defaults = SceneOptions {
+        grid,
+        samples,
+        memory_budget: Some(max_memory.unwrap_or_else(knotwork::scene::default_memory_budget)),
+        skip_failed_faces: true,
+        max_triangles,
+    };
+    // The tolerance a triangle budget chose, once, for the tessellation and the report of
+    // left-out faces.
+    let defaults = knotwork::scene::fit_triangle_budget(scene, &defaults)?;
+    let tessellator = tessellator(backend)?;
+    let storage = match precision {
+        Precision::F64 => Storage::F64(tessellator.tessellate_scene(scene, &defaults)?),
+        Precision::F32 => Storage::split(tessellator.tessellate_scene_f32(scene, &defaults)?),
+    };
+    let mut left_out: Vec<String> = (scene.dropped.iter())
+        .map(|d| format!("{} left out: {}", d.what, d.reason))
+        .collect();
+    let parts = storage.parts().iter().map(|p| p.item);
+    left_out.extend(
+        knotwork::scene::left_out_faces(scene, &defaults, parts)
+            .into_iter()
+            .map(|reason| format!("face left out: {reason}")),
+    );
+    Ok(PyMesh {
+        storage,
+        groups: scene.groups(),
+        left_out,
+        backend: tessellator.name(),
+    })
+}
+
+/// A mesh's memory: knotwork's f64 mesh as it is, or an f32 mesh split into one array per
+/// attribute (the executors' f32 vertices interleave them; numpy wants each contiguous).
+enum Storage {
+    F64(knotwork::Mesh),
+    F32 {
+        positions: Vec<[f32; 3]>,
+        normals: Vec<[f32; 3]>,
+        uvs: Vec<[f32; 2]>,
+        indices: Vec<u32>,
+        parts: Vec<MeshPart>,
+        polylines: Vec<Polyline>,
+    },
+}
+
+impl Storage {
+    fn split(mesh: Mesh32) -> Storage {
+        Storage::F32 {
+            positions: mesh.vertices.iter().map(|v| v.position).collect(),
+            normals: mesh.vertices.iter().map(|v| v.normal).collect(),
+            uvs: mesh.vertices.iter().map(|v| v.uv).collect(),
+            indices: mesh.indices,
+            parts: mesh.parts,
+            polylines: mesh.polylines,
+        }
+    }
+
+    fn parts(&self) -> &[MeshPart] {
+        match self {
+            Storage::F64(mesh) => &mesh.parts,
+            Storage::F32 { parts, .. } => parts,
+        }
+    }
+
+    fn polylines(&self) -> &[Polyline] {
+        match self {
+            Storage::F64(mesh) => &mesh.polylines,
+            Storage::F32 { polylines, .. } => polylines,
+        }
+    }
+
+    fn indices(&self) -> &[u32] {
+        match self {
+            Storage::F64(mesh) => &mesh.indices,
+            Storage::F32 { indices, .. } => indices,
+        }
+    }
+
+    fn vertex_count(&self) -> usize {
+        match self {
+            Storage::F64(mesh) => mesh.positions.len(),
+            Storage::F32 { positions, .. } => positions.len(),
+        }
+    }
+
+    /// Where `field` lives: address, shape, numpy typestr and (for records) descr.
+    fn layout(&self, field: Field) -> PyResult<(usize, Vec<usize>, &'static str)> {
+        let float = match self {
+            Storage::F64(_) => "<f8",
+            Storage::F32 { .. } => "<f4",
+        };
+        let n = self.vertex_count();
+        let address = |pointer: *const u8| pointer as usize;
+        Ok(match (self, field) {
+            (Storage::F64(m), Field::Positions) => (address(m.positions.as_ptr().cast()), vec![n, 3], float),
+            (Storage::F64(m), Field::Normals) => (address(m.normals.as_ptr().cast()), vec![n, 3], float),
+            (Storage::F64(m), Field::Uvs) => (address(m.uvs.as_ptr().cast()), vec![n, 2], float),
+            (Storage::F32 { positions, .. }, Field::Positions) => {
+                (address(positions.as_ptr().cast()), vec![n, 3], float)
+            }
+            (Storage::F32 { normals, .. }, Field::Normals) => {
+                (address(normals.as_ptr().cast()), vec![n, 3], float)
+            }
+            (Storage::F32 { uvs, .. }, Field::Uvs) => (address(uvs.as_ptr().cast()), vec![n, 2], float),
+            (_, Field::Indices) => {
+                let indices = self.indices();
+                (address(indices.as_ptr().cast()), vec![indices.len() / 3, 3], "<u4")
+            }
+            (_, Field::Parts) => {
+                let parts = self.parts();
+                (address(parts.as_ptr().cast()), vec![parts.len()], "|V28")
+            }
+            (_, Field::PolylinePositions(k) | Field::PolylineTangents(k)) => {
+                let polyline = self.polylines().get(k).ok_or_else(|| {
+                    PyIndexError::new_err(format!("polyline {k} is out of range"))
+                })?;
+                let points = match field {
+                    Field::PolylinePositions(_) => &polyline.positions,
+                    _ => &polyline.tangents,
+                };
+                (address(points.as_ptr().cast()), vec![points.len(), 3], "<f8")
+            }
+        })
+    }
+}
+
+/// The field names of a part record, in `MeshPart`'s (`repr(C)`) order.
+const PART_FIELDS: [&str; 7] = [
+    "item",
+    "grid_u",
+    "grid_v",
+    "first_vertex",
+    "vertex_count",
+    "first_index",
+    "index_count",
+];
+const _: () = assert!(size_of::<MeshPart>() == 4 * PART_FIELDS.len());
+
+/// One array of a mesh.
+#[derive(Clone, Copy)]
+enum Field {
+    Positions,
+    Normals,
+    Uvs,
+    Indices,
+    Parts,
+    PolylinePositions(usize),
+    PolylineTangents(usize),
+}
+
+/// A triangle mesh: numpy views (read-only, C-contiguous, no copy) of what knotwork wrote.
+#[pyclass(frozen, name = "Mesh", module = "knotwork")]
+struct PyMesh {
+    storage: Storage,
+    groups: Vec<ItemGroup>,
+    left_out: Vec<String>,
+    backend: String,
+}
+
+/// The memory behind one numpy array of a Mesh: numpy reads it through
+/// `__array_interface__`, so the array's `base` is this object and its `mesh` the Mesh
+/// that owns the memory (which stays alive as long as any array of it does).
+#[pyclass(frozen, module = "knotwork")]
+struct MeshMemory {
+    mesh: Py<PyMesh>,
+    field: Field,
+}
+
+#[pymethods]
+impl MeshMemory {
+    /// The Mesh whose memory this is.
+    #[getter]
+    fn mesh(&self, py: Python<'_>) -> Py<PyMesh> {
+        self.mesh.clone_ref(py)
+    }
+
+    /// numpy's array interface (version 3), read-only.
+    #[getter]
+    fn __array_interface__<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let (address, shape, typestr) = self.mesh.get().storage.layout(self.field)?;
+        let interface = PyDict::new(py);
+        interface.set_item("version", 3)?;
+        interface.set_item("shape", PyTuple::new(py, shape)?)?;
+        interface.set_item("typestr", typestr)?;
+        interface.set_item("data", (address, true))?;
+        if let Field::Parts = self.field {
+            let descr: Vec<(&str, &str)> = PART_FIELDS.iter().map(|name| (*name, "<u4")).collect();
+            interface.set_item("descr", descr)?;
+        }
+        Ok(interface)
+    }
+}
+
+/// A numpy view of `field` of `mesh`.
+fn array<'py>(mesh: &Bound<'py, PyMesh>, field: Field) -> PyResult<Bound<'py, PyAny>> {
+    let py = mesh.py();
+    let memory = Bound::new(
+        py,
+        MeshMemory {
+            mesh: mesh.clone().unbind(),
+            field,
+        },
+    )?;
+    py.import("numpy")?.getattr("asarray")?.call1((memory,))
+}
+
+#[pymethods]
+impl PyMesh {
+    /// Vertex positions, (n, 3) float64 or float32.
+    #[getter]
+    fn positions<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        array(slf, Field::Positions)
+    }
+
+    /// Unit vertex normals (the surface's, or its limit at degenerate points), (n, 3).
+    #[getter]
+    fn normals<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        array(slf, Field::Normals)
+    }
+
+    /// Surface parameters mapped to [0, 1]² over each surface's range, (n, 2).
+    #[getter]
+    fn uvs<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        array(slf, Field::Uvs)
+    }
+
+    /// Triangles, (m, 3) uint32, counter-clockwise seen from the side the normals point to.
+    #[getter]
+    fn indices<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        array(slf, Field::Indices)
+    }
+
+    /// One record per meshed part, in item order: item (the scene item it came from),
+    /// grid_u, grid_v (0 for adaptive parts), first_vertex, vertex_count, first_index,
+    /// index_count (indices, not triangles). A shell has one part per face.
+    #[getter]
+    fn parts<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        array(slf, Field::Parts)
+    }
+
+    /// The curves' polylines: (item, positions (k, 3) float64, tangents (k, 3) float64).
+    #[getter]
+    fn polylines<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyList>> {
+        let py = slf.py();
+        let count = slf.get().storage.polylines().len();
+        let mut rows = Vec::with_capacity(count);
+        for k in 0..count {
+            let item = slf.get().storage.polylines()[k].item;
+            rows.push((
+                item,
+                array(slf, Field::PolylinePositions(k))?,
+                array(slf, Field::PolylineTangents(k))?,
+            ));
+        }
+        PyList::new(py, rows)
+    }
+
+    /// Named runs of items, as (name, first item, end item): one glTF node, one OBJ group.
+    #[getter]
+    fn groups(&self) -> Vec<(String, usize, usize)> {
+        (self.groups.iter())
+            .map(|g| (g.name.clone(), g.items.start, g.items.end))
+            .collect()
+    }
+
+    /// What the file held that is not in the mesh (unreadable entities, faces that could not
+    /// be meshed), one line each with its reason; empty when nothing was left out.
+    #[getter]
+    fn left_out(&self) -> Vec<String> {
+        self.left_out.clone()
+    }
+
+    /// The executor that tessellated it.
+    #[getter]
+    fn backend(&self) -> String {
+        self.backend.clone()
+    }
+
+    /// "float64" or "float32".
+    #[getter]
+    fn dtype(&self) -> &'static str {
+        match self.storage {
+            Storage::F64(_) => "float64",
+            Storage::F32 { .. } => "float32",
+        }
+    }
+
+    #[getter]
+    fn vertex_count(&self) -> usize {
+        self.storage.vertex_count()
+    }
+
+    #[getter]
+    fn triangle_count(&self) -> usize {
+        self.storage.indices().len() / 3
+    }
+
+    /// Writes the mesh to `path` as OBJ, PLY, STL or binary glTF (.glb) — by its extension,
+    /// or `format` ("obj", "ply", "stl", "glb") — atomically: on any error no file is left.
+    /// OBJ and glTF get one group / node per named run of items. The GIL is released.
+    #[pyo3(signature = (path, format = None))]
+    fn write(&self, py: Python<'_>, path: PathBuf, format: Option<&str>) -> PyResult<()> {
+        let format = format
+            .map(|name| {
+                MeshFormat::from_extension(name.trim_start_matches('.')).ok_or_else(|| {
+                    PyValueError::new_err(format!(
+                        "format {name:?} is not a mesh format (obj, ply, stl, glb)"
+                    ))
+                })
+            })
+            .transpose()?;
+        detached(py, || match &self.storage {
+            Storage::F64(mesh) => knotwork::io::write_mesh_as(&path, mesh, &self.groups, format),
+            Storage::F32 {
+                positions,
+                normals,
+                uvs,
+                indices,
+                parts,
+                polylines,
+            } => {
+                let vertices = (positions.iter().zip(normals).zip(uvs))
+                    .map(|((&position, &normal), &uv)| Vertex {
+                        position,
+                        normal,
+                        uv,
+                    })
+                    .collect();
+                let mesh = Mesh32 {
+                    vertices,
+                    indices: indices.clone(),
+                    parts: parts.clone(),
+                    polylines: polylines.clone(),
+                };
+                knotwork::io::write_mesh_as(&path, &mesh, &self.groups, format)
+            }
+        })
+    }
+
+    /// A trimesh.Trimesh of this mesh (its own copy of the arrays, with vertex normals and
+    /// uvs; vertices are not merged). Needs `pip install trimesh`.
+    fn to_trimesh<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        slf.py()
+            .import("knotwork._convert")?
+            .call_method1("to_trimesh", (slf,))
+    }
+
+    /// A pyvista.PolyData of this mesh (its own copy, with point data "Normals" and "uv").
+    /// Needs `pip install pyvista`.
+    fn to_pyvista<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        slf.py()
+            .import("knotwork._convert")?
+            .call_method1("to_pyvista", (slf,))
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Mesh({} vertices, {} triangles, {} parts, {}, by {})",
+            self.vertex_count(),
+            self.triangle_count(),
+            self.storage.parts().len(),
+            self.dtype(),
+            self.backend
+        )
+    }
+}
+
+/// Runs knotwork's GPU conformance suite on this machine's default adapter: every case
+/// tessellated by the GPU kernels and by the f64 reference, compared vertex for vertex.
+/// Returns {"adapter": str, "passes": bool, "cases": [{"name", "kind" ("surface" or
+/// "curve"), "passes", "worst_position", and "worst_normal", "worst_degenerate_normal",
+/// "worst_uv" (surfaces) or "worst_tangent" (curves)}]}; bars in knotwork's README. Raises
+/// knotwork.Error when there is no adapter. The GIL is released.
+#[pyfunction]
+fn conformance<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    use knotwork::conformance::Measured;
+    let (adapter, outcomes) = detached(py, || {
+        let gpu = knotwork::GpuTessellator::new()?;
+        Ok((gpu.context().adapter_summary(), knotwork::conformance::run_all(&gpu)?))
+    })?;
+    let cases = PyList::empty(py);
+    for outcome in &outcomes {
+        let case = PyDict::new(py);
+        case.set_item("name", &outcome.name)?;
+        case.set_item("passes", outcome.passes())?;
+        match outcome.measured {
+            Measured::Surface(report) => {
+                case.set_item("kind", "surface")?;
+                case.set_item("worst_position", report.worst_position)?;
+                case.set_item("worst_normal", report.worst_normal)?;
+                case.set_item("worst_degenerate_normal", report.worst_degenerate_normal)?;
+                case.set_item("worst_uv", report.worst_uv)?;
+            }
+            Measured::Curve(report) => {
+                case.set_item("kind", "curve")?;
+                case.set_item("worst_position", report.worst_position)?;
+                case.set_item("worst_tangent", report.worst_tangent)?;
+            }
+        }
+        cases.append(case)?;
+    }
+    let result = PyDict::new(py);
+    result.set_item("adapter", adapter)?;
+    result.set_item("passes", outcomes.iter().all(|o| o.passes()))?;
+    result.set_item("cases", cases)?;
+    Ok(result)
+}
+
+/// {"version": knotwork's version, "reads": the surface formats, "writes": the mesh formats,
+/// "adapters": every GPU adapter wgpu finds and the default one, as text}.
+#[pyfunction]
+fn info<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    let adapters = py.detach(knotwork::backend::adapters_report);
+    let result = PyDict::new(py);
+    result.set_item("version", env!("CARGO_PKG_VERSION"))?;
+    result.set_item("reads", ["obj", "bpt", "json", "iges", "step"])?;
+    result.set_item("writes", ["obj", "ply", "stl", "glb"])?;
+    result.set_item("adapters", adapters)?;
+    Ok(result)
+}
+
+/// knotwork's native module; the package `knotwork` re-exports it.
+#[pymodule]
+fn _knotwork(module: &Bound<'_, PyModule>) -> PyResult<()> {
+    module.add_function(wrap_pyfunction!(read, module)?)?;
+    module.add_function(wrap_pyfunction!(tessellate, module)?)?;
+    module.add_function(wrap_pyfunction!(conformance, module)?)?;
+    module.add_function(wrap_pyfunction!(info, module)?)?;
+    module.add_class::<PyScene>()?;
+    module.add_class::<PyItem>()?;
+    module.add_class::<PyMesh>()?;
+    module.add_class::<MeshMemory>()?;
+    module.add("Error", module.py().get_type::<Error>())?;
+    module.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

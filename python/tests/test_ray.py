@@ -1,0 +1,113 @@
+"""knotwork.ray on a local two-CPU Ray cluster: a few hundred generated files, good and
+broken mixed, each good one tessellated and written exactly once, each broken one reported."""
+
+import json
+import os
+import pathlib
+import random
+
+import numpy as np
+import pytest
+
+ray = pytest.importorskip("ray")
+import knotwork  # noqa: E402
+import knotwork.ray  # noqa: E402
+
+DATA = pathlib.Path(__file__).resolve().parents[2] / "data"
+GOOD, BROKEN = 240, 24
+
+
+def transformed_bpt(text, rng):
+    """The .bpt patches of `text` scaled, rotated about z and moved: the same model elsewhere."""
+    angle, scale = rng.uniform(0, 2 * np.pi), 2.0 ** rng.randint(-4, 6)
+    c, s = np.cos(angle), np.sin(angle)
+    shift = np.array([rng.uniform(-1e4, 1e4) for _ in range(3)])
+    out = []
+    for line in text.splitlines():
+        fields = line.split()
+        if len(fields) == 3:
+            x, y, z = map(float, fields)
+            p = scale * np.array([c * x - s * y, s * x + c * y, z]) + shift
+            out.append("%.17g %.17g %.17g" % tuple(p))
+        else:
+            out.append(line)
+    return "\n".join(out) + "\n"
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    yield
+    ray.shutdown()
+
+
+def make_inputs(folder):
+    rng = random.Random(7)
+    teapot = (DATA / "teapot.bpt").read_text()
+    ducky = (DATA / "ducky.obj").read_text()
+    good, broken = [], []
+    for k in range(GOOD):
+        if k % 4 == 3:
+            path = folder / f"ducky_{k:03}.obj"
+            path.write_text(ducky)
+        else:
+            path = folder / f"teapot_{k:03}.bpt"
+            path.write_text(transformed_bpt(teapot, rng))
+        good.append(path)
+    for k in range(BROKEN):
+        kind = k % 4
+        path = folder / f"broken_{k:03}.{['bpt', 'obj', 'bpt', 'step'][kind]}"
+        if kind == 0:  # cut short in the middle of a patch
+            path.write_text(teapot[: len(teapot) // 3])
+        elif kind == 1:  # a surface naming a vertex that does not exist
+            path.write_text(ducky.replace("1.5708 1 2 3 ", "1.5708 99999 2 3 ", 1))
+        elif kind == 2:  # a coordinate that is not a number
+            lines = teapot.splitlines()
+            lines[3] = "1.0 oops 2.0"
+            path.write_text("\n".join(lines))
+        else:  # not STEP at all
+            path.write_text("this is not an ISO 10303-21 file\n")
+        broken.append(path)
+    return good, broken
+
+
+def test_a_folder_on_ray_every_good_file_once_every_broken_one_reported(tmp_path, cluster):
+    inputs, out = tmp_path / "in", tmp_path / "out"
+    inputs.mkdir()
+    good, broken = make_inputs(inputs)
+    records = knotwork.ray.tessellate_files(str(inputs / "*"), out, format="glb", grid=9)
+    assert [r["input"] for r in records] == sorted(str(p) for p in good + broken)
+    by_input = {r["input"]: r for r in records}
+    for path in good:
+        record = by_input[str(path)]
+        assert record["error"] is None, record
+        assert record["output"] == str(out / (path.stem + ".glb"))
+        assert record["triangles"] > 0 and record["seconds"] > 0
+    for path in broken:
+        record = by_input[str(path)]
+        assert record["output"] is None
+        assert record["error"] and str(path) in record["error"], record
+    # Exactly one output per good file, nothing else (no temporary files), and the records.
+    written = sorted(p.name for p in out.iterdir())
+    assert written == sorted([p.stem + ".glb" for p in good] + [knotwork.ray.RECORDS])
+    lines = (out / knotwork.ray.RECORDS).read_text().splitlines()
+    assert [json.loads(line) for line in lines] == records
+    # Each output is the mesh knotwork gives for its file on its own.
+    sample = good[0]
+    alone = knotwork.tessellate(sample, grid=9, backend="cpu")
+    assert by_input[str(sample)]["triangles"] == alone.triangle_count
+    assert by_input[str(sample)]["vertices"] == alone.vertex_count
+
+
+def test_inputs_that_would_collide_are_refused_before_anything_runs(tmp_path, cluster):
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    for folder in ("a", "b"):
+        (tmp_path / folder / "teapot.bpt").write_text((DATA / "teapot.bpt").read_text())
+    with pytest.raises(ValueError, match="would both write"):
+        knotwork.ray.tessellate_files(str(tmp_path / "*" / "*.bpt"), tmp_path / "out")
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+    with pytest.raises(ValueError, match="no input files"):
+        knotwork.ray.tessellate_files(str(tmp_path / "*.step"), tmp_path / "out")
+    with pytest.raises(ValueError, match="format"):
+        knotwork.ray.tessellate_files(str(tmp_path / "a"), tmp_path / "out", format="fbx")
