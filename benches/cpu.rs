@@ -14,6 +14,9 @@
 //! deviation holds the same tolerance, with its triangles (the search measures every
 //! candidate: minutes for the larger models, so only there).
 //!
+//! `cpu_scene`: the teapot at 256×256 per patch through `tessellate_scene`, f64 and f32 — the
+//! Rust side of the Python binding's benchmark (python/bench.py).
+//!
 //! `cpu_iges`: reading and meshing an IGES file (trimmed faces planned and evaluated in f64)
 //! at 1e-3 of its diagonal — the rounded cube (7 trimmed faces), the Beetle front lid (134
 //! trimmed NURBS faces) and the teapot (32 untrimmed 128 surfaces). tools/compare_occt.py
@@ -88,6 +91,30 @@ fn bench_cpu(c: &mut Criterion) {
             });
         }
     }
+    group.finish();
+}
+
+/// The job the Python package's benchmark (python/bench.py) runs through the binding: a read
+/// scene tessellated whole, f64 and f32, on every core — its figure next to the binding's.
+fn bench_scene(c: &mut Criterion) {
+    let scene = knotwork::io::read_scene(Path::new("data/teapot.bpt")).expect("teapot");
+    let mut group = c.benchmark_group("cpu_scene");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(32 * 256 * 256));
+    let defaults = knotwork::SceneOptions {
+        grid: TessOptions::DEFAULT.with_grid(256, 256),
+        ..Default::default()
+    };
+    group.bench_function("teapot 256x256 per patch, f64", |b| {
+        b.iter(|| CpuTessellator.tessellate_scene(&scene, &defaults).expect("tessellates"))
+    });
+    group.bench_function("teapot 256x256 per patch, f32", |b| {
+        b.iter(|| {
+            CpuTessellator
+                .tessellate_scene_f32(&scene, &defaults)
+                .expect("tessellates")
+        })
+    });
     group.finish();
 }
 
@@ -208,5 +235,5 @@ fn bench_iges(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench_cpu, bench_adaptive, bench_iges);
+criterion_group!(benches, bench_cpu, bench_scene, bench_adaptive, bench_iges);
 criterion_main!(benches);

@@ -347,8 +347,9 @@ fn options(
 ///   samples: points per curve polyline (>= 2).
 /// backend: "auto" (the GPU if there is an adapter, else the CPU), "gpu" (wgpu compute
 ///   shaders, f32) or "cpu" (the f64 reference path).
-/// dtype: "float64" or "float32" for positions, normals and uvs (numpy.float32 and the like
-///   work too); "float32" keeps GPU results as the GPU wrote them, half the memory.
+/// dtype: "float64" (the default) or "float32" for positions, normals and uvs (numpy.float32
+///   and the like work too); "float32" keeps GPU results as the GPU wrote them, in half the
+///   memory.
 /// max_memory: bytes the mesh may take (default: half the machine's memory); a job needing
 ///   more is refused before anything is allocated.
 ///
