@@ -128,6 +128,9 @@ def tessellate_files(
     os.makedirs(out_dir, exist_ok=True)
     targets = output_targets(files, out_dir, format)
     options.setdefault("backend", "cpu")
+    # PLY, STL and glTF carry f32: an f32 mesh goes to them without widening and narrowing
+    # (as the CLI's batch does); OBJ keeps the f64 reference.
+    options.setdefault("dtype", "float64" if format == "obj" else "float32")
     if not ray.is_initialized():
         ray.init()
     remote_args = {"num_cpus": 1}

@@ -13,6 +13,7 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyIndexError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
+use rayon::prelude::*;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
@@ -468,11 +469,23 @@ enum Storage {
 }
 
 impl Storage {
+    /// On every core: the copy is bound by first touches of fresh memory (page faults),
+    /// which the cores share out.
     fn split(mesh: Mesh32) -> Storage {
+        let vertices = &mesh.vertices;
+        let (positions, (normals, uvs)) = rayon::join(
+            || vertices.par_iter().map(|v| v.position).collect(),
+            || {
+                rayon::join(
+                    || vertices.par_iter().map(|v| v.normal).collect(),
+                    || vertices.par_iter().map(|v| v.uv).collect(),
+                )
+            },
+        );
         Storage::F32 {
-            positions: mesh.vertices.iter().map(|v| v.position).collect(),
-            normals: mesh.vertices.iter().map(|v| v.normal).collect(),
-            uvs: mesh.vertices.iter().map(|v| v.uv).collect(),
+            positions,
+            normals,
+            uvs,
             indices: mesh.indices,
             parts: mesh.parts,
             polylines: mesh.polylines,
