@@ -2,11 +2,10 @@
 files — tessellated into triangle meshes whose arrays are numpy views, on the GPU (wgpu
 compute shaders, f32) or on knotwork's f64 CPU reference path.
 
-    >>> import knotwork
-    >>> mesh = knotwork.tessellate("teapot.bpt", tolerance_rel=1e-3)
-    >>> mesh.positions.shape, mesh.indices.dtype
-    ((..., 3), dtype('uint32'))
-    >>> mesh.write("teapot.glb")
+    import knotwork
+    mesh = knotwork.tessellate("teapot.bpt", tolerance_rel=1e-3)
+    mesh.positions, mesh.indices    # (n, 3) float64 and (m, 3) uint32 numpy arrays, no copy
+    mesh.write("teapot.glb")
 
 `read` gives a Scene (items with kinds and names) to tessellate several ways;
 `knotwork.ray.tessellate_files` tessellates a folder of files on a Ray cluster.

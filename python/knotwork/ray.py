@@ -6,7 +6,8 @@
 Every input becomes ``out_dir/NAME.FORMAT`` (NAME: the input's file name without its
 extension, as the CLI's batch names them), written atomically: a file is either complete or
 absent, also when Ray re-runs a task whose worker died. A file that fails is recorded with
-its error and never stops the job. One record per input, in input order, is returned and
+its error and never stops the job; a task whose worker dies (a crash, memory) past Ray's
+retries is split into one task per file, so only the file at fault is recorded as failed. One record per input, in input order, is returned and
 written to ``out_dir/knotwork-records.jsonl`` (also atomically).
 
 On a cluster ``out_dir`` and the inputs must be on storage every node sees (NFS, a mounted
@@ -144,11 +145,35 @@ def tessellate_files(
         files_per_task = max(1, math.ceil(len(files) / (4 * cpus)))
     chunk = ray.remote(_tessellate_chunk).options(**remote_args)
     jobs = list(zip(files, targets))
-    pending = [
-        chunk.remote(jobs[k : k + files_per_task], format, options)
-        for k in range(0, len(jobs), files_per_task)
-    ]
-    records = [record for result in ray.get(pending) for record in result]
+    pending = {}  # task -> the jobs it tessellates
+    for k in range(0, len(jobs), files_per_task):
+        part = jobs[k : k + files_per_task]
+        pending[chunk.remote(part, format, options)] = part
+    by_input = {}
+    while pending:
+        done, _ = ray.wait(list(pending), num_returns=1)
+        part = pending.pop(done[0])
+        try:
+            for record in ray.get(done[0]):
+                by_input[record["input"]] = record
+        except (ray.exceptions.RayError, OSError) as error:
+            # The task failed past Ray's retries (its worker died: a crash, memory): its files
+            # again one per task, so only the file at fault is recorded as failed.
+            if len(part) > 1:
+                for job in part:
+                    pending[chunk.remote([job], format, options)] = [job]
+            else:
+                path, _ = part[0]
+                by_input[path] = {
+                    "input": path,
+                    "output": None,
+                    "vertices": 0,
+                    "triangles": 0,
+                    "left_out": [],
+                    "error": f"{path}: the Ray task tessellating it failed: {type(error).__name__}: {error}",
+                    "seconds": 0.0,
+                }
+    records = [by_input[path] for path in files]
     _write_records(os.path.join(out_dir, RECORDS), records)
     return records
 

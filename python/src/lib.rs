@@ -190,7 +190,17 @@ impl PyScene {
                 None => counts.push((kind(&item.geometry), 1)),
             }
         }
-        let counts: Vec<String> = counts.iter().map(|(k, n)| format!("{n} {k}")).collect();
+        let noun = |kind: &str, n: usize| {
+            let (one, many) = match kind {
+                "coons" => ("Coons patch", "Coons patches"),
+                "trimmed" => ("trimmed face", "trimmed faces"),
+                "surface" => ("surface", "surfaces"),
+                "curve" => ("curve", "curves"),
+                _ => ("shell", "shells"),
+            };
+            format!("{n} {}", if n == 1 { one } else { many })
+        };
+        let counts: Vec<String> = counts.iter().map(|(k, n)| noun(k, *n)).collect();
         match &self.path {
             Some(path) => format!("Scene({:?}: {})", path.display().to_string(), counts.join(", ")),
             None => format!("Scene({})", counts.join(", ")),
@@ -459,7 +469,9 @@ fn tessellate_scene(
 enum Storage {
     F64(knotwork::Mesh),
     F32 {
-        positions: Vec<[f32; 3]>,
+        /// The executor's interleaved vertices with their positions moved to the front: its
+        /// first 3·n floats are the positions.
+        vertices: Vec<Vertex>,
         normals: Vec<[f32; 3]>,
         uvs: Vec<[f32; 2]>,
         indices: Vec<u32>,
@@ -469,21 +481,22 @@ enum Storage {
 }
 
 impl Storage {
-    /// On every core: the copy is bound by first touches of fresh memory (page faults),
-    /// which the cores share out.
-    fn split(mesh: Mesh32) -> Storage {
-        let vertices = &mesh.vertices;
-        let (positions, (normals, uvs)) = rayon::join(
-            || vertices.par_iter().map(|v| v.position).collect(),
-            || {
-                rayon::join(
-                    || vertices.par_iter().map(|v| v.normal).collect(),
-                    || vertices.par_iter().map(|v| v.uv).collect(),
-                )
-            },
+    /// Normals and uvs copied out on every core (the copy is bound by first touches of fresh
+    /// memory, which the cores share out); then the positions compacted in place, in memory
+    /// already touched.
+    fn split(mut mesh: Mesh32) -> Storage {
+        let (normals, uvs) = rayon::join(
+            || mesh.vertices.par_iter().map(|v| v.normal).collect(),
+            || mesh.vertices.par_iter().map(|v| v.uv).collect(),
         );
+        // Position k moves from float 8k to float 3k: never past a vertex not yet read.
+        let floats: &mut [f32] = bytemuck::cast_slice_mut(&mut mesh.vertices);
+        const FLOATS_PER_VERTEX: usize = size_of::<Vertex>() / size_of::<f32>();
+        for k in 0..floats.len() / FLOATS_PER_VERTEX {
+            floats.copy_within(FLOATS_PER_VERTEX * k..FLOATS_PER_VERTEX * k + 3, 3 * k);
+        }
         Storage::F32 {
-            positions,
+            vertices: mesh.vertices,
             normals,
             uvs,
             indices: mesh.indices,
@@ -516,7 +529,7 @@ impl Storage {
     fn vertex_count(&self) -> usize {
         match self {
             Storage::F64(mesh) => mesh.positions.len(),
-            Storage::F32 { positions, .. } => positions.len(),
+            Storage::F32 { normals, .. } => normals.len(),
         }
     }
 
@@ -532,8 +545,8 @@ impl Storage {
             (Storage::F64(m), Field::Positions) => (address(m.positions.as_ptr().cast()), vec![n, 3], float),
             (Storage::F64(m), Field::Normals) => (address(m.normals.as_ptr().cast()), vec![n, 3], float),
             (Storage::F64(m), Field::Uvs) => (address(m.uvs.as_ptr().cast()), vec![n, 2], float),
-            (Storage::F32 { positions, .. }, Field::Positions) => {
-                (address(positions.as_ptr().cast()), vec![n, 3], float)
+            (Storage::F32 { vertices, .. }, Field::Positions) => {
+                (address(vertices.as_ptr().cast()), vec![n, 3], float)
             }
             (Storage::F32 { normals, .. }, Field::Normals) => {
                 (address(normals.as_ptr().cast()), vec![n, 3], float)
@@ -749,16 +762,17 @@ impl PyMesh {
         detached(py, || match &self.storage {
             Storage::F64(mesh) => knotwork::io::write_mesh_as(&path, mesh, &self.groups, format),
             Storage::F32 {
-                positions,
+                vertices,
                 normals,
                 uvs,
                 indices,
                 parts,
                 polylines,
             } => {
-                let vertices = (positions.iter().zip(normals).zip(uvs))
-                    .map(|((&position, &normal), &uv)| Vertex {
-                        position,
+                let positions: &[f32] = bytemuck::cast_slice(vertices);
+                let vertices = (positions.chunks_exact(3).zip(normals).zip(uvs))
+                    .map(|((position, &normal), &uv)| Vertex {
+                        position: [position[0], position[1], position[2]],
                         normal,
                         uv,
                     })

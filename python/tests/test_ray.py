@@ -5,6 +5,7 @@ import json
 import os
 import pathlib
 import random
+import sys
 
 import pytest
 
@@ -94,3 +95,48 @@ def test_inputs_that_would_collide_are_refused_before_anything_runs(tmp_path, cl
         knotwork.ray.tessellate_files(str(tmp_path / "*.step"), tmp_path / "out")
     with pytest.raises(ValueError, match="format"):
         knotwork.ray.tessellate_files(str(tmp_path / "a"), tmp_path / "out", format="fbx")
+
+
+class CrashOnUse:
+    """A grid that kills the worker process reading it while `marker` exists — the worst a
+    file can do to a worker (a crash past Python). With `once`, the first use also removes
+    the marker, so only one task dies."""
+
+    def __init__(self, marker, once):
+        self.marker, self.once = str(marker), once
+
+    def __index__(self):
+        if os.path.exists(self.marker):
+            if self.once:
+                try:
+                    os.unlink(self.marker)
+                except FileNotFoundError:  # another worker took the crash
+                    return 9
+            os._exit(3)
+        return 9
+
+
+def test_a_task_whose_worker_dies_costs_only_its_own_file(tmp_path, cluster):
+    ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])  # workers need not import this test
+    inputs = tmp_path / "in"
+    inputs.mkdir()
+    for k in range(4):
+        (inputs / f"teapot_{k}.bpt").write_text((DATA / "teapot.bpt").read_text())
+    marker = tmp_path / "crash"
+    no_retry = {"max_retries": 0}
+    # One crash: the chunk it killed is split into one task per file, and all are meshed.
+    marker.touch()
+    records = knotwork.ray.tessellate_files(
+        inputs, tmp_path / "once", grid=CrashOnUse(marker, once=True), files_per_task=2, ray_remote_args=no_retry
+    )
+    assert not marker.exists(), "a worker died"
+    assert all(r["error"] is None and r["triangles"] == 32 * 8 * 8 * 2 for r in records), records
+    assert len(list((tmp_path / "once").glob("*.obj"))) == 4
+    # Every task dies: every file is recorded as failed, by name, and the job still ends.
+    marker.touch()
+    records = knotwork.ray.tessellate_files(
+        inputs, tmp_path / "always", grid=CrashOnUse(marker, once=False), files_per_task=2, ray_remote_args=no_retry
+    )
+    assert [r["input"] for r in records] == sorted(str(p) for p in inputs.iterdir())
+    assert all(r["output"] is None and r["input"] in r["error"] and "failed" in r["error"] for r in records)
+    assert sorted(p.name for p in (tmp_path / "always").iterdir()) == [knotwork.ray.RECORDS]
