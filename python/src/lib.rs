@@ -260,6 +260,10 @@ impl<'py> FromPyObject<'_, 'py> for Source {
             return Ok(Source::Scene(scene.get().scene.clone()));
         }
         match object.extract::<PathBuf>() {
+            Ok(path) if path.is_dir() => Err(PyValueError::new_err(format!(
+                "{} is a folder: tessellate takes one file (knotwork.ray.tessellate_files takes folders)",
+                path.display()
+            ))),
             Ok(path) => Ok(Source::Path(path)),
             Err(_) => Err(pyo3::exceptions::PyTypeError::new_err(format!(
                 "tessellate takes a knotwork.Scene or a path (str or os.PathLike), not {}",
@@ -270,10 +274,23 @@ impl<'py> FromPyObject<'_, 'py> for Source {
 }
 
 /// `grid=`: one count for both directions or a (u, v) pair.
-#[derive(FromPyObject)]
-enum Grid {
-    Square(u32),
-    Pair(u32, u32),
+struct Grid(u32, u32);
+
+impl<'py> FromPyObject<'_, 'py> for Grid {
+    type Error = PyErr;
+
+    fn extract(object: Borrowed<'_, 'py, PyAny>) -> PyResult<Self> {
+        if let Ok(n) = object.extract::<u32>() {
+            return Ok(Grid(n, n));
+        }
+        if let Ok((nu, nv)) = object.extract::<(u32, u32)>() {
+            return Ok(Grid(nu, nv));
+        }
+        Err(PyValueError::new_err(format!(
+            "grid is {}: it must be a vertex count per side (e.g. 33) or a (nu, nv) pair of them",
+            object.repr()?
+        )))
+    }
 }
 
 /// The element type of a mesh's positions, normals and uvs.
@@ -323,8 +340,7 @@ fn options(
                 "grid samples a fixed grid: it cannot go with tolerance, tolerance_rel, max_edge, max_angle or max_triangles",
             ));
         }
-        Some(Grid::Square(n)) => (n, n),
-        Some(Grid::Pair(nu, nv)) => (nu, nv),
+        Some(Grid(nu, nv)) => (nu, nv),
         None => (TessOptions::DEFAULT.grid_u, TessOptions::DEFAULT.grid_v),
     };
     let mut options = TessOptions::DEFAULT.with_grid(nu, nv);

@@ -124,6 +124,12 @@ def test_options_that_do_not_go_together_are_refused():
         knotwork.tessellate(TEAPOT, dtype="float16")
     with pytest.raises(TypeError, match="Scene or a path"):
         knotwork.tessellate(42)
+    with pytest.raises(ValueError, match="grid is -5"):
+        knotwork.tessellate(TEAPOT, grid=-5)
+    with pytest.raises(ValueError, match="is a folder"):
+        knotwork.tessellate(DATA)
+    with pytest.raises(knotwork.Error, match="at least 2"):
+        knotwork.tessellate(TEAPOT, grid=(1, 9))
     with pytest.raises(knotwork.Error, match="tolerance"):
         knotwork.tessellate(TEAPOT, tolerance=-1.0)
 
