@@ -262,19 +262,13 @@ pub fn tess_options(
     max_edge: Option<f64>,
     max_angle: Option<f64>,
 ) -> TessOptions {
-    let mut options = TessOptions::DEFAULT.with_grid(grid.0, grid.1);
-    match (tolerance, tolerance_rel) {
-        (Some(t), _) => options = options.with_tolerance(Tolerance::Absolute(t)),
-        (None, Some(r)) => options = options.with_tolerance(Tolerance::Relative(r)),
-        (None, None) => {}
-    }
-    if let Some(length) = max_edge {
-        options = options.with_max_edge(length);
-    }
-    match max_angle {
-        Some(degrees) => options.with_max_angle(degrees),
-        None => options,
-    }
+    let tolerance = match (tolerance, tolerance_rel) {
+        (Some(t), _) => Some(Tolerance::Absolute(t)),
+        (None, r) => r.map(Tolerance::Relative),
+    };
+    TessOptions::DEFAULT
+        .with_grid(grid.0, grid.1)
+        .with_limits(tolerance, max_edge, max_angle)
 }
 
 /// Parses a count of at least 1: digits (`250000`), a whole number in scientific notation

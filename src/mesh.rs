@@ -88,6 +88,32 @@ impl TessOptions {
         }
     }
 
+    /// Each limit that is given, as [`TessOptions::with_tolerance`],
+    /// [`TessOptions::with_max_edge`] and [`TessOptions::with_max_angle`] set it (none: these
+    /// options unchanged).
+    pub const fn with_limits(
+        self,
+        tolerance: Option<Tolerance>,
+        max_edge: Option<f64>,
+        max_angle: Option<f64>,
+    ) -> Self {
+        Self {
+            tolerance: match tolerance {
+                Some(t) => Some(t),
+                None => self.tolerance,
+            },
+            max_edge: match max_edge {
+                Some(length) => Some(length),
+                None => self.max_edge,
+            },
+            max_angle: match max_angle {
+                Some(degrees) => Some(degrees),
+                None => self.max_angle,
+            },
+            ..self
+        }
+    }
+
     /// Samples every surface to `tolerance` instead of a fixed grid: per knot span and
     /// within it, as finely as its curvature bound needs.
     pub const fn with_tolerance(self, tolerance: Tolerance) -> Self {

@@ -343,20 +343,13 @@ fn options(
         Some(Grid(nu, nv)) => (nu, nv),
         None => (TessOptions::DEFAULT.grid_u, TessOptions::DEFAULT.grid_v),
     };
-    let mut options = TessOptions::DEFAULT.with_grid(nu, nv);
-    if let Some(t) = tolerance {
-        options = options.with_tolerance(Tolerance::Absolute(t));
-    }
-    if let Some(r) = tolerance_rel {
-        options = options.with_tolerance(Tolerance::Relative(r));
-    }
-    if let Some(length) = max_edge {
-        options = options.with_max_edge(length);
-    }
-    if let Some(degrees) = max_angle {
-        options = options.with_max_angle(degrees);
-    }
-    Ok(options)
+    // At most one of the two tolerances (refused above).
+    let limit = tolerance
+        .map(Tolerance::Absolute)
+        .or(tolerance_rel.map(Tolerance::Relative));
+    Ok(TessOptions::DEFAULT
+        .with_grid(nu, nv)
+        .with_limits(limit, max_edge, max_angle))
 }
 
 /// Tessellates a Scene, or the surface file at a path, into a Mesh.

@@ -763,19 +763,11 @@ pub fn read_json_scene(text: &str) -> Result<Scene> {
             }
             Some([nu, nv]) => Some(TessOptions::DEFAULT.with_grid(nu, nv)),
             None if limited => {
-                let mut options = TessOptions::DEFAULT;
-                if let Some(t) = tolerance {
-                    options = options.with_tolerance(Tolerance::Absolute(t));
-                }
-                if let Some(r) = tolerance_rel {
-                    options = options.with_tolerance(Tolerance::Relative(r));
-                }
-                if let Some(length) = max_edge {
-                    options = options.with_max_edge(length);
-                }
-                if let Some(degrees) = max_angle {
-                    options = options.with_max_angle(degrees);
-                }
+                // At most one of the two tolerances (refused above).
+                let limit = tolerance
+                    .map(Tolerance::Absolute)
+                    .or(tolerance_rel.map(Tolerance::Relative));
+                let options = TessOptions::DEFAULT.with_limits(limit, max_edge, max_angle);
                 // Out-of-range values are refused here, at the item's line (a relative
                 // tolerance is checked as a fraction: the diagonal does not matter).
                 sampling_limits(&options, 1.0, 1.0).map_err(|e| in_surface(e).at_line(line))?;
