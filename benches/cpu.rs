@@ -106,7 +106,11 @@ fn bench_scene(c: &mut Criterion) {
         ..Default::default()
     };
     group.bench_function("teapot 256x256 per patch, f64", |b| {
-        b.iter(|| CpuTessellator.tessellate_scene(&scene, &defaults).expect("tessellates"))
+        b.iter(|| {
+            CpuTessellator
+                .tessellate_scene(&scene, &defaults)
+                .expect("tessellates")
+        })
     });
     group.bench_function("teapot 256x256 per patch, f32", |b| {
         b.iter(|| {

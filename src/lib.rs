@@ -51,9 +51,9 @@
 //!   origin and of the result); normals within 1e-4 rad at regular points and 1e-2 rad near
 //!   degenerate points.
 
+pub mod backend;
 #[cfg(feature = "cli")]
 pub mod cli;
-pub mod backend;
 pub mod conformance;
 pub mod cpu;
 pub mod error;

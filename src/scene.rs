@@ -428,12 +428,12 @@ pub fn left_out_faces(
                     Err(error) => reasons.push(error.to_string()),
                 }
             }
-            Geometry::Trimmed(_) if meshed == 0 => {
-                reasons.push(match crate::cpu::trimmed_face_plan(scene, defaults, index) {
+            Geometry::Trimmed(_) if meshed == 0 => reasons.push(
+                match crate::cpu::trimmed_face_plan(scene, defaults, index) {
                     Err(error) => error.to_string(),
                     Ok(_) => format!("item {index}: meshing it took more memory than was left"),
-                })
-            }
+                },
+            ),
             _ => {}
         }
     }

@@ -3436,7 +3436,10 @@ fn step_refuses_broken_references_by_entity() {
     // Geometry but no B-rep: refused, not read as an empty part.
     let wireframe = "ISO-10303-21;\nDATA;\n#1=CARTESIAN_POINT('',(0.,0.,0.));\n#2=VERTEX_POINT('',#1);\nENDSEC;\n";
     let e = knotwork::io::read_step(wireframe).unwrap_err();
-    assert!(e.to_string().contains("no B-rep") && e.to_string().contains("2 instances"), "{e}");
+    assert!(
+        e.to_string().contains("no B-rep") && e.to_string().contains("2 instances"),
+        "{e}"
+    );
 }
 
 /// `text` (one of [`step_file`]'s) with `instances` added after its own, numbered on.

@@ -52,7 +52,8 @@ fn python_error(error: knotwork::Error) -> PyErr {
                 directory,
                 source,
             } => {
-                entity.get_or_insert_with(|| format!("entity {kind} (directory entry {directory})"));
+                entity
+                    .get_or_insert_with(|| format!("entity {kind} (directory entry {directory})"));
                 source
             }
             E::InStepEntity { id, kind, source } => {
@@ -202,7 +203,11 @@ impl PyScene {
         };
         let counts: Vec<String> = counts.iter().map(|(k, n)| noun(k, *n)).collect();
         match &self.path {
-            Some(path) => format!("Scene({:?}: {})", path.display().to_string(), counts.join(", ")),
+            Some(path) => format!(
+                "Scene({:?}: {})",
+                path.display().to_string(),
+                counts.join(", ")
+            ),
             None => format!("Scene({})", counts.join(", ")),
         }
     }
@@ -241,7 +246,8 @@ fn tessellator(backend: Backend) -> knotwork::Result<Arc<dyn Tessellator + Send 
             "the GPU cannot hold this job ({error}); the CPU tessellated it"
         ));
     });
-    let t: Arc<dyn Tessellator + Send + Sync> = knotwork::backend::tessellator(backend, note)?.into();
+    let t: Arc<dyn Tessellator + Send + Sync> =
+        knotwork::backend::tessellator(backend, note)?.into();
     made.push((backend, t.clone()));
     Ok(t)
 }
@@ -332,7 +338,11 @@ fn options(
             "give tolerance (model units) or tolerance_rel (of the diagonal), not both",
         ));
     }
-    let adaptive = tolerance.or(tolerance_rel).or(max_edge).or(max_angle).is_some()
+    let adaptive = tolerance
+        .or(tolerance_rel)
+        .or(max_edge)
+        .or(max_angle)
+        .is_some()
         || max_triangles.is_some();
     let (nu, nv) = match grid {
         Some(_) if adaptive => {
@@ -394,7 +404,14 @@ fn tessellate(
     dtype: Option<Bound<'_, PyAny>>,
     max_memory: Option<u64>,
 ) -> PyResult<PyMesh> {
-    let options = options(grid, tolerance, tolerance_rel, max_edge, max_angle, max_triangles)?;
+    let options = options(
+        grid,
+        tolerance,
+        tolerance_rel,
+        max_edge,
+        max_angle,
+        max_triangles,
+    )?;
     if samples < 2 {
         return Err(PyValueError::new_err(format!(
             "samples is {samples}: a polyline needs at least 2"
@@ -419,8 +436,16 @@ fn tessellate(
             Some(path) => error.naming_file(path),
             None => error,
         };
-        tessellate_scene(&scene, options, samples, max_triangles, max_memory, backend, precision)
-            .map_err(name_file)
+        tessellate_scene(
+            &scene,
+            options,
+            samples,
+            max_triangles,
+            max_memory,
+            backend,
+            precision,
+        )
+        .map_err(name_file)
     })?;
     let warnings = py.import("warnings")?;
     let category = py.import("knotwork")?.getattr("IncompleteMeshWarning")?;
@@ -551,8 +576,12 @@ impl Storage {
         let n = self.vertex_count();
         let address = |pointer: *const u8| pointer as usize;
         Ok(match (self, field) {
-            (Storage::F64(m), Field::Positions) => (address(m.positions.as_ptr().cast()), vec![n, 3], float),
-            (Storage::F64(m), Field::Normals) => (address(m.normals.as_ptr().cast()), vec![n, 3], float),
+            (Storage::F64(m), Field::Positions) => {
+                (address(m.positions.as_ptr().cast()), vec![n, 3], float)
+            }
+            (Storage::F64(m), Field::Normals) => {
+                (address(m.normals.as_ptr().cast()), vec![n, 3], float)
+            }
             (Storage::F64(m), Field::Uvs) => (address(m.uvs.as_ptr().cast()), vec![n, 2], float),
             (Storage::F32 { vertices, .. }, Field::Positions) => {
                 (address(vertices.as_ptr().cast()), vec![n, 3], float)
@@ -560,10 +589,16 @@ impl Storage {
             (Storage::F32 { normals, .. }, Field::Normals) => {
                 (address(normals.as_ptr().cast()), vec![n, 3], float)
             }
-            (Storage::F32 { uvs, .. }, Field::Uvs) => (address(uvs.as_ptr().cast()), vec![n, 2], float),
+            (Storage::F32 { uvs, .. }, Field::Uvs) => {
+                (address(uvs.as_ptr().cast()), vec![n, 2], float)
+            }
             (_, Field::Indices) => {
                 let indices = self.indices();
-                (address(indices.as_ptr().cast()), vec![indices.len() / 3, 3], "<u4")
+                (
+                    address(indices.as_ptr().cast()),
+                    vec![indices.len() / 3, 3],
+                    "<u4",
+                )
             }
             (_, Field::Parts) => {
                 let parts = self.parts();
@@ -577,7 +612,11 @@ impl Storage {
                     Field::PolylinePositions(_) => &polyline.positions,
                     _ => &polyline.tangents,
                 };
-                (address(points.as_ptr().cast()), vec![points.len(), 3], "<f8")
+                (
+                    address(points.as_ptr().cast()),
+                    vec![points.len(), 3],
+                    "<f8",
+                )
             }
         })
     }
@@ -836,7 +875,10 @@ fn conformance<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
     use knotwork::conformance::Measured;
     let (adapter, outcomes) = detached(py, || {
         let gpu = knotwork::GpuTessellator::new()?;
-        Ok((gpu.context().adapter_summary(), knotwork::conformance::run_all(&gpu)?))
+        Ok((
+            gpu.context().adapter_summary(),
+            knotwork::conformance::run_all(&gpu)?,
+        ))
     })?;
     let cases = PyList::empty(py);
     for outcome in &outcomes {

@@ -4,9 +4,7 @@ use clap::Parser;
 use knotwork::cli::{Backend, Cli, Command, Job};
 use knotwork::io::{MeshFormat, SceneFormat};
 use knotwork::mesh::WELD_REL_TOLERANCE;
-use knotwork::{
-    GpuContext, GpuTessellator, SceneOptions, TessOptions, Tessellator,
-};
+use knotwork::{GpuContext, GpuTessellator, SceneOptions, TessOptions, Tessellator};
 use rayon::prelude::*;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -529,4 +527,3 @@ fn conformance() -> knotwork::Result<bool> {
     );
     Ok(all_pass)
 }
-
