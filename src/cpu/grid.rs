@@ -219,6 +219,11 @@ pub fn evaluate_grid_into(
     Ok(())
 }
 
+/// Grids with fewer vertices than this are evaluated row after row on the calling thread:
+/// an adaptive plan's cells hold a few dozen each and are already spread over the cores,
+/// and splitting them again costs more (task and scratch set-up) than it saves.
+const PARALLEL_ROWS_FROM_VERTICES: usize = 4096;
+
 fn evaluate_tables(
     surface: &BSplineSurface,
     columns: &AxisSamples,
@@ -228,25 +233,33 @@ fn evaluate_tables(
 ) {
     let nu = columns.len();
     let fma = has_fma();
-    positions
-        .par_chunks_mut(nu)
-        .zip(normals.par_chunks_mut(nu))
-        .enumerate()
-        .for_each_init(
-            || RowScratch::new(surface.count_u()),
-            |scratch, (j, (row_positions, row_normals))| {
-                evaluate_row(
-                    surface,
-                    columns,
-                    rows,
-                    j,
-                    fma,
-                    scratch,
-                    row_positions,
-                    row_normals,
-                );
-            },
-        );
+    let evaluate = |scratch: &mut RowScratch, (j, (row_positions, row_normals))| {
+        evaluate_row(
+            surface,
+            columns,
+            rows,
+            j,
+            fma,
+            scratch,
+            row_positions,
+            row_normals,
+        )
+    };
+    let scratch = || RowScratch::new(surface.count_u());
+    if positions.len() < PARALLEL_ROWS_FROM_VERTICES {
+        let mut scratch = scratch();
+        positions
+            .chunks_mut(nu)
+            .zip(normals.chunks_mut(nu))
+            .enumerate()
+            .for_each(|job| evaluate(&mut scratch, job));
+    } else {
+        positions
+            .par_chunks_mut(nu)
+            .zip(normals.par_chunks_mut(nu))
+            .enumerate()
+            .for_each_init(scratch, evaluate);
+    }
 }
 
 /// As [`evaluate_tables`], into f32 vertices (uvs included): each row is evaluated in f64

@@ -10,7 +10,6 @@
 //! h²/4 (Popoviciu), likewise k²/4, and Cauchy–Schwarz bounds the mixed sum by h·k/4.)
 
 use super::BezierPatch;
-use super::piecewise::split_bezier;
 use glam::{DVec3, DVec4};
 
 /// Upper bounds of |S_u|, |S_v| (model units per parameter unit) and of |S_uu|, |S_uv|,
@@ -190,41 +189,50 @@ impl BezierPatch {
     pub fn derivative_bound(&self) -> DerivativeBound {
         let (p, q) = (self.degree_u, self.degree_v);
         let row = p + 1;
-        let cartesian: Vec<DVec3> = self.points.iter().map(|h| h.truncate() / h.w).collect();
-        let (centre, radius) = box_centre_and_radius(&cartesian);
-        // (w·(P − C), w) for every control point.
-        let net: Vec<DVec4> = self
-            .points
-            .iter()
-            .map(|h| (h.truncate() - h.w * centre).extend(h.w))
-            .collect();
-        let at = |i: usize, j: usize| net[j * row + i];
+        let (centre, radius) =
+            box_centre_and_radius(self.points.iter().map(|h| h.truncate() / h.w));
+        // (w·(P − C), w) of control point (i, j).
+        let at = |i: usize, j: usize| {
+            let h = self.points[j * row + i];
+            (h.truncate() - h.w * centre).extend(h.w)
+        };
         // The largest |vector part| and |weight| of a difference stencil over the net.
-        let largest = |di: usize, dj: usize, stencil: &dyn Fn(usize, usize) -> DVec4| {
+        fn largest(
+            columns: usize,
+            rows: usize,
+            stencil: impl Fn(usize, usize) -> DVec4,
+        ) -> (f64, f64) {
             let mut most = (0.0f64, 0.0f64);
-            for j in 0..=q - dj {
-                for i in 0..=p - di {
+            for j in 0..rows {
+                for i in 0..columns {
                     let d = stencil(i, j);
-                    most = (most.0.max(d.truncate().length()), most.1.max(d.w.abs()));
+                    most = (
+                        most.0.max(d.truncate().length_squared()),
+                        most.1.max(d.w.abs()),
+                    );
                 }
             }
-            most
-        };
-        let first_u = largest(1, 0, &|i, j| at(i + 1, j) - at(i, j));
-        let first_v = largest(0, 1, &|i, j| at(i, j + 1) - at(i, j));
+            (most.0.sqrt(), most.1)
+        }
+        let first_u = largest(p, q + 1, |i, j| at(i + 1, j) - at(i, j));
+        let first_v = largest(p + 1, q, |i, j| at(i, j + 1) - at(i, j));
         let (zero, pf, qf) = ((0.0, 0.0), p as f64, q as f64);
         let second_uu = if p >= 2 {
-            largest(2, 0, &|i, j| at(i + 2, j) - 2.0 * at(i + 1, j) + at(i, j))
+            largest(p - 1, q + 1, |i, j| {
+                at(i + 2, j) - 2.0 * at(i + 1, j) + at(i, j)
+            })
         } else {
             zero
         };
         let second_vv = if q >= 2 {
-            largest(0, 2, &|i, j| at(i, j + 2) - 2.0 * at(i, j + 1) + at(i, j))
+            largest(p + 1, q - 1, |i, j| {
+                at(i, j + 2) - 2.0 * at(i, j + 1) + at(i, j)
+            })
         } else {
             zero
         };
         let second_uv = if p >= 1 && q >= 1 {
-            largest(1, 1, &|i, j| {
+            largest(p, q, |i, j| {
                 at(i + 1, j + 1) - at(i + 1, j) - at(i, j + 1) + at(i, j)
             })
         } else {
@@ -236,7 +244,11 @@ impl BezierPatch {
         let scale_uu = pf * (pf - 1.0) / (wu * wu);
         let scale_vv = qf * (qf - 1.0) / (wv * wv);
         let scale_uv = pf * qf / (wu * wv);
-        let least_weight = net.iter().map(|h| h.w).fold(f64::INFINITY, f64::min);
+        let least_weight = self
+            .points
+            .iter()
+            .map(|h| h.w)
+            .fold(f64::INFINITY, f64::min);
         let (d_u, w_u) = (scale_u * first_u.0, scale_u * first_u.1);
         let (d_v, w_v) = (scale_v * first_v.0, scale_v * first_v.1);
         let g_u = (d_u + w_u * radius) / least_weight;
@@ -306,7 +318,7 @@ impl BezierPatch {
             } else {
                 return None;
             };
-        let (centre, radius) = box_centre_and_radius(&differences);
+        let (centre, radius) = box_centre_and_radius(differences.iter().copied());
         let scale = degree as f64 / along;
         let (mut d_first, mut w_first) = (0.0f64, 0.0f64);
         for k in 0..degree {
@@ -323,65 +335,79 @@ impl BezierPatch {
     /// to ≤ 1) of its u range: de Casteljau subdivision of each row, exact up to rounding.
     pub fn restricted_u(&self, from: f64, to: f64) -> BezierPatch {
         let row = self.degree_u + 1;
-        let mut points = Vec::with_capacity(self.points.len());
-        for polygon in self.points.chunks_exact(row) {
-            points.extend(restrict(polygon, from, to));
+        let mut points = self.points.clone();
+        for first in (0..points.len()).step_by(row) {
+            restrict_in_place(&mut points, first, 1, row, from, to);
         }
         let r = self.range_u;
         BezierPatch {
+            degree_u: self.degree_u,
+            degree_v: self.degree_v,
             points,
             range_u: super::Interval::new(r.lerp(from), r.lerp(to)),
-            ..self.clone()
+            range_v: self.range_v,
         }
     }
 
     /// [`restricted_u`](Self::restricted_u) along v.
     pub fn restricted_v(&self, from: f64, to: f64) -> BezierPatch {
         let row = self.degree_u + 1;
-        let columns: Vec<Vec<DVec4>> = (0..row)
-            .map(|i| {
-                let polygon: Vec<DVec4> =
-                    self.points.iter().skip(i).step_by(row).copied().collect();
-                restrict(&polygon, from, to)
-            })
-            .collect();
-        let points = (0..=self.degree_v)
-            .flat_map(|j| columns.iter().map(move |c| c[j]))
-            .collect();
+        let mut points = self.points.clone();
+        for first in 0..row {
+            restrict_in_place(&mut points, first, row, self.degree_v + 1, from, to);
+        }
         let r = self.range_v;
         BezierPatch {
+            degree_u: self.degree_u,
+            degree_v: self.degree_v,
             points,
+            range_u: self.range_u,
             range_v: super::Interval::new(r.lerp(from), r.lerp(to)),
-            ..self.clone()
         }
     }
 }
 
-/// The Bezier polygon of `points` over local parameters [from, to] ⊆ [0, 1].
-fn restrict(points: &[DVec4], from: f64, to: f64) -> Vec<DVec4> {
-    let tail = if from > 0.0 {
-        split_bezier(points, from).1
-    } else {
-        points.to_vec()
-    };
+/// Replaces the Bezier polygon `points[first + k·stride]`, k < count, by its polygon over
+/// local parameters [from, to] ⊆ [0, 1]: two de Casteljau passes in place, no allocation.
+/// The first keeps the right part at `from` (after level r, entry k < count − r holds the
+/// level-r point b_k^r, so entry j ends as b_j^(count−1−j)); the second the left part at
+/// the rescaled `to`, running from the other end.
+fn restrict_in_place(
+    points: &mut [DVec4],
+    first: usize,
+    stride: usize,
+    count: usize,
+    from: f64,
+    to: f64,
+) {
+    let at = |k: usize| first + k * stride;
+    if from > 0.0 {
+        for level in 1..count {
+            for k in 0..count - level {
+                points[at(k)] = points[at(k)].lerp(points[at(k + 1)], from);
+            }
+        }
+    }
     if to < 1.0 {
-        split_bezier(&tail, (to - from) / (1.0 - from)).0
-    } else {
-        tail
+        let t = (to - from) / (1.0 - from);
+        for level in 1..count {
+            for k in (level..count).rev() {
+                points[at(k)] = points[at(k - 1)].lerp(points[at(k)], t);
+            }
+        }
     }
 }
 
 /// The centre C of the bounding box of `points` and the largest |P − C| (the reference point
 /// and radius the derivative bounds are taken relative to).
-pub(crate) fn box_centre_and_radius(points: &[DVec3]) -> (DVec3, f64) {
-    let (low, high) = points.iter().fold(
+pub(crate) fn box_centre_and_radius(points: impl Iterator<Item = DVec3> + Clone) -> (DVec3, f64) {
+    let (low, high) = points.clone().fold(
         (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-        |(low, high), &x| (low.min(x), high.max(x)),
+        |(low, high), x| (low.min(x), high.max(x)),
     );
     let centre = 0.5 * (low + high);
-    let radius = points
-        .iter()
-        .map(|&x| (x - centre).length())
+    let radius_squared = points
+        .map(|x| (x - centre).length_squared())
         .fold(0.0, f64::max);
-    (centre, radius)
+    (centre, radius_squared.sqrt())
 }

@@ -239,7 +239,7 @@ impl BezierPatch {
     /// u and v, in the patch's own parameters, relative to the centre of its control points.
     fn normal_polynomial(&self) -> (Bernstein<DVec3>, Bernstein<DVec3>, Bernstein<DVec3>) {
         let cartesian: Vec<DVec3> = self.points.iter().map(|h| h.truncate() / h.w).collect();
-        let (centre, _) = super::box_centre_and_radius(&cartesian);
+        let (centre, _) = super::box_centre_and_radius(cartesian.iter().copied());
         let (du, dv) = (self.degree_u, self.degree_v);
         let (wu, wv) = (self.range_u.width(), self.range_v.width());
         let rational = self.points.iter().any(|h| h.w != self.points[0].w);

@@ -13,6 +13,7 @@
 use super::cell_triangles;
 use crate::error::{Error, Result};
 use crate::geom::{BSplineSurface, BezierPatch, DerivativeBound, Interval, SamplingLimits};
+use rayon::prelude::*;
 
 /// Most segments one cell may take in one direction: a tolerance that needs more is refused
 /// (it would ask for about 10⁸ vertices per cell).
@@ -90,16 +91,21 @@ pub fn surface_cells(surface: &BSplineSurface, limits: SamplingLimits) -> Result
         .iter()
         .map(|patch| (column_of(patch).unwrap(), row_of(patch).unwrap()))
         .collect();
-    for (patch, &(c, r)) in patches.iter().zip(&placed) {
-        let clipped_u = overlap(patch.range_u, range_u).unwrap();
-        let clipped_v = overlap(patch.range_v, range_v).unwrap();
-        // How finely to cut the span follows the rates the normal reaches in it; each
-        // cell's own rates are then bounded.
-        let mut bound = patch.derivative_bound();
-        if limits.max_angle.is_finite() {
-            (bound.normal_u, bound.normal_v) = patch.normal_rate_estimate();
-        }
-        let (n_u, n_v) = segments_of(bound, clipped_u, clipped_v);
+    let span_rates: Vec<(u32, u32)> = patches
+        .par_iter()
+        .map(|patch| {
+            let clipped_u = overlap(patch.range_u, range_u).unwrap();
+            let clipped_v = overlap(patch.range_v, range_v).unwrap();
+            // How finely to cut the span follows the rates the normal reaches in it; each
+            // cell's own rates are then bounded.
+            let mut bound = patch.derivative_bound();
+            if limits.max_angle.is_finite() {
+                (bound.normal_u, bound.normal_v) = patch.normal_rate_estimate();
+            }
+            segments_of(bound, clipped_u, clipped_v)
+        })
+        .collect();
+    for (&(n_u, n_v), &(c, r)) in span_rates.iter().zip(&placed) {
         cells_u[c] = cells_u[c].max(cells_for(n_u));
         cells_v[r] = cells_v[r].max(cells_for(n_v));
     }
@@ -136,28 +142,43 @@ pub fn surface_cells(surface: &BSplineSurface, limits: SamplingLimits) -> Result
         bound: DerivativeBound::default(),
     };
     let mut cells = vec![unset; columns * rows];
-    for (patch, &(c, r)) in patches.iter().zip(&placed) {
-        for (a, &(u0, u1, u)) in along_u[c].iter().enumerate() {
-            let strip = patch.restricted_u(u0, u1);
-            for (b, &(v0, v1, v)) in along_v[r].iter().enumerate() {
-                let bound = strip.restricted_v(v0, v1).derivative_bound_for(limits);
-                let segments = segments_of(bound, u, v);
-                if segments.0.max(segments.1) >= MAX_CELL_SEGMENTS {
-                    return Err(Error::ToleranceTooFine {
-                        tolerance: limits.tolerance,
-                        max_edge: limits.max_edge,
-                        max_angle_degrees: limits.max_angle.to_degrees(),
-                        segments: MAX_CELL_SEGMENTS,
-                    });
+    // Each patch's cells, bounded in parallel (a single large surface is most of the work
+    // in some files), then placed.
+    let bounded: Vec<Vec<(usize, Cell)>> = patches
+        .par_iter()
+        .zip(&placed)
+        .map(|(patch, &(c, r))| {
+            let mut own = Vec::with_capacity(along_u[c].len() * along_v[r].len());
+            for (a, &(u0, u1, u)) in along_u[c].iter().enumerate() {
+                let strip = patch.restricted_u(u0, u1);
+                for (b, &(v0, v1, v)) in along_v[r].iter().enumerate() {
+                    let bound = strip.restricted_v(v0, v1).derivative_bound_for(limits);
+                    let segments = segments_of(bound, u, v);
+                    if segments.0.max(segments.1) >= MAX_CELL_SEGMENTS {
+                        return Err(Error::ToleranceTooFine {
+                            tolerance: limits.tolerance,
+                            max_edge: limits.max_edge,
+                            max_angle_degrees: limits.max_angle.to_degrees(),
+                            segments: MAX_CELL_SEGMENTS,
+                        });
+                    }
+                    let index = (first_row[r] + b) * columns + first_column[c] + a;
+                    own.push((
+                        index,
+                        Cell {
+                            range_u: u,
+                            range_v: v,
+                            segments,
+                            bound,
+                        },
+                    ));
                 }
-                cells[(first_row[r] + b) * columns + first_column[c] + a] = Cell {
-                    range_u: u,
-                    range_v: v,
-                    segments,
-                    bound,
-                };
             }
-        }
+            Ok(own)
+        })
+        .collect::<Result<_>>()?;
+    for (index, cell) in bounded.into_iter().flatten() {
+        cells[index] = cell;
     }
     Ok(CellGrid {
         columns,

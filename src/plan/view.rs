@@ -843,8 +843,7 @@ fn view_cell(index: u32, patch: BezierPatch, surface: &BSplineSurface) -> ViewCe
     let (range_u, range_v) = (surface.range_u(), surface.range_v());
     let bound = patch.derivative_bound();
     let (w_u, w_v) = (patch.range_u.width(), patch.range_v.width());
-    let cartesian: Vec<DVec3> = patch.points.iter().map(|h| h.truncate() / h.w).collect();
-    let (centre, radius) = box_centre_and_radius(&cartesian);
+    let (centre, radius) = box_centre_and_radius(patch.points.iter().map(|h| h.truncate() / h.w));
     let uv_start = DVec2::new(
         (patch.range_u.start - range_u.start) / range_u.width(),
         (patch.range_v.start - range_v.start) / range_v.width(),
