@@ -147,7 +147,7 @@ pub fn cli_args(data: &[u8]) {
                 max_memory.unwrap_or(1 << 30),
             );
             let files: Vec<PathBuf> = inputs;
-            let _ = knotwork::cli::output_targets(&files, &output, job.format)
+            let _ = knotwork::io::output_targets(&files, &output, job.format)
                 .map_err(|e| e.to_string());
         }
         Ok(_) => {}

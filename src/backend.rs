@@ -10,13 +10,14 @@ use crate::plan::SurfacePlan;
 use crate::scene::Tessellator;
 use crate::{BSplineCurve, BSplineSurface};
 
-/// Which executor tessellates.
+/// Which executor tessellates (also the CLI's `--backend` values).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Backend {
     /// The GPU when an adapter exists, else the CPU; on the GPU, a job over the device's
     /// limits goes to the CPU.
     Auto,
-    /// wgpu compute shaders, f32; no adapter is an error ([`Error::NoAdapter`]).
+    /// wgpu compute shaders, f32; no GPU adapter is an error.
     Gpu,
     /// The f64 reference path, on all cores.
     Cpu,

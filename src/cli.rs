@@ -3,12 +3,12 @@
 //! commands is the binary's (src/bin/knotwork.rs); this part is pure, so the argument fuzz
 //! target and the tests reach all of it.
 
+use crate::TessOptions;
+use crate::backend::Backend;
 use crate::io::{MeshFormat, SceneFormat};
 use crate::mesh::Tolerance;
-use crate::{Error, TessOptions};
 use clap::{Parser, Subcommand, ValueEnum};
-use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// `knotwork`'s arguments.
 #[derive(Parser)]
@@ -139,17 +139,6 @@ pub enum Command {
         #[arg(long, value_name = "DIR")]
         export: Option<PathBuf>,
     },
-}
-
-/// The `--backend` values.
-#[derive(Clone, Copy, ValueEnum)]
-pub enum Backend {
-    /// The GPU when an adapter exists, else the CPU.
-    Auto,
-    /// wgpu compute shaders, f32.
-    Gpu,
-    /// The f64 reference path, on all cores.
-    Cpu,
 }
 
 /// The `--format` values.
@@ -411,47 +400,6 @@ impl UpAxis {
             UpAxis::Z => crate::render::Axis::Z,
         }
     }
-}
-
-/// Where each input of a batch writes: `output/<input stem>.<extension>`, in input order.
-/// Refuses, before anything is written, an output that names a mesh file (a batch needs a
-/// folder) and two inputs that would write one file.
-pub fn output_targets(
-    files: &[PathBuf],
-    output: &Path,
-    format: Option<MeshFormat>,
-) -> crate::Result<Vec<(PathBuf, PathBuf)>> {
-    if !output.is_dir()
-        && let Some(extension) = output.extension().map(|e| e.to_string_lossy())
-        && MeshFormat::from_extension(&extension).is_some()
-    {
-        return Err(Error::OutputNotAFolder {
-            path: output.to_path_buf(),
-            extension: extension.into_owned(),
-        });
-    }
-    let extension = format.unwrap_or(MeshFormat::Obj).extension();
-    let mut targets = Vec::with_capacity(files.len());
-    let mut taken: HashMap<PathBuf, &PathBuf> = HashMap::new();
-    for input in files {
-        // The stem with the format's extension appended: `part.v2.step` gives `part.v2.obj`
-        // (replacing the stem's own last dot-part would make it collide with `part.v3`).
-        let mut name = input
-            .file_stem()
-            .map_or_else(|| "mesh".into(), |s| s.to_owned());
-        name.push(".");
-        name.push(extension);
-        let target = output.join(name);
-        if let Some(first) = taken.insert(target.clone(), input) {
-            return Err(Error::OutputCollision {
-                output: target,
-                first: first.clone(),
-                second: input.clone(),
-            });
-        }
-        targets.push((input.clone(), target));
-    }
-    Ok(targets)
 }
 
 #[cfg(test)]

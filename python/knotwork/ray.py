@@ -25,9 +25,9 @@ import time
 import ray
 
 import knotwork
+from knotwork import _knotwork
 
 RECORDS = "knotwork-records.jsonl"
-_SURFACE_EXTENSIONS = {".obj", ".bpt", ".json", ".igs", ".iges", ".stp", ".step", ".p21"}
 
 
 def expand_inputs(paths_or_glob):
@@ -41,27 +41,13 @@ def expand_inputs(paths_or_glob):
         if os.path.isdir(entry):
             for name in os.listdir(entry):
                 path = os.path.join(entry, name)
-                if os.path.isfile(path) and os.path.splitext(name)[1].lower() in _SURFACE_EXTENSIONS:
+                if os.path.isfile(path) and _knotwork.is_surface_file(path):
                     files.add(path)
         elif glob.has_magic(entry):
             files.update(p for p in glob.glob(entry, recursive=True) if os.path.isfile(p))
         else:
             files.add(entry)
     return sorted(files)
-
-
-def output_targets(files, out_dir, format):
-    """``out_dir/NAME.FORMAT`` for each input; ValueError naming two inputs that would write
-    one output."""
-    targets, taken = [], {}
-    for path in files:
-        stem = os.path.splitext(os.path.basename(path))[0] or "mesh"
-        target = os.path.join(out_dir, f"{stem}.{format}")
-        if target in taken:
-            raise ValueError(f"{taken[target]} and {path} would both write {target}: rename one")
-        taken[target] = path
-        targets.append(target)
-    return targets
 
 
 def _tessellate_one(path, target, format, options):
@@ -127,7 +113,7 @@ def tessellate_files(
     if not files:
         raise ValueError(f"no input files in {paths_or_glob!r}")
     os.makedirs(out_dir, exist_ok=True)
-    targets = output_targets(files, out_dir, format)
+    targets = [os.fspath(t) for t in _knotwork.output_targets(files, out_dir, format)]
     options.setdefault("backend", "cpu")
     # PLY, STL and glTF carry f32: an f32 mesh goes to them without widening and narrowing
     # (as the CLI's batch does); OBJ keeps the f64 reference.

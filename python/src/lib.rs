@@ -921,6 +921,30 @@ fn info<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
     Ok(result)
 }
 
+/// `out_dir/NAME.FORMAT` for each of `files`, named as the CLI's batch names them
+/// (`part.v2.step` → `part.v2.obj`); ValueError, before anything is written, for two inputs
+/// that would write one file or an `out_dir` that names a mesh file.
+#[pyfunction]
+fn output_targets(files: Vec<PathBuf>, out_dir: PathBuf, format: &str) -> PyResult<Vec<PathBuf>> {
+    let format = MeshFormat::from_extension(format).ok_or_else(|| {
+        PyValueError::new_err(format!(
+            "format {format:?} is not a mesh format (obj, ply, stl, glb)"
+        ))
+    })?;
+    let targets = knotwork::io::output_targets(&files, &out_dir, Some(format))
+        .map_err(|error| PyValueError::new_err(error.to_string()))?;
+    Ok(targets.into_iter().map(|(_, target)| target).collect())
+}
+
+/// Whether `path`'s extension names a surface format knotwork reads (what a folder given to
+/// a batch contributes).
+#[pyfunction]
+fn is_surface_file(path: PathBuf) -> bool {
+    path.extension()
+        .and_then(|e| SceneFormat::from_extension(&e.to_string_lossy()))
+        .is_some()
+}
+
 /// knotwork's native module; the package `knotwork` re-exports it.
 #[pymodule]
 fn _knotwork(module: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -928,6 +952,8 @@ fn _knotwork(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(tessellate, module)?)?;
     module.add_function(wrap_pyfunction!(conformance, module)?)?;
     module.add_function(wrap_pyfunction!(info, module)?)?;
+    module.add_function(wrap_pyfunction!(output_targets, module)?)?;
+    module.add_function(wrap_pyfunction!(is_surface_file, module)?)?;
     module.add_class::<PyScene>()?;
     module.add_class::<PyItem>()?;
     module.add_class::<PyMesh>()?;

@@ -88,7 +88,7 @@ def test_inputs_that_would_collide_are_refused_before_anything_runs(tmp_path, cl
     (tmp_path / "b").mkdir()
     for folder in ("a", "b"):
         (tmp_path / folder / "teapot.bpt").write_text((DATA / "teapot.bpt").read_text())
-    with pytest.raises(ValueError, match="would both write"):
+    with pytest.raises(ValueError, match="would both be written"):
         knotwork.ray.tessellate_files(str(tmp_path / "*" / "*.bpt"), tmp_path / "out")
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
     with pytest.raises(ValueError, match="no input files"):

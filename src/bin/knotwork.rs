@@ -1,7 +1,8 @@
 //! The knotwork command line: parse arguments into a command, then run it.
 
 use clap::Parser;
-use knotwork::cli::{Backend, Cli, Command, Job};
+use knotwork::backend::Backend;
+use knotwork::cli::{Cli, Command, Job};
 use knotwork::io::{MeshFormat, SceneFormat};
 use knotwork::mesh::WELD_REL_TOLERANCE;
 use knotwork::{GpuContext, GpuTessellator, SceneOptions, TessOptions, Tessellator};
@@ -156,11 +157,6 @@ fn main() -> ExitCode {
 /// The tessellator `backend` asks for; a job `auto` moves from the GPU to the CPU is noted
 /// on stderr.
 fn tessellator(backend: Backend) -> knotwork::Result<Box<dyn Tessellator + Send + Sync>> {
-    let backend = match backend {
-        Backend::Auto => knotwork::backend::Backend::Auto,
-        Backend::Gpu => knotwork::backend::Backend::Gpu,
-        Backend::Cpu => knotwork::backend::Backend::Cpu,
-    };
     knotwork::backend::tessellator(
         backend,
         Box::new(|e| eprintln!("note: the GPU cannot hold this job ({e}); the CPU tessellates it")),
@@ -412,7 +408,7 @@ fn tessellate(
     }
     let Inputs { files, skipped } = expand_inputs(inputs)?;
     // Every input's output, checked for collisions before anything is written.
-    let targets = knotwork::cli::output_targets(&files, output, job.format)?;
+    let targets = knotwork::io::output_targets(&files, output, job.format)?;
     std::fs::create_dir_all(output).map_err(|source| knotwork::Error::Io {
         path: output.to_path_buf(),
         source,

@@ -29,8 +29,9 @@ pub use crate::scene::{ItemGroup, Scene};
 
 use crate::error::{Error, Result};
 use crate::mesh::AnyMesh;
+use std::collections::HashMap;
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The groups a writer emits for a mesh whose parts and polylines come from `items`: the
 /// given `groups` where they cover an item, and a group of its own ("item k") for every
@@ -169,6 +170,47 @@ impl MeshFormat {
             Self::Glb => "glb",
         }
     }
+}
+
+/// Where each input of a batch writes: `output/<input stem>.<extension>`, in input order.
+/// Refuses, before anything is written, an output that names a mesh file (a batch needs a
+/// folder) and two inputs that would write one file.
+pub fn output_targets(
+    files: &[PathBuf],
+    output: &Path,
+    format: Option<MeshFormat>,
+) -> Result<Vec<(PathBuf, PathBuf)>> {
+    if !output.is_dir()
+        && let Some(extension) = output.extension().map(|e| e.to_string_lossy())
+        && MeshFormat::from_extension(&extension).is_some()
+    {
+        return Err(Error::OutputNotAFolder {
+            path: output.to_path_buf(),
+            extension: extension.into_owned(),
+        });
+    }
+    let extension = format.unwrap_or(MeshFormat::Obj).extension();
+    let mut targets = Vec::with_capacity(files.len());
+    let mut taken: HashMap<PathBuf, &PathBuf> = HashMap::new();
+    for input in files {
+        // The stem with the format's extension appended: `part.v2.step` gives `part.v2.obj`
+        // (replacing the stem's own last dot-part would make it collide with `part.v3`).
+        let mut name = input
+            .file_stem()
+            .map_or_else(|| "mesh".into(), |s| s.to_owned());
+        name.push(".");
+        name.push(extension);
+        let target = output.join(name);
+        if let Some(first) = taken.insert(target.clone(), input) {
+            return Err(Error::OutputCollision {
+                output: target,
+                first: first.clone(),
+                second: input.clone(),
+            });
+        }
+        targets.push((input.clone(), target));
+    }
+    Ok(targets)
 }
 
 /// Writes `mesh` (f64 or f32) to `path` in `format`, or in the format its extension names,
