@@ -411,3 +411,60 @@ pub(crate) fn box_centre_and_radius(points: impl Iterator<Item = DVec3> + Clone)
         .fold(0.0, f64::max);
     (centre, radius_squared.sqrt())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::Interval;
+
+    /// A rational patch of degrees 3 × 2 over [1, 3] × [−1, 0.5] with uneven weights.
+    fn patch() -> BezierPatch {
+        let points = (0..12)
+            .map(|k| {
+                let (i, j) = ((k % 4) as f64, (k / 4) as f64);
+                let w = 0.5 + 0.3 * i + 0.7 * j * j;
+                DVec4::new(i, j, (i * j).sin() + 0.25 * i * i, 1.0) * w
+            })
+            .collect();
+        BezierPatch {
+            degree_u: 3,
+            degree_v: 2,
+            points,
+            range_u: Interval::new(1.0, 3.0),
+            range_v: Interval::new(-1.0, 0.5),
+        }
+    }
+
+    /// Restricting in u, then v (and at one end only) gives the same surface over the
+    /// smaller rectangle — the exact de Casteljau sub-polygons: positions agree to rounding
+    /// on a grid of points.
+    #[test]
+    fn restriction_keeps_the_surface() {
+        let whole = patch();
+        let piece = whole.restricted_u(0.2, 0.7).restricted_v(0.1, 0.9);
+        let head = whole.restricted_u(0.0, 0.5);
+        let tail = whole.restricted_v(0.5, 1.0);
+        let size = 4.0;
+        for (part, u0, u1, v0, v1) in [
+            (&piece, 1.4, 2.4, -0.85, 0.35),
+            (&head, 1.0, 2.0, -1.0, 0.5),
+            (&tail, 1.0, 3.0, -0.25, 0.5),
+        ] {
+            assert!(
+                (part.range_u.start - u0).abs() < 1e-15 && (part.range_u.end - u1).abs() < 1e-15
+            );
+            assert!(
+                (part.range_v.start - v0).abs() < 1e-15 && (part.range_v.end - v1).abs() < 1e-15
+            );
+            for a in 0..=6 {
+                for b in 0..=6 {
+                    let u = u0 + (u1 - u0) * a as f64 / 6.0;
+                    let v = v0 + (v1 - v0) * b as f64 / 6.0;
+                    let gap = (part.point(u, v) - whole.point(u, v)).length();
+                    assert!(gap <= 1e-14 * size, "({u}, {v}): {gap:e}");
+                }
+            }
+        }
+        assert_eq!(whole.restricted_u(0.0, 1.0).points, whole.points);
+    }
+}
