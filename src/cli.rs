@@ -95,7 +95,8 @@ pub enum Command {
         #[arg(long, default_value_t = 65, value_parser = clap::value_parser!(u32).range(2..))]
         samples: u32,
         /// Memory one file's mesh may take, e.g. 512M or 4G (default: half the machine's
-        /// memory); a file that needs more is refused before anything is allocated.
+        /// memory); a file that needs more is refused before anything is allocated. A grid
+        /// mesh written to PLY or glb on the CPU streams to its file and is not limited.
         #[arg(long, value_parser = parse_bytes)]
         max_memory: Option<u64>,
     },

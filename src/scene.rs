@@ -343,6 +343,11 @@ pub trait Tessellator {
     fn tessellate_curves(&self, curves: &[BSplineCurve], samples: &[u32]) -> Result<Vec<Polyline>>;
     /// A human-readable name of the backend (and adapter), for summaries.
     fn name(&self) -> String;
+    /// Whether this is the f64 CPU executor ([`crate::cpu::CpuTessellator`]), whose grid
+    /// meshes [`crate::io::stream_scene`] writes to files while evaluating them.
+    fn is_cpu_reference(&self) -> bool {
+        false
+    }
 
     /// Tessellates every item of `scene` — surfaces and Coons patches into triangles,
     /// curves into polylines — each on its own grid or sample count where it asks for one,

@@ -3698,3 +3698,183 @@ fn json_seams_name_items_and_their_errors_name_the_seam() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+// ---------------------------------------------------------------- streamed output
+
+/// The JSON (its padding trimmed) and binary chunk of a .glb file.
+fn glb_chunks(bytes: &[u8]) -> (String, Vec<u8>) {
+    let word = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+    assert_eq!(&bytes[..4], b"glTF");
+    assert_eq!(word(8), bytes.len(), "the header's length is the file's");
+    let json_length = word(12);
+    let json = std::str::from_utf8(&bytes[20..20 + json_length]).unwrap();
+    let bin_at = 20 + json_length;
+    assert_eq!(&bytes[bin_at + 4..bin_at + 8], b"BIN\0");
+    let bin = bytes[bin_at + 8..bin_at + 8 + word(bin_at)].to_vec();
+    (json.trim_end().to_string(), bin)
+}
+
+/// A grid mesh streamed to PLY and glb as the CPU evaluates it (`io::stream_scene`) is the
+/// file the writers in memory make of the CPU's f32 mesh: PLY byte for byte, glb with the
+/// same binary chunk and JSON (only the JSON's padding differs, the file's length with it).
+/// Cases: the teapot at 300×70 (runs of several rows, runs spanning patches), one surface
+/// whose rows are longer than a run (40 000 × 3), a JSON scene of named surfaces (a glTF
+/// mesh each), one with a grid of its own. What is not streamed — OBJ and STL, a
+/// tolerance, Coons patches — gives `None` and writes nothing; a glb group far from the
+/// origin for its size is found once its vertices are and left to the writers in memory.
+#[test]
+fn streamed_files_are_the_files_written_from_memory() {
+    use knotwork::io::{stream_scene, write_mesh_as};
+    let dir = scratch_dir("stream");
+    let long_rows = dir.join("long_rows.json");
+    std::fs::write(
+        &long_rows,
+        r#"{ "surfaces": [ { "kind": "torus", "centre": [1, 2, 3], "major_radius": 2, "minor_radius": 0.5, "grid": [40000, 3] } ] }"#,
+    )
+    .unwrap();
+    let cases: [(&str, PathBuf, TessOptions); 3] = [
+        (
+            "teapot",
+            PathBuf::from("data/teapot.bpt"),
+            TessOptions::DEFAULT.with_grid(300, 70),
+        ),
+        ("long-rows", long_rows, TessOptions::DEFAULT),
+        (
+            "named-own-grids",
+            PathBuf::from("data/scene.json"),
+            TessOptions::DEFAULT.with_grid(7, 4),
+        ),
+    ];
+    for (name, input, grid) in cases {
+        let scene = read_scene(&input).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let defaults = knotwork::SceneOptions {
+            grid,
+            ..knotwork::SceneOptions::default()
+        };
+        let mesh = CpuTessellator
+            .tessellate_scene_f32(&scene, &defaults)
+            .unwrap();
+        for format in ["ply", "glb"] {
+            let streamed = dir.join(format!("{name}-streamed.{format}"));
+            let in_memory = dir.join(format!("{name}-memory.{format}"));
+            let layout = stream_scene(&streamed, None, &scene, &defaults)
+                .unwrap()
+                .unwrap_or_else(|| panic!("{name}: {format} streamed"));
+            assert_eq!(layout.parts, mesh.parts, "{name}");
+            write_mesh_as(&in_memory, &mesh, &scene.groups(), None).unwrap();
+            let (streamed, in_memory) = (
+                std::fs::read(&streamed).unwrap(),
+                std::fs::read(&in_memory).unwrap(),
+            );
+            if format == "ply" {
+                assert!(streamed == in_memory, "{name}: the PLY files differ");
+            } else {
+                let (json, bin) = glb_chunks(&streamed);
+                let (memory_json, memory_bin) = glb_chunks(&in_memory);
+                assert_eq!(json, memory_json, "{name}");
+                assert!(bin == memory_bin, "{name}: the binary chunks differ");
+                validate_with_khronos(&dir.join(format!("{name}-streamed.glb")));
+            }
+        }
+    }
+    let teapot = read_scene(Path::new("data/teapot.bpt")).unwrap();
+    let not_streamed = |path: &Path, scene: &Scene, grid: TessOptions| {
+        let defaults = knotwork::SceneOptions {
+            grid,
+            ..knotwork::SceneOptions::default()
+        };
+        assert!(
+            stream_scene(path, None, scene, &defaults)
+                .unwrap()
+                .is_none(),
+            "{path:?}"
+        );
+        assert!(!path.exists(), "{path:?}");
+    };
+    let grid = TessOptions::DEFAULT;
+    not_streamed(&dir.join("t.obj"), &teapot, grid);
+    not_streamed(&dir.join("t.stl"), &teapot, grid);
+    let tolerance = grid.with_tolerance(knotwork::Tolerance::Relative(1e-3));
+    not_streamed(&dir.join("adaptive.ply"), &teapot, tolerance);
+    let coons = read_scene(Path::new("data/forms.json")).unwrap();
+    assert!(coons.coons_patches().count() > 0);
+    not_streamed(&dir.join("coons.glb"), &coons, grid);
+    let far = dir.join("far.json");
+    std::fs::write(
+        &far,
+        r#"{ "surfaces": [ { "kind": "sphere", "centre": [100000.3, -70000, 30000.125], "radius": 0.25 } ] }"#,
+    )
+    .unwrap();
+    not_streamed(&dir.join("far.glb"), &read_scene(&far).unwrap(), grid);
+    let names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|name| name.starts_with('.'))
+        .collect();
+    assert!(names.is_empty(), "temporary files left: {names:?}");
+    // A missing folder is named; an output format the extension contradicts too.
+    let error = stream_scene(&dir.join("no/t.ply"), None, &teapot, &Default::default());
+    assert!(matches!(error, Err(Error::Io { .. })), "{error:?}");
+    let error = stream_scene(
+        &dir.join("t.ply"),
+        Some(knotwork::io::MeshFormat::Glb),
+        &teapot,
+        &Default::default(),
+    );
+    assert!(
+        matches!(error, Err(Error::FormatConflict { .. })),
+        "{error:?}"
+    );
+}
+
+/// The CLI streams a grid mesh on the CPU: a teapot whose mesh would take 9 MB in memory is
+/// written to PLY and glb under a 1 MB budget (a few runs of rows are all it holds), while
+/// OBJ, which is written from memory, is still refused by the budget.
+#[test]
+fn cli_streams_grid_meshes_within_a_small_memory_budget() {
+    let dir = scratch_dir("stream-cli");
+    for extension in ["ply", "glb", "obj"] {
+        let out = dir.join(format!("t.{extension}"));
+        let run = knotwork(&[
+            "tessellate",
+            "data/teapot.bpt",
+            "--grid",
+            "64x64",
+            "--max-memory",
+            "1M",
+            "--backend",
+            "cpu",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        let stdout = String::from_utf8_lossy(&run.stdout);
+        if extension == "obj" {
+            assert!(!run.status.success() && !out.exists());
+        } else {
+            assert!(
+                run.status.success(),
+                "{}",
+                String::from_utf8_lossy(&run.stderr)
+            );
+            assert!(
+                stdout.contains("131072 vertices, 254016 triangles"),
+                "{stdout}"
+            );
+            let mesh = CpuTessellator
+                .tessellate_scene_f32(
+                    &read_scene(Path::new("data/teapot.bpt")).unwrap(),
+                    &knotwork::SceneOptions {
+                        grid: TessOptions::DEFAULT.with_grid(64, 64),
+                        ..Default::default()
+                    },
+                )
+                .unwrap();
+            let bytes = std::fs::read(&out).unwrap();
+            let vertex_bytes: &[u8] = bytemuck::cast_slice(&mesh.vertices);
+            assert!(
+                bytes.windows(vertex_bytes.len()).any(|w| w == vertex_bytes),
+                "the f32 vertices are in the file as they are"
+            );
+        }
+    }
+}

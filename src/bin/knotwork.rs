@@ -309,6 +309,24 @@ fn process(
             .items
             .iter()
             .any(|item| knotwork::io::is_far_from_origin(item.geometry.control_box()));
+    // A grid mesh from the CPU goes to PLY or glb as it is evaluated, never whole in memory.
+    if !job.weld
+        && !far_glb
+        && tessellator.is_cpu_reference()
+        && let Some(layout) = knotwork::io::stream_scene(output, job.format, &scene, &defaults)?
+    {
+        let (surfaces, solids, faces) = scene_counts(&scene);
+        return Ok(Tally {
+            surfaces,
+            solids,
+            faces,
+            vertices: layout.vertex_count as usize,
+            triangles: layout.index_count as usize / 3,
+            dropped,
+            chosen_tolerance: chosen,
+            ..Tally::default()
+        });
+    }
     let groups = scene.groups();
     let mut merged = None;
     let f64_mesh = matches!(format, Some(MeshFormat::Obj) | None) || job.weld || far_glb;

@@ -12,7 +12,9 @@ use super::lanes::{F64x4, Portable};
 use crate::error::{Error, Result};
 use crate::geom::{BSplineSurface, degenerate_cross_sq};
 use crate::mesh::{GridMesh, Mesh, Mesh32, MeshPart, TessOptions, Vertex};
-use crate::plan::{AxisSamples, GridLayout, SurfacePlan, cell_triangles, check_item_count};
+use crate::plan::{
+    AxisSamples, GridLayout, GridRows, SurfacePlan, check_item_count, row_triangles,
+};
 use glam::{DVec2, DVec3, DVec4};
 use rayon::prelude::*;
 
@@ -71,15 +73,14 @@ pub fn execute_surfaces_f32(
         .resize(layout.vertex_count as usize, Vertex::default());
     mesh.indices.resize(layout.index_count as usize, 0);
     mesh.parts.clone_from(&layout.parts);
+    let whole_grids: Vec<GridRows> = (plan.items.iter().enumerate())
+        .map(|(grid, samples)| GridRows {
+            grid,
+            rows: 0..samples.part.grid_v,
+        })
+        .collect();
+    execute_rows_f32(plan, surfaces, &whole_grids, &mut mesh.vertices)?;
     let grids: Vec<MeshPart> = plan.items.iter().map(|item| item.part).collect();
-    let vertices = split_parts(&mut mesh.vertices, &grids);
-    vertices
-        .into_par_iter()
-        .zip(&plan.items)
-        .for_each(|(vertices, samples)| {
-            let surface = &surfaces[samples.surface];
-            evaluate_tables_f32(surface, &samples.columns, &samples.rows, vertices);
-        });
     write_indices(&grids, plan.triangles.as_deref(), &mut mesh.indices);
     if plan.triangles.is_some() {
         mesh.drop_unused_vertices();
@@ -139,23 +140,20 @@ fn split_parts<'a, T>(mut values: &'a mut [T], parts: &[MeshPart]) -> Vec<&'a mu
 }
 
 /// Writes the triangles of every part into `indices` (sized for all parts), in parallel, by
-/// the plan's cell rule ([`cell_triangles`]).
+/// the plan's cell rule ([`row_triangles`]).
 fn fill_grid_indices(parts: &[MeshPart], indices: &mut [u32]) {
-    let mut rows: Vec<(u32, u32, &mut [u32])> = Vec::new();
+    let mut rows: Vec<(&MeshPart, u32, &mut [u32])> = Vec::new();
     let mut rest = indices;
     for part in parts {
         let row_len = 6 * (part.grid_u - 1) as usize;
         for j in 0..part.grid_v - 1 {
             let (row, tail) = rest.split_at_mut(row_len);
-            rows.push((part.first_vertex + j * part.grid_u, part.grid_u, row));
+            rows.push((part, j, row));
             rest = tail;
         }
     }
-    rows.into_par_iter().for_each(|(row_start, nu, row)| {
-        for (i, cell) in row.chunks_exact_mut(6).enumerate() {
-            cell.copy_from_slice(&cell_triangles(row_start + i as u32, nu));
-        }
-    });
+    rows.into_par_iter()
+        .for_each(|(part, j, row)| row_triangles(part, j, row));
 }
 
 /// The uv of every vertex of a grid: the fractions of its column and row.
@@ -182,6 +180,13 @@ impl RowScratch {
             column_value: vec![DVec4::ZERO; count_u],
             column_dv: vec![DVec4::ZERO; count_u],
         }
+    }
+
+    /// Sizes the scratch for a surface of `count_u` control columns (rows of several
+    /// surfaces share one thread's scratch).
+    fn fit(&mut self, count_u: usize) {
+        self.column_value.resize(count_u, DVec4::ZERO);
+        self.column_dv.resize(count_u, DVec4::ZERO);
     }
 }
 
@@ -262,22 +267,48 @@ fn evaluate_tables(
     }
 }
 
-/// As [`evaluate_tables`], into f32 vertices (uvs included): each row is evaluated in f64
-/// into per-thread scratch and rounded once, so no f64 mesh is ever allocated.
-fn evaluate_tables_f32(
-    surface: &BSplineSurface,
-    columns: &AxisSamples,
-    rows: &AxisSamples,
+/// Evaluates the vertices of `runs` — whole rows of `plan`'s grids, `plan` made for
+/// `surfaces` — into `vertices`, one run after another: each row in f64 into per-thread
+/// scratch, rounded once into f32 (uvs included), rows in parallel. `vertices` must hold
+/// exactly the runs' vertices ([`Error::BufferLength`] otherwise). With runs of a few rows
+/// at a time (see [`SurfacePlan::row_runs`]) a mesh of any size streams through a small
+/// buffer.
+pub fn execute_rows_f32(
+    plan: &SurfacePlan,
+    surfaces: &[BSplineSurface],
+    runs: &[GridRows],
     vertices: &mut [Vertex],
-) {
-    let nu = columns.len();
+) -> Result<()> {
+    check_item_count(plan.surface_count(), surfaces.len())?;
+    let expected: usize = runs
+        .iter()
+        .map(|run| run.rows.len() * plan.items[run.grid].part.grid_u as usize)
+        .sum();
+    if vertices.len() != expected {
+        return Err(Error::BufferLength {
+            expected,
+            found: vertices.len(),
+        });
+    }
+    let mut rows = Vec::with_capacity(runs.iter().map(|run| run.rows.len()).sum());
+    let mut rest = vertices;
+    for run in runs {
+        let samples = &plan.items[run.grid];
+        for j in run.rows.clone() {
+            let (row, tail) = rest.split_at_mut(samples.part.grid_u as usize);
+            rows.push((samples, j as usize, row));
+            rest = tail;
+        }
+    }
     let fma = has_fma();
-    vertices.par_chunks_mut(nu).enumerate().for_each_init(
-        || {
-            let row = vec![DVec3::ZERO; nu];
-            (RowScratch::new(surface.count_u()), row.clone(), row)
-        },
-        |(scratch, positions, normals), (j, row_vertices)| {
+    rows.into_par_iter().for_each_init(
+        || (RowScratch::new(0), Vec::new(), Vec::new()),
+        |(scratch, positions, normals), (samples, j, row_vertices)| {
+            let surface = &surfaces[samples.surface];
+            let (columns, rows) = (&samples.columns, &samples.rows);
+            scratch.fit(surface.count_u());
+            positions.resize(columns.len(), DVec3::ZERO);
+            normals.resize(columns.len(), DVec3::ZERO);
             evaluate_row(surface, columns, rows, j, fma, scratch, positions, normals);
             let v = rows.fractions()[j] as f32;
             let rounded = positions
@@ -293,6 +324,7 @@ fn evaluate_tables_f32(
             }
         },
     );
+    Ok(())
 }
 
 /// Evaluates grid row `j` into `positions` and `normals` (one row each).

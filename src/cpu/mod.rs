@@ -9,7 +9,10 @@ mod view;
 
 pub use crate::geom::SurfaceSample;
 pub use coons::{execute_coons, tessellate_coons_into};
-pub use grid::{evaluate_grid_into, execute_surfaces, execute_surfaces_f32, tessellate_grid_into};
+pub use grid::{
+    evaluate_grid_into, execute_rows_f32, execute_surfaces, execute_surfaces_f32,
+    tessellate_grid_into,
+};
 pub use trimmed::{
     TRIMMED_DEFAULT_TOLERANCE_REL, execute_shell, execute_trimmed, mesh_trimmed_faces, shell_plan,
     trimmed_face_plan,
@@ -87,5 +90,9 @@ impl Tessellator for CpuTessellator {
 
     fn name(&self) -> String {
         "cpu (f64)".to_string()
+    }
+
+    fn is_cpu_reference(&self) -> bool {
+        true
     }
 }

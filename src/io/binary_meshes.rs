@@ -14,16 +14,7 @@ const TRIANGLES_PER_WRITE: usize = 1 << 16;
 /// is written as it is — per face a u8 count and three u32 indices.
 pub fn write_ply<'a>(mesh: impl Into<AnyMesh<'a>>, w: &mut dyn Write) -> Result<()> {
     let mesh: AnyMesh = mesh.into();
-    write!(
-        w,
-        "ply\nformat binary_little_endian 1.0\ncomment knotwork mesh\nelement vertex {}\n\
-         property float x\nproperty float y\nproperty float z\n\
-         property float nx\nproperty float ny\nproperty float nz\n\
-         property float s\nproperty float t\n\
-         element face {}\nproperty list uchar uint vertex_indices\nend_header\n",
-        mesh.vertex_count(),
-        mesh.triangle_count()
-    )?;
+    w.write_all(ply_header(mesh.vertex_count(), mesh.triangle_count()).as_bytes())?;
     match mesh {
         AnyMesh::F32(m) => w.write_all(bytemuck::cast_slice(&m.vertices))?,
         AnyMesh::F64(m) => {
@@ -33,16 +24,39 @@ pub fn write_ply<'a>(mesh: impl Into<AnyMesh<'a>>, w: &mut dyn Write) -> Result<
             }
         }
     }
-    let mut records = Vec::with_capacity(TRIANGLES_PER_WRITE * 13);
+    let mut records = Vec::with_capacity(TRIANGLES_PER_WRITE * PLY_FACE_BYTES);
     for batch in mesh.indices().chunks(3 * TRIANGLES_PER_WRITE) {
         records.clear();
-        for triangle in batch.chunks_exact(3) {
-            records.push(3);
-            records.extend_from_slice(bytemuck::cast_slice(triangle));
-        }
+        push_ply_faces(batch, &mut records);
         w.write_all(&records)?;
     }
     Ok(())
+}
+
+/// Bytes of one PLY face record: the count 3 (u8) and three u32 indices.
+const PLY_FACE_BYTES: usize = 13;
+
+/// The header of a [`write_ply`] file of `vertex_count` vertices and `triangle_count`
+/// triangles; its vertex records follow (32 bytes each, a [`crate::Vertex`]'s layout), then
+/// its face records ([`push_ply_faces`]).
+pub(crate) fn ply_header(vertex_count: usize, triangle_count: usize) -> String {
+    format!(
+        "ply\nformat binary_little_endian 1.0\ncomment knotwork mesh\nelement vertex {vertex_count}\n\
+         property float x\nproperty float y\nproperty float z\n\
+         property float nx\nproperty float ny\nproperty float nz\n\
+         property float s\nproperty float t\n\
+         element face {triangle_count}\nproperty list uchar uint vertex_indices\nend_header\n"
+    )
+}
+
+/// Appends the PLY face records of `indices` (three per triangle) to `records`.
+pub(crate) fn push_ply_faces(indices: &[u32], records: &mut Vec<u8>) {
+    records.reserve(indices.len() / 3 * PLY_FACE_BYTES);
+    for triangle in indices.chunks_exact(3) {
+        let mut record = [3u8; PLY_FACE_BYTES];
+        record[1..].copy_from_slice(bytemuck::cast_slice(triangle));
+        records.extend_from_slice(&record);
+    }
 }
 
 /// Binary STL: an 80-byte header, the triangle count, and per triangle its unit face normal

@@ -4,7 +4,7 @@
 //! slices instead of being assembled into one more copy.
 
 use super::cover_groups;
-use crate::mesh::{AnyMesh, Vertex};
+use crate::mesh::{AnyMesh, MeshPart, Polyline, Vertex};
 use crate::scene::ItemGroup;
 use glam::DVec3;
 use gltf::json;
@@ -87,9 +87,61 @@ pub fn write_glb<'a>(
         bytemuck::cast_slice(&curve_points),
         bytemuck::cast_slice(&curve_tangents),
     ];
-    let index_offset = pieces[0].len();
-    let curve_offset = index_offset + pieces[1].len();
-    let bin_length: usize = pieces.iter().map(|p| p.len()).sum();
+    let contents = GlbContents {
+        vertex_count: n,
+        index_count: indices.len(),
+        polylines,
+        curve_points: &curve_points,
+        groups,
+        frames,
+    };
+    let json = document(contents, &|range| {
+        if range == (0..n) {
+            (lo, hi)
+        } else {
+            bounds_of(vertices[range].iter().map(|v| v.position))
+        }
+    })?;
+    write_container(w, &json, &pieces)
+}
+
+/// What the binary chunk of a .glb holds, in order — `vertex_count` interleaved vertices
+/// (a [`Vertex`] each), `index_count` u32 indices, then the curves' points and their
+/// tangents (f32 vec3 each, `curve_points` holding the points) — and how it is grouped:
+/// `groups` as [`cover_groups`] gives them, with their frames.
+pub(crate) struct GlbContents<'a> {
+    pub vertex_count: usize,
+    pub index_count: usize,
+    pub polylines: &'a [Polyline],
+    pub curve_points: &'a [[f32; 3]],
+    pub groups: Vec<ItemGroup>,
+    pub frames: Vec<GroupFrame>,
+}
+
+/// The glTF JSON of `contents`: one buffer, its views and accessors, a mesh and node per
+/// group with triangles. `vertex_bounds` gives the (min, max) of the stored positions of a
+/// range of vertices (glTF requires them on POSITION accessors).
+pub(crate) fn document(
+    contents: GlbContents,
+    vertex_bounds: &dyn Fn(std::ops::Range<usize>) -> ([f32; 3], [f32; 3]),
+) -> Result<Vec<u8>> {
+    let GlbContents {
+        vertex_count: n,
+        index_count,
+        polylines,
+        curve_points,
+        groups,
+        frames,
+    } = contents;
+    let group_of = |item: u32| {
+        groups
+            .iter()
+            .position(|g| g.items.contains(&(item as usize)))
+    };
+    let translated = frames.iter().any(|f| f.translation != DVec3::ZERO);
+    let index_offset = n * VERTEX_STRIDE;
+    let curve_offset = index_offset + index_count * 4;
+    let bin_length = curve_offset + curve_points.len() * 24;
 
     let mut root = json::Root {
         asset: json::Asset {
@@ -163,11 +215,11 @@ pub fn write_glb<'a>(
     // Every group's primitives: its triangles (one index range: parts follow one another in
     // the index buffer), then a LINE_STRIP per curve.
     let mut primitives: Vec<Vec<json::mesh::Primitive>> = vec![Vec::new(); groups.len()];
-    if !indices.is_empty() {
+    if index_count > 0 {
         let index_view = view(
             &mut root,
             index_offset,
-            indices.len() * 4,
+            index_count * 4,
             None,
             Target::ElementArrayBuffer,
         );
@@ -181,11 +233,7 @@ pub fn write_glb<'a>(
                 Some(VERTEX_STRIDE),
                 array,
             );
-            let bounds = if range == (0..n) {
-                (lo, hi)
-            } else {
-                bounds_of(vertices[range].iter().map(|v| v.position))
-            };
+            let bounds = vertex_bounds(range);
             let f32x = ComponentType::F32;
             vec![
                 (
@@ -295,33 +343,53 @@ pub fn write_glb<'a>(
         nodes,
     });
     root.scene = Some(scene);
-    let json_bytes = root.to_vec().map_err(std::io::Error::other)?;
-    write_container(w, &json_bytes, &pieces)
+    root.to_vec().map_err(std::io::Error::other)
 }
 
 /// Writes a GLB container (glTF 2.0 binary): the 12-byte header, the JSON chunk padded with
 /// spaces and the binary chunk — `pieces` one after another — padded with zeros, each chunk
 /// to a multiple of 4 bytes.
 fn write_container(w: &mut dyn Write, json: &[u8], pieces: &[&[u8]]) -> Result<()> {
-    let padded = |n: usize| n.next_multiple_of(4);
     let bin_length: usize = pieces.iter().map(|p| p.len()).sum();
-    let total = 12 + 8 + padded(json.len()) + 8 + padded(bin_length);
-    let length = |n: usize| {
-        u32::try_from(n).map_err(|_| std::io::Error::other("the glTF binary is larger than 4 GiB"))
-    };
-    w.write_all(b"glTF")?;
-    w.write_all(&2u32.to_le_bytes())?;
-    w.write_all(&length(total)?.to_le_bytes())?;
-    w.write_all(&length(padded(json.len()))?.to_le_bytes())?;
-    w.write_all(b"JSON")?;
-    w.write_all(json)?;
-    w.write_all(&b"   "[..padded(json.len()) - json.len()])?;
-    w.write_all(&length(padded(bin_length))?.to_le_bytes())?;
-    w.write_all(b"BIN\0")?;
+    w.write_all(&container_head(
+        json,
+        json.len().next_multiple_of(4),
+        bin_length,
+    )?)?;
     for piece in pieces {
         w.write_all(piece)?;
     }
-    w.write_all(&[0u8; 3][..padded(bin_length) - bin_length])
+    w.write_all(container_padding(bin_length))
+}
+
+/// The bytes of a GLB container before its binary data: the 12-byte header, the JSON chunk
+/// (`json` padded with spaces to `json_room` bytes, a multiple of 4 and at least its length)
+/// and the binary chunk's 8-byte header for `bin_length` bytes of data (padded to a multiple
+/// of 4 by [`container_padding`]).
+pub(crate) fn container_head(json: &[u8], json_room: usize, bin_length: usize) -> Result<Vec<u8>> {
+    debug_assert!(json_room >= json.len() && json_room.is_multiple_of(4));
+    let total = 12 + 8 + json_room + 8 + bin_length.next_multiple_of(4);
+    let length = |n: usize| {
+        u32::try_from(n)
+            .map(u32::to_le_bytes)
+            .map_err(|_| std::io::Error::other("the glTF binary is larger than 4 GiB"))
+    };
+    let mut head = Vec::with_capacity(total.min(12 + 8 + json_room + 8));
+    head.extend_from_slice(b"glTF");
+    head.extend_from_slice(&2u32.to_le_bytes());
+    head.extend_from_slice(&length(total)?);
+    head.extend_from_slice(&length(json_room)?);
+    head.extend_from_slice(b"JSON");
+    head.extend_from_slice(json);
+    head.resize(12 + 8 + json_room, b' ');
+    head.extend_from_slice(&length(bin_length.next_multiple_of(4))?);
+    head.extend_from_slice(b"BIN\0");
+    Ok(head)
+}
+
+/// The zeros that pad `bin_length` bytes of binary chunk to a multiple of 4.
+pub(crate) fn container_padding(bin_length: usize) -> &'static [u8] {
+    &[0u8; 3][..bin_length.next_multiple_of(4) - bin_length]
 }
 
 /// A group whose centre is farther from the origin than this many of its sizes gets a node
@@ -330,20 +398,19 @@ fn write_container(w: &mut dyn Write, json: &[u8], pieces: &[&[u8]]) -> Result<(
 const FAR_IN_SIZES: f64 = 16.0;
 
 /// Where a group's vertices and indices are, and the translation its node carries.
-struct GroupFrame {
-    vertices: std::ops::Range<usize>,
-    indices: std::ops::Range<usize>,
+pub(crate) struct GroupFrame {
+    pub vertices: std::ops::Range<usize>,
+    pub indices: std::ops::Range<usize>,
     /// The centre of the group's bounding box, rounded to f32 (glTF stores translations in
     /// f32; the vertices are relative to exactly this value), where the group lies farther
     /// from the origin than [`FAR_IN_SIZES`] of its sizes; else zero.
-    translation: DVec3,
+    pub translation: DVec3,
 }
 
-/// The frame of each group: the span of its parts' vertices and indices (parts are in item
-/// order, so a group's are contiguous; after welding they may reach back into earlier
-/// groups' vertices) and its translation, from the f64 positions of its vertices and
-/// curves. Groups whose vertex spans overlap share one translation, that of them all.
-fn group_frames(mesh: &AnyMesh, groups: &[ItemGroup]) -> Vec<GroupFrame> {
+/// The frame of each group without a translation: the span of its parts' vertices and
+/// indices (parts are in item order, so a group's are contiguous; after welding they may
+/// reach back into earlier groups' vertices).
+pub(crate) fn group_spans(parts: &[MeshPart], groups: &[ItemGroup]) -> Vec<GroupFrame> {
     let span = |ranges: &mut dyn Iterator<Item = (u32, u32)>| {
         ranges
             .filter(|&(_, count)| count > 0)
@@ -351,33 +418,35 @@ fn group_frames(mesh: &AnyMesh, groups: &[ItemGroup]) -> Vec<GroupFrame> {
             .reduce(|a, b| a.start.min(b.start)..a.end.max(b.end))
             .unwrap_or(0..0)
     };
-    let mut frames: Vec<GroupFrame> = groups
+    groups
         .iter()
         .map(|group| {
-            let inside = |item: u32| group.items.contains(&(item as usize));
-            let parts: Vec<_> = mesh.parts().iter().filter(|p| inside(p.item)).collect();
-            let curve_points = mesh
-                .polylines()
-                .iter()
-                .filter(|l| inside(l.item))
-                .flat_map(|l| l.positions.iter().copied());
-            let vertices = span(&mut parts.iter().map(|p| (p.first_vertex, p.vertex_count)));
+            let inside = |p: &&MeshPart| group.items.contains(&(p.item as usize));
+            let parts: Vec<&MeshPart> = parts.iter().filter(inside).collect();
             GroupFrame {
+                vertices: span(&mut parts.iter().map(|p| (p.first_vertex, p.vertex_count))),
                 indices: span(&mut parts.iter().map(|p| (p.first_index, p.index_count))),
-                translation: far_centre(
-                    vertices
-                        .clone()
-                        .map(|k| mesh.position(k))
-                        .chain(curve_points),
-                ),
-                vertices,
+                translation: DVec3::ZERO,
             }
         })
-        .collect();
-    let overlap = frames
-        .windows(2)
-        .any(|pair| pair[1].vertices.start < pair[0].vertices.end);
-    if overlap {
+        .collect()
+}
+
+/// The frame of each group ([`group_spans`]) with its translation, from the f64 positions
+/// of its vertices and curves. Groups whose vertex spans overlap share one translation,
+/// that of them all.
+fn group_frames(mesh: &AnyMesh, groups: &[ItemGroup]) -> Vec<GroupFrame> {
+    let mut frames = group_spans(mesh.parts(), groups);
+    for (frame, group) in frames.iter_mut().zip(groups) {
+        let curve_points = mesh
+            .polylines()
+            .iter()
+            .filter(|l| group.items.contains(&(l.item as usize)))
+            .flat_map(|l| l.positions.iter().copied());
+        let vertices = frame.vertices.clone().map(|k| mesh.position(k));
+        frame.translation = far_centre(vertices.chain(curve_points));
+    }
+    if overlapping(&frames) {
         let all = (0..mesh.vertex_count()).map(|k| mesh.position(k));
         let curve_points = mesh
             .polylines()
@@ -389,6 +458,13 @@ fn group_frames(mesh: &AnyMesh, groups: &[ItemGroup]) -> Vec<GroupFrame> {
         }
     }
     frames
+}
+
+/// Whether the vertex spans of consecutive frames overlap.
+pub(crate) fn overlapping(frames: &[GroupFrame]) -> bool {
+    frames
+        .windows(2)
+        .any(|pair| pair[1].vertices.start < pair[0].vertices.end)
 }
 
 /// The centre of `points`' bounding box rounded to f32, if it is farther from the origin
@@ -412,15 +488,21 @@ pub fn is_far_from_origin((lo, hi): (DVec3, DVec3)) -> bool {
     centre.is_finite() && centre.length() > FAR_IN_SIZES * (hi - lo).length()
 }
 
-/// Component-wise (min, max) of `points`: the bounds glTF requires on POSITION accessors.
-fn bounds_of(points: impl Iterator<Item = [f32; 3]>) -> ([f32; 3], [f32; 3]) {
-    points.fold(
-        ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
-        |(lo, hi), p| {
-            (
-                std::array::from_fn(|k| lo[k].min(p[k])),
-                std::array::from_fn(|k| hi[k].max(p[k])),
-            )
-        },
+/// Component-wise (min, max) of positions: the bounds glTF requires on POSITION accessors.
+pub(crate) type Bounds = ([f32; 3], [f32; 3]);
+
+/// The bounds of no position, which [`union`] with any bounds leaves as they are.
+pub(crate) const EMPTY_BOUNDS: Bounds = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+
+/// The bounds of the positions of both `a` and `b`.
+pub(crate) fn union(a: Bounds, b: Bounds) -> Bounds {
+    (
+        std::array::from_fn(|k| a.0[k].min(b.0[k])),
+        std::array::from_fn(|k| a.1[k].max(b.1[k])),
     )
+}
+
+/// Component-wise (min, max) of `points`: the bounds glTF requires on POSITION accessors.
+pub(crate) fn bounds_of(points: impl Iterator<Item = [f32; 3]>) -> Bounds {
+    points.fold(EMPTY_BOUNDS, |bounds, p| union(bounds, (p, p)))
 }

@@ -13,6 +13,7 @@ mod json;
 mod obj_freeform;
 mod obj_mesh;
 mod step;
+mod stream;
 
 pub use binary_meshes::{write_ply, write_stl};
 pub use bpt::read_bpt;
@@ -24,6 +25,7 @@ pub use json::read_json_scene;
 pub use obj_freeform::read_obj_freeform;
 pub use obj_mesh::{format_f32, format_f64, write_obj_mesh};
 pub use step::read_step;
+pub use stream::{STREAM_RUN_VERTICES, stream_scene, write_grids_streamed};
 
 pub use crate::scene::{ItemGroup, Scene};
 
@@ -213,16 +215,9 @@ pub fn output_targets(
     Ok(targets)
 }
 
-/// Writes `mesh` (f64 or f32) to `path` in `format`, or in the format its extension names,
-/// atomically. `groups` name runs of items ([`Scene::groups`]): glTF gets one mesh and node
-/// per group, OBJ one `g` group each; PLY and STL ignore them.
-pub fn write_mesh_as<'a>(
-    path: &Path,
-    mesh: impl Into<AnyMesh<'a>>,
-    groups: &[ItemGroup],
-    format: Option<MeshFormat>,
-) -> Result<()> {
-    let mesh: AnyMesh = mesh.into();
+/// The format a mesh is written to `path` in: `format`, or the one its extension names.
+/// Both, disagreeing, are [`Error::FormatConflict`]; neither is [`Error::UnknownFormat`].
+pub fn output_format(path: &Path, format: Option<MeshFormat>) -> Result<MeshFormat> {
     let named = MeshFormat::from_extension(&extension(path));
     if let (Some(asked), Some(named)) = (format, named)
         && asked != named
@@ -233,10 +228,23 @@ pub fn write_mesh_as<'a>(
             format: asked.extension(),
         });
     }
-    let format = format.or(named).ok_or_else(|| Error::UnknownFormat {
+    format.or(named).ok_or_else(|| Error::UnknownFormat {
         path: path.to_path_buf(),
         expected: OUTPUT_FORMATS,
-    })?;
+    })
+}
+
+/// Writes `mesh` (f64 or f32) to `path` in `format`, or in the format its extension names,
+/// atomically. `groups` name runs of items ([`Scene::groups`]): glTF gets one mesh and node
+/// per group, OBJ one `g` group each; PLY and STL ignore them.
+pub fn write_mesh_as<'a>(
+    path: &Path,
+    mesh: impl Into<AnyMesh<'a>>,
+    groups: &[ItemGroup],
+    format: Option<MeshFormat>,
+) -> Result<()> {
+    let mesh: AnyMesh = mesh.into();
+    let format = output_format(path, format)?;
     if !mesh.polylines().is_empty() && matches!(format, MeshFormat::Ply | MeshFormat::Stl) {
         return Err(Error::PolylinesUnsupported {
             format: if format == MeshFormat::Ply {
@@ -275,6 +283,23 @@ pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<()> {
+    write_atomic_file(path, |file| {
+        let mut buffered = std::io::BufWriter::new(file);
+        write(&mut buffered)?;
+        buffered.flush()?;
+        Ok(((), true))
+    })
+    .map(|((), _)| ())
+}
+
+/// As [`write_atomic`], handing `write` the temporary file itself (to seek in, or to write
+/// from several threads): what `write` returns is passed on, with `Ok((value, true))` when
+/// the file was put in place. Where `write` gives `Ok((value, false))` — it chose not to
+/// write the file after all — the temporary file is removed and `path` left as it was.
+pub(crate) fn write_atomic_file<T>(
+    path: &Path,
+    write: impl FnOnce(&mut std::fs::File) -> std::io::Result<(T, bool)>,
+) -> Result<(T, bool)> {
     let io_error = |source| Error::Io {
         path: path.to_path_buf(),
         source,
@@ -301,16 +326,15 @@ pub fn write_atomic(
     temporary_name.push(format!(".{}.{call}.tmp", std::process::id()));
     let temporary = path.with_file_name(temporary_name);
     let result = (|| {
-        let file = std::fs::File::create(&temporary)?;
-        let mut buffered = std::io::BufWriter::new(file);
-        write(&mut buffered)?;
-        buffered
-            .into_inner()
-            .map_err(|e| e.into_error())?
-            .sync_all()?;
-        std::fs::rename(&temporary, path)
+        let mut file = std::fs::File::create(&temporary)?;
+        let (value, keep) = write(&mut file)?;
+        if keep {
+            file.sync_all()?;
+            std::fs::rename(&temporary, path)?;
+        }
+        Ok((value, keep))
     })();
-    if result.is_err() {
+    if !matches!(result, Ok((_, true))) {
         let _ = std::fs::remove_file(&temporary);
     }
     result.map_err(io_error)

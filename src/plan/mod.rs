@@ -245,6 +245,61 @@ impl SurfacePlan {
     pub fn surface_count(&self) -> usize {
         self.layout.parts.len()
     }
+
+    /// The plan's vertices in runs of whole grid rows, in vertex order: each run at most
+    /// `max_vertices` vertices (or one row, where a row is longer) — what a writer that
+    /// streams the mesh to a file evaluates at a time. `None` where the plan joins cells
+    /// itself ([`SurfacePlan::triangles`]): those vertices are compacted after evaluation, so
+    /// their order is not known before.
+    pub fn row_runs(&self, max_vertices: usize) -> Option<Vec<Vec<GridRows>>> {
+        if self.triangles.is_some() {
+            return None;
+        }
+        let mut runs: Vec<Vec<GridRows>> = Vec::new();
+        let mut run: Vec<GridRows> = Vec::new();
+        let mut vertices = 0;
+        for (grid, samples) in self.items.iter().enumerate() {
+            let row_len = samples.part.grid_u as usize;
+            let mut row = 0;
+            while row < samples.part.grid_v {
+                let room = max_vertices.saturating_sub(vertices) / row_len;
+                if room == 0 && !run.is_empty() {
+                    runs.push(std::mem::take(&mut run));
+                    vertices = 0;
+                    continue;
+                }
+                let take = (room.max(1) as u32).min(samples.part.grid_v - row);
+                run.push(GridRows {
+                    grid,
+                    rows: row..row + take,
+                });
+                vertices += take as usize * row_len;
+                row += take;
+            }
+        }
+        if !run.is_empty() {
+            runs.push(run);
+        }
+        Some(runs)
+    }
+}
+
+/// Consecutive rows of one grid of a plan: `grid` indexes [`SurfacePlan::items`], `rows` are
+/// whole rows of it (row j holds its vertices j·grid_u .. (j + 1)·grid_u, u fastest).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GridRows {
+    pub grid: usize,
+    pub rows: std::ops::Range<u32>,
+}
+
+/// The triangles of the cells in row `j` of the grid `part` (its cells between vertex rows
+/// j and j + 1; j < grid_v − 1) by [`cell_triangles`], into `indices`: 6·(grid_u − 1)
+/// values.
+pub fn row_triangles(part: &MeshPart, j: u32, indices: &mut [u32]) {
+    let row_start = part.first_vertex + j * part.grid_u;
+    for (i, cell) in indices.chunks_exact_mut(6).enumerate() {
+        cell.copy_from_slice(&cell_triangles(row_start + i as u32, part.grid_u));
+    }
 }
 
 /// The grids of the cells of surface `index`, their vertices one after another from the
@@ -645,6 +700,49 @@ impl CurvePlan {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Runs of rows cover every vertex of a grid plan once, in vertex order: each run within
+    /// its bound unless it is one row longer than the bound; none for a plan that joins
+    /// cells itself.
+    #[test]
+    fn row_runs_cover_every_vertex_in_order() {
+        let sphere = crate::geom::shapes::sphere(glam::DVec3::ZERO, 1.0);
+        let surfaces = [sphere.clone(), sphere.clone(), sphere];
+        let options = [
+            TessOptions::DEFAULT.with_grid(10, 7),
+            TessOptions::DEFAULT.with_grid(25, 3),
+            TessOptions::DEFAULT.with_grid(4, 30),
+        ];
+        let plan = SurfacePlan::new(&surfaces, &options).unwrap();
+        for max_vertices in [1, 24, 40, 75, 1000] {
+            let runs = plan.row_runs(max_vertices).unwrap();
+            let mut next_vertex = 0;
+            for run in &runs {
+                let mut vertices = 0;
+                for rows in run {
+                    let part = &plan.items[rows.grid].part;
+                    let first = part.first_vertex + rows.rows.start * part.grid_u;
+                    assert_eq!(first, next_vertex, "runs in vertex order");
+                    let count = rows.rows.len() as u32 * part.grid_u;
+                    assert!(count > 0);
+                    next_vertex += count;
+                    vertices += count as usize;
+                }
+                let one_row = run.len() == 1 && run[0].rows.len() == 1;
+                assert!(
+                    vertices <= max_vertices || one_row,
+                    "{max_vertices}: {run:?}"
+                );
+            }
+            assert_eq!(next_vertex as u64, plan.layout.vertex_count);
+            if max_vertices == 1000 {
+                assert_eq!(runs.len(), 1, "a bound above the mesh makes one run");
+            }
+        }
+        let adaptive = TessOptions::DEFAULT.with_tolerance(Tolerance::Relative(1e-2));
+        let joined = SurfacePlan::new(&surfaces[..1], &[adaptive]).unwrap();
+        assert!(joined.triangles.is_some() && joined.row_runs(1000).is_none());
+    }
 
     /// Parts follow each other without gaps; the u32 check names the vertex count that
     /// overflows and happens before anything is allocated.

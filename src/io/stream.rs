@@ -1,0 +1,316 @@
+//! Writing a grid mesh to a PLY or glb file while the f64 executor evaluates it: the plan
+//! gives the counts (the header) before any vertex exists, runs of rows are evaluated into a
+//! small buffer and appended by a writer thread while the next run is evaluated, and the
+//! triangles come from the plan's cell rule. Memory stays at a few runs whatever the mesh's
+//! size, and the bytes are the ones [`super::write_ply`] and [`super::write_glb`] write from
+//! the same executor's [`crate::Mesh32`].
+
+use super::binary_meshes::{ply_header, push_ply_faces};
+use super::{ItemGroup, MeshFormat, write_atomic_file};
+use crate::error::Result;
+use crate::geom::BSplineSurface;
+use crate::mesh::TessOptions;
+use crate::mesh::Vertex;
+use crate::plan::{GridLayout, GridRows, SurfacePlan, row_triangles};
+use crate::scene::{Geometry, Scene, SceneOptions};
+use std::fs::File;
+use std::io::Write;
+use std::path::Path;
+use std::sync::mpsc;
+
+/// Vertices evaluated per run (1 MiB of f32 vertices): small enough that a run is still in
+/// the caches when the writer copies it into the file, large enough that the rows of a run
+/// fill every core.
+pub const STREAM_RUN_VERTICES: usize = 1 << 15;
+
+/// Tessellates `scene` on the f64 CPU executor straight into `path` (in `format`, or the
+/// one its extension names: see [`super::output_format`]) where it can be streamed — every
+/// item a surface on a grid (its own or `defaults`'), PLY or glb — as
+/// [`crate::Tessellator::tessellate_scene_f32`] and [`super::write_mesh_as`] would write it,
+/// in memory bounded by a few runs of [`STREAM_RUN_VERTICES`] (so
+/// [`SceneOptions::memory_budget`] does not apply). Returns the layout written, or `None`,
+/// having written nothing, where the scene is not streamed (see also
+/// [`write_grids_streamed`]).
+pub fn stream_scene(
+    path: &Path,
+    format: Option<MeshFormat>,
+    scene: &Scene,
+    defaults: &SceneOptions,
+) -> Result<Option<GridLayout>> {
+    let format = super::output_format(path, format)?;
+    let surfaces_only =
+        (scene.items.iter()).all(|item| matches!(item.geometry, Geometry::Surface(_)));
+    let on_grids = !(scene.surface_grids(defaults.grid).iter()).any(TessOptions::is_adaptive);
+    if !surfaces_only || !on_grids || !matches!(format, MeshFormat::Ply | MeshFormat::Glb) {
+        return Ok(None);
+    }
+    let surfaces = scene.surface_list();
+    let plan = crate::scene::surface_plan(scene, &surfaces, defaults)?;
+    let streamed = write_grids_streamed(path, format, &plan, &surfaces, &scene.groups())?;
+    Ok(streamed.then_some(plan.layout))
+}
+
+/// Writes the mesh of `plan` (made for `surfaces`, parts carrying their scene item indices)
+/// to `path` in `format` while it is evaluated, atomically, as [`super::write_mesh_as`]
+/// would write the [`crate::cpu::execute_surfaces_f32`] mesh of the plan. Returns `false`,
+/// having written nothing, where this mesh cannot be streamed: a format other than PLY and
+/// glb, a plan that joins cells itself (sampled to a tolerance; see
+/// [`SurfacePlan::row_runs`]), or — found only once every vertex is known — a glb group so
+/// far from the origin for its size that glb stores it relative to a node translation.
+/// `groups` as for [`super::write_mesh_as`].
+#[cfg_attr(not(feature = "gltf"), allow(unused_variables))]
+pub fn write_grids_streamed(
+    path: &Path,
+    format: MeshFormat,
+    plan: &SurfacePlan,
+    surfaces: &[BSplineSurface],
+    groups: &[ItemGroup],
+) -> Result<bool> {
+    let Some(runs) = plan.row_runs(STREAM_RUN_VERTICES) else {
+        return Ok(false);
+    };
+    crate::plan::check_item_count(plan.surface_count(), surfaces.len())?;
+    let evaluate = |run: &[GridRows], vertices: &mut Vec<Vertex>| {
+        let count = run
+            .iter()
+            .map(|r| r.rows.len() * plan.items[r.grid].part.grid_u as usize)
+            .sum();
+        vertices.resize(count, Vertex::default());
+        crate::cpu::execute_rows_f32(plan, surfaces, run, vertices)
+    };
+    let (evaluated, kept) = match format {
+        MeshFormat::Ply => write_atomic_file(path, |file| {
+            let evaluated = stream_ply(file, plan, &runs, &evaluate)?;
+            let keep = evaluated.is_ok();
+            Ok((evaluated, keep))
+        })?,
+        #[cfg(feature = "gltf")]
+        MeshFormat::Glb => write_atomic_file(path, |file| {
+            stream_glb(file, plan, &runs, groups, &evaluate)
+        })?,
+        // The writers in memory name what is missing or unsupported.
+        _ => return Ok(false),
+    };
+    evaluated?;
+    Ok(kept)
+}
+
+/// Evaluates the vertices of one run of rows into a vector (resized to them).
+type Evaluate<'a> = dyn Fn(&[GridRows], &mut Vec<Vertex>) -> Result<()> + 'a;
+
+/// The PLY file: header, vertex records run by run, face records run by run. The outer
+/// result is the file's, the inner one the evaluation's.
+fn stream_ply(
+    file: &mut File,
+    plan: &SurfacePlan,
+    runs: &[Vec<GridRows>],
+    evaluate: &Evaluate,
+) -> std::io::Result<Result<()>> {
+    let layout = &plan.layout;
+    let header = ply_header(
+        layout.vertex_count as usize,
+        layout.index_count as usize / 3,
+    );
+    file.write_all(header.as_bytes())?;
+    let evaluated = pipelined(file, |send| {
+        for run in runs {
+            if !send(&mut |vertices| evaluate(run, vertices))? {
+                break;
+            }
+        }
+        Ok(())
+    })?;
+    if evaluated.is_err() {
+        return Ok(evaluated);
+    }
+    let mut indices = Vec::new();
+    pipelined(file, |send| {
+        for run in runs {
+            let records = |records: &mut Vec<u8>| {
+                run_triangles(plan, run, &mut indices);
+                records.clear();
+                push_ply_faces(&indices, records);
+                Ok(())
+            };
+            if !send(&mut { records })? {
+                break;
+            }
+        }
+        Ok(())
+    })
+}
+
+/// The glb file: room for the header and JSON, the binary chunk (vertices, then indices) run
+/// by run, then the header and JSON — which needs the positions' bounds — written into the
+/// room. Returns whether the file is to be kept (no group needs a node translation) and the
+/// evaluation's result.
+#[cfg(feature = "gltf")]
+fn stream_glb(
+    file: &mut File,
+    plan: &SurfacePlan,
+    runs: &[Vec<GridRows>],
+    groups: &[ItemGroup],
+    evaluate: &Evaluate,
+) -> std::io::Result<(Result<()>, bool)> {
+    use super::glb::{self, EMPTY_BOUNDS, union};
+    use std::io::{Seek, SeekFrom};
+    let layout = &plan.layout;
+    let (vertex_count, index_count) = (layout.vertex_count as usize, layout.index_count as usize);
+    if index_count == 0 {
+        return Err(std::io::Error::other(
+            "glTF needs at least one triangle or line: the input has no surfaces or curves",
+        ));
+    }
+    let groups = super::cover_groups(groups, layout.parts.iter().map(|p| p.item));
+    let contents = || glb::GlbContents {
+        vertex_count,
+        index_count,
+        polylines: &[],
+        curve_points: &[],
+        groups: groups.clone(),
+        frames: glb::group_spans(&layout.parts, &groups),
+    };
+    // The JSON with every bound at zero, and room for each of the six numbers of the one
+    // POSITION accessor to grow to the longest an f32 prints as (16 characters).
+    let unbounded = glb::document(contents(), &|_| ([0.0; 3], [0.0; 3]))?;
+    let json_room = (unbounded.len() + 6 * 16).next_multiple_of(4);
+    let bin_length = vertex_count * size_of::<Vertex>() + index_count * 4;
+    let head = glb::container_head(&unbounded, json_room, bin_length)?;
+    file.write_all(&head)?;
+    // The (min, max) of every part's positions, gathered as its rows are evaluated.
+    let mut part_bounds = vec![EMPTY_BOUNDS; layout.parts.len()];
+    let evaluated = pipelined(file, |send| {
+        for run in runs {
+            let vertices_and_bounds = |vertices: &mut Vec<Vertex>| {
+                evaluate(run, vertices)?;
+                let mut first = 0;
+                for rows in run {
+                    let part = &plan.items[rows.grid].part;
+                    let count = rows.rows.len() * part.grid_u as usize;
+                    // Grid k of a plan without joined cells is surface k, part k.
+                    let part_index = plan.items[rows.grid].surface;
+                    let positions = vertices[first..first + count].iter().map(|v| v.position);
+                    let bounds = &mut part_bounds[part_index];
+                    *bounds = union(*bounds, glb::bounds_of(positions));
+                    first += count;
+                }
+                Ok(())
+            };
+            if !send(&mut { vertices_and_bounds })? {
+                break;
+            }
+        }
+        Ok(())
+    })?;
+    let evaluated = match evaluated {
+        Ok(()) => pipelined(file, |send| {
+            for run in runs {
+                let indices = |indices: &mut Vec<u32>| {
+                    run_triangles(plan, run, indices);
+                    Ok(())
+                };
+                if !send(&mut { indices })? {
+                    break;
+                }
+            }
+            Ok(())
+        })?,
+        failed => failed,
+    };
+    if evaluated.is_err() {
+        return Ok((evaluated, false));
+    }
+    file.write_all(glb::container_padding(bin_length))?;
+    // A group far from the origin for its size is stored relative to its centre: not here.
+    let all = part_bounds.iter().fold(EMPTY_BOUNDS, |a, b| union(a, *b));
+    let frames = contents().frames;
+    let group_bounds = |frame: &glb::GroupFrame| {
+        let parts = layout.parts.iter().enumerate().filter(|(_, p)| {
+            p.vertex_count > 0 && frame.vertices.contains(&(p.first_vertex as usize))
+        });
+        parts.fold(EMPTY_BOUNDS, |bounds, (k, _)| union(bounds, part_bounds[k]))
+    };
+    let widen = |(lo, hi): ([f32; 3], [f32; 3])| {
+        (
+            glam::Vec3::from(lo).as_dvec3(),
+            glam::Vec3::from(hi).as_dvec3(),
+        )
+    };
+    let far = frames
+        .iter()
+        .filter(|f| !f.vertices.is_empty())
+        .any(|f| super::is_far_from_origin(widen(group_bounds(f))))
+        || (glb::overlapping(&frames) && super::is_far_from_origin(widen(all)));
+    if far {
+        return Ok((Ok(()), false));
+    }
+    let json = glb::document(contents(), &|range| {
+        debug_assert_eq!(
+            range,
+            0..vertex_count,
+            "untranslated groups share one accessor"
+        );
+        all
+    })?;
+    if json.len() > json_room {
+        return Err(std::io::Error::other(
+            "the glTF JSON outgrew the room kept for it",
+        ));
+    }
+    file.seek(SeekFrom::Start(0))?;
+    file.write_all(&glb::container_head(&json, json_room, bin_length)?)?;
+    Ok((Ok(()), true))
+}
+
+/// The triangles of the cells in `run`'s rows (a grid's last row has none), into `indices`.
+fn run_triangles(plan: &SurfacePlan, run: &[GridRows], indices: &mut Vec<u32>) {
+    indices.clear();
+    for rows in run {
+        let part = &plan.items[rows.grid].part;
+        let row_len = 6 * (part.grid_u - 1) as usize;
+        for j in rows.rows.start..rows.rows.end.min(part.grid_v - 1) {
+            let start = indices.len();
+            indices.resize(start + row_len, 0);
+            row_triangles(part, j, &mut indices[start..]);
+        }
+    }
+}
+
+/// Fills a buffer with the next run of a file's contents, replacing what it holds (a
+/// recycled buffer holds an earlier run: resizing it to a run of the same length touches
+/// no memory).
+type Fill<'a, T> = dyn FnMut(&mut Vec<T>) -> Result<()> + 'a;
+
+/// Runs `produce` on this thread while a writer thread appends to `file` every buffer it
+/// sends, in order, as bytes: the next run is made while the last one is copied into the
+/// file. `send(fill)` has `fill` fill a recycled buffer (three exist at most), hands it to
+/// the writer and returns `Ok(false)` once the writer has failed. The writer's error is the
+/// outer result, `produce`'s (or a fill's) the inner one.
+fn pipelined<T: bytemuck::Pod + Send>(
+    file: &mut File,
+    produce: impl FnOnce(&mut dyn FnMut(&mut Fill<T>) -> Result<bool>) -> Result<()>,
+) -> std::io::Result<Result<()>> {
+    let (full_sender, full) = mpsc::sync_channel::<Vec<T>>(1);
+    let (empty_sender, empty) = mpsc::channel::<Vec<T>>();
+    std::thread::scope(|scope| {
+        let writer = scope.spawn(move || -> std::io::Result<()> {
+            for buffer in full {
+                file.write_all(bytemuck::cast_slice(&buffer))?;
+                // The producer may be done already: the buffer is then dropped.
+                let _ = empty_sender.send(buffer);
+            }
+            Ok(())
+        });
+        let mut send = |fill: &mut Fill<T>| {
+            let mut buffer = empty.try_recv().unwrap_or_default();
+            fill(&mut buffer)?;
+            Ok(full_sender.send(buffer).is_ok())
+        };
+        let produced = produce(&mut send);
+        drop(full_sender);
+        match writer.join() {
+            Ok(written) => written.map(|()| produced),
+            Err(panic) => std::panic::resume_unwind(panic),
+        }
+    })
+}
