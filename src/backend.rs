@@ -6,8 +6,8 @@ use crate::error::{Error, Result};
 use crate::geom::patches::CoonsPatch;
 use crate::gpu::{GpuContext, GpuTessellator};
 use crate::mesh::{Mesh, Mesh32, Polyline, TessOptions};
-use crate::plan::SurfacePlan;
-use crate::scene::Tessellator;
+use crate::plan::{GridRows, SurfacePlan};
+use crate::scene::{RunSink, Tessellator};
 use crate::{BSplineCurve, BSplineSurface};
 
 /// Which executor tessellates (also the CLI's `--backend` values).
@@ -101,6 +101,19 @@ impl Tessellator for GpuOrCpu {
         mesh: &mut Mesh32,
     ) -> Result<()> {
         self.either(mesh, |t, mesh| t.execute_surfaces_f32(plan, surfaces, mesh))
+    }
+
+    fn execute_runs_f32(
+        &self,
+        plan: &SurfacePlan,
+        surfaces: &[BSplineSurface],
+        runs: &[Vec<GridRows>],
+        sink: &mut RunSink,
+    ) -> Result<()> {
+        // A job too large for the GPU is refused before any run reaches `sink`.
+        self.either(sink, |t, sink| {
+            t.execute_runs_f32(plan, surfaces, runs, sink)
+        })
     }
 
     fn tessellate_coons_into(

@@ -8,8 +8,12 @@ use crate::geom::brep::Shell;
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface, TrimmedSurface};
 use crate::mesh::{GridMesh, Mesh, Mesh32, Polyline, TessOptions};
-use crate::plan::{Seam, SurfacePlan, SurfaceSide};
+use crate::plan::{GridRows, Seam, SurfacePlan, SurfaceSide};
 use rayon::prelude::*;
+
+/// Takes the vertices of one run of a plan ([`Tessellator::execute_runs_f32`]); returns
+/// `false` to stop the execution.
+pub type RunSink<'a> = dyn FnMut(&[crate::Vertex]) -> Result<bool> + 'a;
 
 /// What one item of a scene is.
 #[derive(Debug, Clone)]
@@ -343,10 +347,30 @@ pub trait Tessellator {
     fn tessellate_curves(&self, curves: &[BSplineCurve], samples: &[u32]) -> Result<Vec<Polyline>>;
     /// A human-readable name of the backend (and adapter), for summaries.
     fn name(&self) -> String;
-    /// Whether this is the f64 CPU executor ([`crate::cpu::CpuTessellator`]), whose grid
-    /// meshes [`crate::io::stream_scene`] writes to files while evaluating them.
-    fn is_cpu_reference(&self) -> bool {
-        false
+    /// Executes `plan` (made for `surfaces`; one whose vertices come in runs of rows, see
+    /// [`SurfacePlan::row_runs`]) and hands the f32 vertices [`Tessellator::execute_surfaces_f32`]
+    /// would make to `sink`, one run of `runs` at a time, in order — for writers that stream
+    /// a mesh to a file ([`crate::io::stream_scene`]). `sink` returns `false` to stop. The
+    /// default executes the whole plan first; the CPU evaluates each run when its turn comes
+    /// (memory: one run), the GPU hands each run over from its mapped output.
+    fn execute_runs_f32(
+        &self,
+        plan: &SurfacePlan,
+        surfaces: &[BSplineSurface],
+        runs: &[Vec<GridRows>],
+        sink: &mut RunSink,
+    ) -> Result<()> {
+        let mut mesh = Mesh32::default();
+        self.execute_surfaces_f32(plan, surfaces, &mut mesh)?;
+        let mut first = 0;
+        for run in runs {
+            let count = plan.run_vertices(run);
+            if !sink(&mesh.vertices[first..first + count])? {
+                break;
+            }
+            first += count;
+        }
+        Ok(())
     }
 
     /// Tessellates every item of `scene` — surfaces and Coons patches into triangles,

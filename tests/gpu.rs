@@ -2139,3 +2139,70 @@ fn file_seams_run_alike_on_both_executors() {
         assert!(worst <= POSITION_REL_BAR * size, "{name}: {worst:e}");
     }
 }
+
+/// A grid mesh the GPU streams to PLY and glb (`io::stream_scene`: each run copied from the
+/// mapped output, each surface's origin added on the host) is the file the writers in memory
+/// make of the GPU's f32 mesh: PLY byte for byte, glb with the same binary chunk and JSON —
+/// for the GPU tessellator and for `auto` (the GPU with the CPU behind it). The teapot at
+/// 300×70 (runs of several rows spanning patches) and a JSON scene of named surfaces, one
+/// with a grid of its own, up to 9 units from the origin (origins that matter).
+#[test]
+fn streamed_gpu_files_are_the_files_written_from_memory() {
+    use knotwork::io::{read_scene, stream_scene, write_mesh_as};
+    let Some(context) = gpu() else { return };
+    let dir = std::env::temp_dir().join(format!("knotwork-gpu-stream-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let gpu_tessellator = tessellator_on(context);
+    let auto =
+        knotwork::backend::tessellator(knotwork::backend::Backend::Auto, Box::new(|_| {})).unwrap();
+    let cases = [
+        (
+            "teapot",
+            "data/teapot.bpt",
+            TessOptions::DEFAULT.with_grid(300, 70),
+        ),
+        (
+            "scene",
+            "data/scene.json",
+            TessOptions::DEFAULT.with_grid(7, 4),
+        ),
+    ];
+    for (name, input, grid) in cases {
+        let scene = read_scene(std::path::Path::new(input)).unwrap();
+        let defaults = knotwork::SceneOptions {
+            grid,
+            ..Default::default()
+        };
+        let tessellators: [(&str, &dyn Tessellator); 2] =
+            [("gpu", &gpu_tessellator), ("auto", auto.as_ref())];
+        for (backend, tessellator) in tessellators {
+            let mesh = tessellator.tessellate_scene_f32(&scene, &defaults).unwrap();
+            for format in ["ply", "glb"] {
+                let streamed = dir.join(format!("{name}-{backend}-streamed.{format}"));
+                let in_memory = dir.join(format!("{name}-{backend}-memory.{format}"));
+                let layout = stream_scene(&streamed, None, &scene, &defaults, tessellator)
+                    .unwrap()
+                    .unwrap_or_else(|| panic!("{name} {backend}: {format} streamed"));
+                assert_eq!(layout.parts, mesh.parts);
+                write_mesh_as(&in_memory, &mesh, &scene.groups(), None).unwrap();
+                let streamed = std::fs::read(&streamed).unwrap();
+                let in_memory = std::fs::read(&in_memory).unwrap();
+                if format == "ply" {
+                    assert!(
+                        streamed == in_memory,
+                        "{name} {backend}: the PLY files differ"
+                    );
+                } else {
+                    let (json, bin) = common::glb_chunks(&streamed);
+                    let (memory_json, memory_bin) = common::glb_chunks(&in_memory);
+                    assert_eq!(json, memory_json, "{name} {backend}");
+                    assert!(
+                        bin == memory_bin,
+                        "{name} {backend}: the binary chunks differ"
+                    );
+                }
+            }
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -3701,19 +3701,6 @@ fn json_seams_name_items_and_their_errors_name_the_seam() {
 
 // ---------------------------------------------------------------- streamed output
 
-/// The JSON (its padding trimmed) and binary chunk of a .glb file.
-fn glb_chunks(bytes: &[u8]) -> (String, Vec<u8>) {
-    let word = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
-    assert_eq!(&bytes[..4], b"glTF");
-    assert_eq!(word(8), bytes.len(), "the header's length is the file's");
-    let json_length = word(12);
-    let json = std::str::from_utf8(&bytes[20..20 + json_length]).unwrap();
-    let bin_at = 20 + json_length;
-    assert_eq!(&bytes[bin_at + 4..bin_at + 8], b"BIN\0");
-    let bin = bytes[bin_at + 8..bin_at + 8 + word(bin_at)].to_vec();
-    (json.trim_end().to_string(), bin)
-}
-
 /// A grid mesh streamed to PLY and glb as the CPU evaluates it (`io::stream_scene`) is the
 /// file the writers in memory make of the CPU's f32 mesh: PLY byte for byte, glb with the
 /// same binary chunk and JSON (only the JSON's padding differs, the file's length with it).
@@ -3757,7 +3744,7 @@ fn streamed_files_are_the_files_written_from_memory() {
         for format in ["ply", "glb"] {
             let streamed = dir.join(format!("{name}-streamed.{format}"));
             let in_memory = dir.join(format!("{name}-memory.{format}"));
-            let layout = stream_scene(&streamed, None, &scene, &defaults)
+            let layout = stream_scene(&streamed, None, &scene, &defaults, &CpuTessellator)
                 .unwrap()
                 .unwrap_or_else(|| panic!("{name}: {format} streamed"));
             assert_eq!(layout.parts, mesh.parts, "{name}");
@@ -3769,8 +3756,8 @@ fn streamed_files_are_the_files_written_from_memory() {
             if format == "ply" {
                 assert!(streamed == in_memory, "{name}: the PLY files differ");
             } else {
-                let (json, bin) = glb_chunks(&streamed);
-                let (memory_json, memory_bin) = glb_chunks(&in_memory);
+                let (json, bin) = common::glb_chunks(&streamed);
+                let (memory_json, memory_bin) = common::glb_chunks(&in_memory);
                 assert_eq!(json, memory_json, "{name}");
                 assert!(bin == memory_bin, "{name}: the binary chunks differ");
                 validate_with_khronos(&dir.join(format!("{name}-streamed.glb")));
@@ -3784,7 +3771,7 @@ fn streamed_files_are_the_files_written_from_memory() {
             ..knotwork::SceneOptions::default()
         };
         assert!(
-            stream_scene(path, None, scene, &defaults)
+            stream_scene(path, None, scene, &defaults, &CpuTessellator)
                 .unwrap()
                 .is_none(),
             "{path:?}"
@@ -3813,13 +3800,20 @@ fn streamed_files_are_the_files_written_from_memory() {
         .collect();
     assert!(names.is_empty(), "temporary files left: {names:?}");
     // A missing folder is named; an output format the extension contradicts too.
-    let error = stream_scene(&dir.join("no/t.ply"), None, &teapot, &Default::default());
+    let error = stream_scene(
+        &dir.join("no/t.ply"),
+        None,
+        &teapot,
+        &Default::default(),
+        &CpuTessellator,
+    );
     assert!(matches!(error, Err(Error::Io { .. })), "{error:?}");
     let error = stream_scene(
         &dir.join("t.ply"),
         Some(knotwork::io::MeshFormat::Glb),
         &teapot,
         &Default::default(),
+        &CpuTessellator,
     );
     assert!(
         matches!(error, Err(Error::FormatConflict { .. })),

@@ -309,11 +309,11 @@ fn process(
             .items
             .iter()
             .any(|item| knotwork::io::is_far_from_origin(item.geometry.control_box()));
-    // A grid mesh from the CPU goes to PLY or glb as it is evaluated, never whole in memory.
+    // A grid mesh goes to PLY or glb as it is made, never whole in host memory.
     if !job.weld
         && !far_glb
-        && tessellator.is_cpu_reference()
-        && let Some(layout) = knotwork::io::stream_scene(output, job.format, &scene, &defaults)?
+        && let Some(layout) =
+            knotwork::io::stream_scene(output, job.format, &scene, &defaults, tessellator)?
     {
         let (surfaces, solids, faces) = scene_counts(&scene);
         return Ok(Tally {

@@ -23,8 +23,9 @@ use crate::Tessellator;
 use crate::error::Result;
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
-use crate::mesh::{Mesh, Mesh32, Polyline, TessOptions};
-use crate::plan::{CurvePlan, SurfacePlan, check_item_count};
+use crate::mesh::{Mesh, Mesh32, Polyline, TessOptions, Vertex};
+use crate::plan::{CurvePlan, GridRows, SurfacePlan, check_item_count};
+use crate::scene::RunSink;
 use rayon::prelude::*;
 
 /// The CPU tessellator: f64 throughout, parallel over rows and surfaces on rayon's current
@@ -92,7 +93,21 @@ impl Tessellator for CpuTessellator {
         "cpu (f64)".to_string()
     }
 
-    fn is_cpu_reference(&self) -> bool {
-        true
+    fn execute_runs_f32(
+        &self,
+        plan: &SurfacePlan,
+        surfaces: &[BSplineSurface],
+        runs: &[Vec<GridRows>],
+        sink: &mut RunSink,
+    ) -> Result<()> {
+        let mut vertices = Vec::new();
+        for run in runs {
+            vertices.resize(plan.run_vertices(run), Vertex::default());
+            execute_rows_f32(plan, surfaces, run, &mut vertices)?;
+            if !sink(&vertices)? {
+                break;
+            }
+        }
+        Ok(())
     }
 }

@@ -9,6 +9,7 @@ use super::coons::CoonsWork;
 use super::curves::{CurveWork, GpuLines};
 use super::readback::{
     BufferPool, Placement, copy_out, map_for_reading, mapped, place_f32, place_f64,
+    place_vertices_f32,
 };
 use super::surfaces::{
     self, ChunkParams, Limits, PASSES, Packed, Piece, Range, Tile, VERTEX_BYTES,
@@ -17,9 +18,9 @@ use crate::error::{Error, Result};
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
 use crate::mesh::GridMesh;
-use crate::mesh::{Mesh, Mesh32, MeshPart, Polyline, TessOptions};
-use crate::plan::SurfacePlan;
-use crate::scene::{Scene, SceneOptions};
+use crate::mesh::{Mesh, Mesh32, MeshPart, Polyline, TessOptions, Vertex};
+use crate::plan::{GridRows, SurfacePlan};
+use crate::scene::{RunSink, Scene, SceneOptions};
 use std::num::NonZeroU64;
 
 /// The output buffers of a batch, ready to bind in a render pass.
@@ -907,6 +908,60 @@ impl GpuBatch {
             .iter()
             .map(|slot| self.placement.host_origin(slot.origin))
             .collect()
+    }
+
+    /// Hands the vertices of `runs` (of `plan`, the plan this batch holds, which has no
+    /// joined cells) to `sink` one run at a time, in world coordinates rounded to f32 as
+    /// [`GpuBatch::read_into`] gives them, straight from the mapped output: no mesh in
+    /// between.
+    pub fn read_runs(
+        &self,
+        plan: &SurfacePlan,
+        runs: &[Vec<GridRows>],
+        sink: &mut RunSink,
+    ) -> Result<()> {
+        let vertex_bytes = u64::from(self.mesh.vertex_count) * VERTEX_BYTES;
+        if vertex_bytes != plan.layout.vertex_count * VERTEX_BYTES || plan.triangles.is_some() {
+            return Err(Error::PlanMismatch {
+                planned: plan.surface_count(),
+                given: self.packed.surfaces.len(),
+            });
+        }
+        if vertex_bytes == 0 {
+            return Ok(());
+        }
+        let origins = self.host_origins();
+        let mut hand_over = |vertices: &wgpu::Buffer| -> Result<()> {
+            let view = mapped(vertices, vertex_bytes)?;
+            let all: &[Vertex] = bytemuck::cast_slice(&view);
+            let mut run_vertices = Vec::new();
+            let mut first = 0;
+            for run in runs {
+                run_vertices.clear();
+                for rows in run {
+                    let (placed, count) = (run_vertices.len(), plan.rows_vertices(rows));
+                    let start = first + placed;
+                    run_vertices.extend_from_slice(&all[start..start + count]);
+                    let origin = origins[plan.items[rows.grid].surface];
+                    place_vertices_f32(&mut run_vertices[placed..], origin);
+                }
+                first += run_vertices.len();
+                if !sink(&run_vertices)? {
+                    break;
+                }
+            }
+            Ok(())
+        };
+        if self.mappable {
+            let vertices = &self.mesh.vertices;
+            map_for_reading(&self.context.device, &[vertices])?;
+            let result = hand_over(vertices);
+            vertices.unmap();
+            result
+        } else {
+            let source = [(&self.mesh.vertices, self.mesh.vertex_offset, vertex_bytes)];
+            (self.staging).read(&self.context, &source, |staged| hand_over(&staged[0]))
+        }
     }
 
     /// The outputs as the kernels left them.

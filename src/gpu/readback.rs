@@ -203,12 +203,20 @@ pub(super) fn place_f64(mesh: &mut Mesh, origins: &[DVec3]) {
 /// Moves part k's vertices by `origins[k]`: added in f64, rounded once to f32.
 pub(super) fn place_f32(mesh: &mut Mesh32, origins: &[DVec3]) {
     for (part, &origin) in mesh.parts.iter().zip(origins) {
-        if origin != DVec3::ZERO {
-            let first = part.first_vertex as usize;
-            for v in &mut mesh.vertices[first..first + part.vertex_count as usize] {
-                let world = origin + DVec3::from_array(v.position.map(f64::from));
-                v.position = world.as_vec3().to_array();
-            }
+        let first = part.first_vertex as usize;
+        place_vertices_f32(
+            &mut mesh.vertices[first..first + part.vertex_count as usize],
+            origin,
+        );
+    }
+}
+
+/// Adds `origin` to the positions of `vertices` in f64 and rounds them once to f32.
+pub(super) fn place_vertices_f32(vertices: &mut [crate::Vertex], origin: DVec3) {
+    if origin != DVec3::ZERO {
+        for v in vertices {
+            let world = origin + DVec3::from_array(v.position.map(f64::from));
+            v.position = world.as_vec3().to_array();
         }
     }
 }

@@ -12,7 +12,8 @@ use crate::error::Result;
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
 use crate::mesh::{Mesh, Mesh32, Polyline, TessOptions};
-use crate::plan::SurfacePlan;
+use crate::plan::{GridRows, SurfacePlan};
+use crate::scene::RunSink;
 use std::sync::Mutex;
 
 /// The GPU tessellator: uploads, dispatches and reads back on its context.
@@ -113,6 +114,16 @@ impl Tessellator for GpuTessellator {
         mesh: &mut Mesh32,
     ) -> Result<()> {
         self.run(plan, surfaces, |batch| batch.read_into(mesh))
+    }
+
+    fn execute_runs_f32(
+        &self,
+        plan: &SurfacePlan,
+        surfaces: &[BSplineSurface],
+        runs: &[Vec<GridRows>],
+        sink: &mut RunSink,
+    ) -> Result<()> {
+        self.run(plan, surfaces, |batch| batch.read_runs(plan, runs, sink))
     }
 
     fn tessellate_coons_into(

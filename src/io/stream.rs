@@ -1,9 +1,10 @@
-//! Writing a grid mesh to a PLY or glb file while the f64 executor evaluates it: the plan
-//! gives the counts (the header) before any vertex exists, runs of rows are evaluated into a
-//! small buffer and appended by a writer thread while the next run is evaluated, and the
-//! triangles come from the plan's cell rule. Memory stays at a few runs whatever the mesh's
-//! size, and the bytes are the ones [`super::write_ply`] and [`super::write_glb`] write from
-//! the same executor's [`crate::Mesh32`].
+//! Writing a grid mesh to a PLY or glb file while an executor makes it: the plan gives the
+//! counts (the header) before any vertex exists, the executor hands its vertices over a run
+//! of rows at a time ([`Tessellator::execute_runs_f32`]: the CPU evaluates each run then, the
+//! GPU copies it from its mapped output), a writer thread appends each run while the next is
+//! made, and the triangles come from the plan's cell rule. The host holds a few runs
+//! whatever the mesh's size, and the bytes are the ones [`super::write_ply`] and
+//! [`super::write_glb`] write from the same executor's [`crate::Mesh32`].
 
 use super::binary_meshes::{ply_header, push_ply_faces};
 use super::{ItemGroup, MeshFormat, write_atomic_file};
@@ -12,7 +13,7 @@ use crate::geom::BSplineSurface;
 use crate::mesh::TessOptions;
 use crate::mesh::Vertex;
 use crate::plan::{GridLayout, GridRows, SurfacePlan, row_triangles};
-use crate::scene::{Geometry, Scene, SceneOptions};
+use crate::scene::{Geometry, RunSink, Scene, SceneOptions, Tessellator};
 use std::fs::File;
 use std::io::Write;
 use std::path::Path;
@@ -23,12 +24,12 @@ use std::sync::mpsc;
 /// fill every core.
 pub const STREAM_RUN_VERTICES: usize = 1 << 15;
 
-/// Tessellates `scene` on the f64 CPU executor straight into `path` (in `format`, or the
-/// one its extension names: see [`super::output_format`]) where it can be streamed — every
-/// item a surface on a grid (its own or `defaults`'), PLY or glb — as
-/// [`crate::Tessellator::tessellate_scene_f32`] and [`super::write_mesh_as`] would write it,
-/// in memory bounded by a few runs of [`STREAM_RUN_VERTICES`] (so
-/// [`SceneOptions::memory_budget`] does not apply). Returns the layout written, or `None`,
+/// Tessellates `scene` with `tessellator` straight into `path` (in `format`, or the one its
+/// extension names: see [`super::output_format`]) where it can be streamed — every item a
+/// surface on a grid (its own or `defaults`'), PLY or glb — as
+/// [`Tessellator::tessellate_scene_f32`] and [`super::write_mesh_as`] would write it. No
+/// mesh is held in host memory (the CPU holds a few runs of [`STREAM_RUN_VERTICES`], the GPU
+/// its output buffers), so [`SceneOptions::memory_budget`] does not apply. Returns the layout written, or `None`,
 /// having written nothing, where the scene is not streamed (see also
 /// [`write_grids_streamed`]).
 pub fn stream_scene(
@@ -36,6 +37,7 @@ pub fn stream_scene(
     format: Option<MeshFormat>,
     scene: &Scene,
     defaults: &SceneOptions,
+    tessellator: &dyn Tessellator,
 ) -> Result<Option<GridLayout>> {
     let format = super::output_format(path, format)?;
     let surfaces_only =
@@ -46,13 +48,14 @@ pub fn stream_scene(
     }
     let surfaces = scene.surface_list();
     let plan = crate::scene::surface_plan(scene, &surfaces, defaults)?;
-    let streamed = write_grids_streamed(path, format, &plan, &surfaces, &scene.groups())?;
+    let groups = scene.groups();
+    let streamed = write_grids_streamed(path, format, &plan, &surfaces, &groups, tessellator)?;
     Ok(streamed.then_some(plan.layout))
 }
 
 /// Writes the mesh of `plan` (made for `surfaces`, parts carrying their scene item indices)
-/// to `path` in `format` while it is evaluated, atomically, as [`super::write_mesh_as`]
-/// would write the [`crate::cpu::execute_surfaces_f32`] mesh of the plan. Returns `false`,
+/// to `path` in `format` while `tessellator` makes it, atomically, as
+/// [`super::write_mesh_as`] would write its [`Tessellator::execute_surfaces_f32`] mesh. Returns `false`,
 /// having written nothing, where this mesh cannot be streamed: a format other than PLY and
 /// glb, a plan that joins cells itself (sampled to a tolerance; see
 /// [`SurfacePlan::row_runs`]), or — found only once every vertex is known — a glb group so
@@ -65,28 +68,21 @@ pub fn write_grids_streamed(
     plan: &SurfacePlan,
     surfaces: &[BSplineSurface],
     groups: &[ItemGroup],
+    tessellator: &dyn Tessellator,
 ) -> Result<bool> {
     let Some(runs) = plan.row_runs(STREAM_RUN_VERTICES) else {
         return Ok(false);
     };
-    crate::plan::check_item_count(plan.surface_count(), surfaces.len())?;
-    let evaluate = |run: &[GridRows], vertices: &mut Vec<Vertex>| {
-        let count = run
-            .iter()
-            .map(|r| r.rows.len() * plan.items[r.grid].part.grid_u as usize)
-            .sum();
-        vertices.resize(count, Vertex::default());
-        crate::cpu::execute_rows_f32(plan, surfaces, run, vertices)
-    };
+    let vertices = |sink: &mut RunSink| tessellator.execute_runs_f32(plan, surfaces, &runs, sink);
     let (evaluated, kept) = match format {
         MeshFormat::Ply => write_atomic_file(path, |file| {
-            let evaluated = stream_ply(file, plan, &runs, &evaluate)?;
+            let evaluated = stream_ply(file, plan, &runs, &vertices)?;
             let keep = evaluated.is_ok();
             Ok((evaluated, keep))
         })?,
         #[cfg(feature = "gltf")]
         MeshFormat::Glb => write_atomic_file(path, |file| {
-            stream_glb(file, plan, &runs, groups, &evaluate)
+            stream_glb(file, plan, &runs, groups, &vertices)
         })?,
         // The writers in memory name what is missing or unsupported.
         _ => return Ok(false),
@@ -95,8 +91,20 @@ pub fn write_grids_streamed(
     Ok(kept)
 }
 
-/// Evaluates the vertices of one run of rows into a vector (resized to them).
-type Evaluate<'a> = dyn Fn(&[GridRows], &mut Vec<Vertex>) -> Result<()> + 'a;
+/// Executes the plan, handing its vertices to a sink run by run.
+type Vertices<'a> = dyn Fn(&mut RunSink) -> Result<()> + 'a;
+
+/// A sink that copies each run into a buffer of the writer's and sends it.
+fn copy_into(
+    send: &mut dyn FnMut(&mut Fill<Vertex>) -> Result<bool>,
+    vertices: &[Vertex],
+) -> Result<bool> {
+    send(&mut |buffer| {
+        buffer.clear();
+        buffer.extend_from_slice(vertices);
+        Ok(())
+    })
+}
 
 /// The PLY file: header, vertex records run by run, face records run by run. The outer
 /// result is the file's, the inner one the evaluation's.
@@ -104,7 +112,7 @@ fn stream_ply(
     file: &mut File,
     plan: &SurfacePlan,
     runs: &[Vec<GridRows>],
-    evaluate: &Evaluate,
+    vertices: &Vertices,
 ) -> std::io::Result<Result<()>> {
     let layout = &plan.layout;
     let header = ply_header(
@@ -113,12 +121,7 @@ fn stream_ply(
     );
     file.write_all(header.as_bytes())?;
     let evaluated = pipelined(file, |send| {
-        for run in runs {
-            if !send(&mut |vertices| evaluate(run, vertices))? {
-                break;
-            }
-        }
-        Ok(())
+        vertices(&mut |run_vertices| copy_into(send, run_vertices))
     })?;
     if evaluated.is_err() {
         return Ok(evaluated);
@@ -150,7 +153,7 @@ fn stream_glb(
     plan: &SurfacePlan,
     runs: &[Vec<GridRows>],
     groups: &[ItemGroup],
-    evaluate: &Evaluate,
+    vertices: &Vertices,
 ) -> std::io::Result<(Result<()>, bool)> {
     use super::glb::{self, EMPTY_BOUNDS, union};
     use std::io::{Seek, SeekFrom};
@@ -180,27 +183,20 @@ fn stream_glb(
     // The (min, max) of every part's positions, gathered as its rows are evaluated.
     let mut part_bounds = vec![EMPTY_BOUNDS; layout.parts.len()];
     let evaluated = pipelined(file, |send| {
-        for run in runs {
-            let vertices_and_bounds = |vertices: &mut Vec<Vertex>| {
-                evaluate(run, vertices)?;
-                let mut first = 0;
-                for rows in run {
-                    let part = &plan.items[rows.grid].part;
-                    let count = rows.rows.len() * part.grid_u as usize;
-                    // Grid k of a plan without joined cells is surface k, part k.
-                    let part_index = plan.items[rows.grid].surface;
-                    let positions = vertices[first..first + count].iter().map(|v| v.position);
-                    let bounds = &mut part_bounds[part_index];
-                    *bounds = union(*bounds, glb::bounds_of(positions));
-                    first += count;
-                }
-                Ok(())
-            };
-            if !send(&mut { vertices_and_bounds })? {
-                break;
+        let mut next_run = runs.iter();
+        vertices(&mut |run_vertices| {
+            let run = next_run.next().expect("one sink call per run");
+            let mut first = 0;
+            for rows in run {
+                let count = plan.rows_vertices(rows);
+                // Grid k of a plan without joined cells is surface k, part k.
+                let bounds = &mut part_bounds[plan.items[rows.grid].surface];
+                let positions = run_vertices[first..first + count].iter();
+                *bounds = union(*bounds, glb::bounds_of(positions.map(|v| v.position)));
+                first += count;
             }
-        }
-        Ok(())
+            copy_into(send, run_vertices)
+        })
     })?;
     let evaluated = match evaluated {
         Ok(()) => pipelined(file, |send| {
@@ -294,8 +290,13 @@ fn pipelined<T: bytemuck::Pod + Send>(
     let (empty_sender, empty) = mpsc::channel::<Vec<T>>();
     std::thread::scope(|scope| {
         let writer = scope.spawn(move || -> std::io::Result<()> {
+            use std::io::Seek;
+            let mut offset = file.stream_position()?;
             for buffer in full {
-                file.write_all(bytemuck::cast_slice(&buffer))?;
+                let bytes: &[u8] = bytemuck::cast_slice(&buffer);
+                file.write_all(bytes)?;
+                start_writeback(file, offset, bytes.len());
+                offset += bytes.len() as u64;
                 // The producer may be done already: the buffer is then dropped.
                 let _ = empty_sender.send(buffer);
             }
@@ -313,4 +314,23 @@ fn pipelined<T: bytemuck::Pod + Send>(
             Err(panic) => std::panic::resume_unwind(panic),
         }
     })
+}
+
+/// Asks the kernel to start writing `len` bytes at `offset` of `file` to the disk now,
+/// without waiting for them: the disk works while the next runs are evaluated, and the sync
+/// before the file is renamed into place finds most of it written. Advisory: where the call
+/// fails or does not exist (other systems than Linux), that sync does all the writing.
+fn start_writeback(file: &File, offset: u64, len: usize) {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::fd::AsRawFd;
+        let (offset, len) = (offset as libc::off64_t, len as libc::off64_t);
+        // SAFETY: `file` is an open descriptor for the call's duration; the call only
+        // schedules writes of pages already in the page cache.
+        unsafe {
+            libc::sync_file_range(file.as_raw_fd(), offset, len, libc::SYNC_FILE_RANGE_WRITE)
+        };
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = (file, offset, len);
 }

@@ -284,6 +284,18 @@ impl SurfacePlan {
     }
 }
 
+impl SurfacePlan {
+    /// The vertices of `rows` (whole rows of one of this plan's grids).
+    pub fn rows_vertices(&self, rows: &GridRows) -> usize {
+        rows.rows.len() * self.items[rows.grid].part.grid_u as usize
+    }
+
+    /// The vertices of `run` (whole rows of this plan's grids).
+    pub fn run_vertices(&self, run: &[GridRows]) -> usize {
+        run.iter().map(|rows| self.rows_vertices(rows)).sum()
+    }
+}
+
 /// Consecutive rows of one grid of a plan: `grid` indexes [`SurfacePlan::items`], `rows` are
 /// whole rows of it (row j holds its vertices j·grid_u .. (j + 1)·grid_u, u fastest).
 #[derive(Clone, Debug, PartialEq, Eq)]

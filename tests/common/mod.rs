@@ -218,3 +218,16 @@ pub fn open_edges_and_pieces(mesh: &knotwork::Mesh) -> (usize, usize) {
         (0..triangles.len()).map(|t| find(&mut parent, t)).collect();
     (edges.values().filter(|e| e.1 == 1).count(), roots.len())
 }
+
+/// The JSON (its padding trimmed) and binary chunk of a .glb file.
+pub fn glb_chunks(bytes: &[u8]) -> (String, Vec<u8>) {
+    let word = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+    assert_eq!(&bytes[..4], b"glTF");
+    assert_eq!(word(8), bytes.len(), "the header's length is the file's");
+    let json_length = word(12);
+    let json = std::str::from_utf8(&bytes[20..20 + json_length]).unwrap();
+    let bin_at = 20 + json_length;
+    assert_eq!(&bytes[bin_at + 4..bin_at + 8], b"BIN\0");
+    let bin = bytes[bin_at + 8..bin_at + 8 + word(bin_at)].to_vec();
+    (json.trim_end().to_string(), bin)
+}
