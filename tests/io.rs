@@ -3872,3 +3872,89 @@ fn cli_streams_grid_meshes_within_a_small_memory_budget() {
         }
     }
 }
+
+/// An executor that breaks `execute_runs_f32`'s contract: the CPU's runs, one cut short,
+/// the last one left out, or one handed over twice.
+enum BrokenRuns {
+    ShortRun,
+    MissingRun,
+    ExtraRun,
+}
+
+impl Tessellator for BrokenRuns {
+    fn execute_surfaces(
+        &self,
+        plan: &knotwork::plan::SurfacePlan,
+        surfaces: &[knotwork::BSplineSurface],
+        mesh: &mut knotwork::Mesh,
+    ) -> knotwork::Result<()> {
+        CpuTessellator.execute_surfaces(plan, surfaces, mesh)
+    }
+
+    fn execute_runs_f32(
+        &self,
+        plan: &knotwork::plan::SurfacePlan,
+        surfaces: &[knotwork::BSplineSurface],
+        runs: &[Vec<knotwork::plan::GridRows>],
+        sink: &mut knotwork::scene::RunSink,
+    ) -> knotwork::Result<()> {
+        let mut handed = 0;
+        CpuTessellator.execute_runs_f32(plan, surfaces, runs, &mut |vertices| {
+            handed += 1;
+            match self {
+                BrokenRuns::ShortRun => sink(&vertices[1..]),
+                BrokenRuns::MissingRun if handed == runs.len() => Ok(false),
+                BrokenRuns::MissingRun => sink(vertices),
+                BrokenRuns::ExtraRun => Ok(sink(vertices)? && sink(vertices)?),
+            }
+        })
+    }
+
+    fn tessellate_coons_into(
+        &self,
+        patches: &[knotwork::geom::patches::CoonsPatch],
+        options: &[TessOptions],
+        mesh: &mut knotwork::Mesh,
+    ) -> knotwork::Result<()> {
+        CpuTessellator.tessellate_coons_into(patches, options, mesh)
+    }
+
+    fn tessellate_curves(
+        &self,
+        curves: &[knotwork::BSplineCurve],
+        samples: &[u32],
+    ) -> knotwork::Result<Vec<knotwork::Polyline>> {
+        CpuTessellator.tessellate_curves(curves, samples)
+    }
+
+    fn name(&self) -> String {
+        "broken runs".into()
+    }
+}
+
+/// An executor that hands a run of the wrong size, too few runs or too many gets
+/// `Error::BufferLength` from the streaming writers, and no file is left behind.
+#[test]
+fn streaming_refuses_runs_that_break_the_contract() {
+    let dir = scratch_dir("broken-runs");
+    let scene = read_scene(Path::new("data/teapot.bpt")).unwrap();
+    let defaults = knotwork::SceneOptions {
+        grid: TessOptions::DEFAULT.with_grid(300, 70),
+        ..Default::default()
+    };
+    for broken in [
+        BrokenRuns::ShortRun,
+        BrokenRuns::MissingRun,
+        BrokenRuns::ExtraRun,
+    ] {
+        for format in ["ply", "glb"] {
+            let path = dir.join(format!("t.{format}"));
+            let result = knotwork::io::stream_scene(&path, None, &scene, &defaults, &broken);
+            assert!(
+                matches!(result, Err(Error::BufferLength { .. })),
+                "{result:?}"
+            );
+            assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0, "nothing left");
+        }
+    }
+}

@@ -8,7 +8,7 @@
 
 use super::binary_meshes::{ply_header, push_ply_faces};
 use super::{ItemGroup, MeshFormat, write_atomic_file};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::geom::BSplineSurface;
 use crate::mesh::TessOptions;
 use crate::mesh::Vertex;
@@ -94,7 +94,40 @@ pub fn write_grids_streamed(
 /// Executes the plan, handing its vertices to a sink run by run.
 type Vertices<'a> = dyn Fn(&mut RunSink) -> Result<()> + 'a;
 
-/// A sink that copies each run into a buffer of the writer's and sends it.
+/// Has `vertices` hand every run of `runs` over, checked against the plan (a run of the
+/// wrong size, one too many or one missing is [`crate::Error::BufferLength`]: an executor
+/// breaking [`Tessellator::execute_runs_f32`]'s contract never makes a corrupt file), to
+/// `take(run, its vertices)`, which returns `false` to stop.
+fn each_run(
+    plan: &SurfacePlan,
+    runs: &[Vec<GridRows>],
+    vertices: &Vertices,
+    mut take: impl FnMut(&[GridRows], &[Vertex]) -> Result<bool>,
+) -> Result<()> {
+    let mut next_run = runs.iter();
+    let mut stopped = false;
+    vertices(&mut |run_vertices| {
+        let run = next_run.next();
+        let expected = run.map_or(0, |run| plan.run_vertices(run));
+        let (Some(run), true) = (run, run_vertices.len() == expected) else {
+            return Err(Error::BufferLength {
+                expected,
+                found: run_vertices.len(),
+            });
+        };
+        stopped = !take(run, run_vertices)?;
+        Ok(!stopped)
+    })?;
+    match next_run.next() {
+        Some(missing) if !stopped => Err(Error::BufferLength {
+            expected: plan.run_vertices(missing),
+            found: 0,
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// Copies a run into a buffer of the writer's and sends it.
 fn copy_into(
     send: &mut dyn FnMut(&mut Fill<Vertex>) -> Result<bool>,
     vertices: &[Vertex],
@@ -121,7 +154,9 @@ fn stream_ply(
     );
     file.write_all(header.as_bytes())?;
     let evaluated = pipelined(file, |send| {
-        vertices(&mut |run_vertices| copy_into(send, run_vertices))
+        each_run(plan, runs, vertices, |_, run_vertices| {
+            copy_into(send, run_vertices)
+        })
     })?;
     if evaluated.is_err() {
         return Ok(evaluated);
@@ -183,9 +218,7 @@ fn stream_glb(
     // The (min, max) of every part's positions, gathered as its rows are evaluated.
     let mut part_bounds = vec![EMPTY_BOUNDS; layout.parts.len()];
     let evaluated = pipelined(file, |send| {
-        let mut next_run = runs.iter();
-        vertices(&mut |run_vertices| {
-            let run = next_run.next().expect("one sink call per run");
+        each_run(plan, runs, vertices, |run, run_vertices| {
             let mut first = 0;
             for rows in run {
                 let count = plan.rows_vertices(rows);
