@@ -3876,9 +3876,9 @@ fn cli_streams_grid_meshes_within_a_small_memory_budget() {
 /// An executor that breaks `execute_runs_f32`'s contract: the CPU's runs, one cut short,
 /// the last one left out, or one handed over twice.
 enum BrokenRuns {
-    ShortRun,
-    MissingRun,
-    ExtraRun,
+    Short,
+    Missing,
+    Extra,
 }
 
 impl Tessellator for BrokenRuns {
@@ -3902,10 +3902,10 @@ impl Tessellator for BrokenRuns {
         CpuTessellator.execute_runs_f32(plan, surfaces, runs, &mut |vertices| {
             handed += 1;
             match self {
-                BrokenRuns::ShortRun => sink(&vertices[1..]),
-                BrokenRuns::MissingRun if handed == runs.len() => Ok(false),
-                BrokenRuns::MissingRun => sink(vertices),
-                BrokenRuns::ExtraRun => Ok(sink(vertices)? && sink(vertices)?),
+                BrokenRuns::Short => sink(&vertices[1..]),
+                BrokenRuns::Missing if handed == runs.len() => Ok(false),
+                BrokenRuns::Missing => sink(vertices),
+                BrokenRuns::Extra => Ok(sink(vertices)? && sink(vertices)?),
             }
         })
     }
@@ -3942,11 +3942,7 @@ fn streaming_refuses_runs_that_break_the_contract() {
         grid: TessOptions::DEFAULT.with_grid(300, 70),
         ..Default::default()
     };
-    for broken in [
-        BrokenRuns::ShortRun,
-        BrokenRuns::MissingRun,
-        BrokenRuns::ExtraRun,
-    ] {
+    for broken in [BrokenRuns::Short, BrokenRuns::Missing, BrokenRuns::Extra] {
         for format in ["ply", "glb"] {
             let path = dir.join(format!("t.{format}"));
             let result = knotwork::io::stream_scene(&path, None, &scene, &defaults, &broken);
@@ -3955,6 +3951,59 @@ fn streaming_refuses_runs_that_break_the_contract() {
                 "{result:?}"
             );
             assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0, "nothing left");
+        }
+    }
+}
+
+/// An output that is a named pipe (as /dev/null or /dev/stdout are devices) is written in
+/// place, not replaced by a file renamed over it: a reader at the pipe gets the whole PLY
+/// and glb, and the pipe is still a pipe afterwards.
+#[cfg(unix)]
+#[test]
+fn outputs_that_are_pipes_are_written_in_place() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = scratch_dir("fifo");
+    for format in ["ply", "glb"] {
+        let fifo = dir.join(format!("pipe.{format}"));
+        assert!(
+            Command::new("mkfifo")
+                .arg(&fifo)
+                .status()
+                .unwrap()
+                .success()
+        );
+        let (sender, received) = std::sync::mpsc::channel();
+        let reader_path = fifo.clone();
+        std::thread::spawn(move || {
+            let _ = sender.send(std::fs::read(&reader_path).unwrap());
+        });
+        succeeds(&[
+            "tessellate",
+            "data/teapot.bpt",
+            "--grid",
+            "32x32",
+            "--backend",
+            "cpu",
+            "-o",
+            fifo.to_str().unwrap(),
+        ]);
+        let bytes = received
+            .recv_timeout(std::time::Duration::from_secs(60))
+            .expect("the reader at the pipe got the mesh");
+        assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+        if format == "ply" {
+            assert!(bytes.starts_with(b"ply\n"));
+            // 32 patches of 32 × 32 vertices (32 bytes) and 2 × 31 × 31 faces (13 bytes).
+            let header = bytes
+                .windows(11)
+                .position(|w| w == b"end_header\n")
+                .unwrap()
+                + 11;
+            assert_eq!(bytes.len() - header, 32 * (32 * 32 * 32 + 2 * 31 * 31 * 13));
+        } else {
+            let (json, bin) = common::glb_chunks(&bytes);
+            assert!(json.contains("\"count\":32768"), "{json}");
+            assert_eq!(bin.len(), 32 * (32 * 32 * 32 + 6 * 31 * 31 * 4));
         }
     }
 }

@@ -278,7 +278,8 @@ pub fn write_mesh<'a>(path: &Path, mesh: impl Into<AnyMesh<'a>>) -> Result<()> {
 }
 
 /// Writes through a temporary file next to `path` and renames it into place on success; on
-/// any failure the temporary file is removed and `path` is left as it was.
+/// any failure the temporary file is removed and `path` is left as it was. An existing
+/// `path` that is not a file (/dev/null, a named pipe) is written in place instead.
 pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
@@ -318,6 +319,15 @@ pub(crate) fn write_atomic_file<T>(
             ),
         });
     }
+    // An output that exists and is not a file — /dev/null, a named pipe, a terminal — is
+    // written in place: a file renamed over it would replace the device or the pipe.
+    if is_special_file(path) {
+        let result = std::fs::OpenOptions::new()
+            .write(true)
+            .open(path)
+            .and_then(|mut file| write(&mut file));
+        return result.map_err(io_error);
+    }
     // Unique per call, so writers of one process never share a temporary file.
     static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -338,6 +348,12 @@ pub(crate) fn write_atomic_file<T>(
         let _ = std::fs::remove_file(&temporary);
     }
     result.map_err(io_error)
+}
+
+/// Whether `path` exists and is neither a file nor a folder (a device, a named pipe, a
+/// socket): outputs written in place, not through a temporary file.
+pub(crate) fn is_special_file(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
 }
 
 #[cfg(all(test, not(feature = "json"), not(feature = "gltf")))]

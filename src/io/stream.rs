@@ -26,7 +26,8 @@ pub const STREAM_RUN_VERTICES: usize = 1 << 15;
 
 /// Tessellates `scene` with `tessellator` straight into `path` (in `format`, or the one its
 /// extension names: see [`super::output_format`]) where it can be streamed — every item a
-/// surface on a grid (its own or `defaults`'), PLY or glb — as
+/// surface on a grid (its own or `defaults`'), PLY or glb, to a file (not a device or a
+/// pipe) — as
 /// [`Tessellator::tessellate_scene_f32`] and [`super::write_mesh_as`] would write it. No
 /// mesh is held in host memory (the CPU holds a few runs of [`STREAM_RUN_VERTICES`], the GPU
 /// its output buffers), so [`SceneOptions::memory_budget`] does not apply. Returns the layout written, or `None`,
@@ -43,7 +44,13 @@ pub fn stream_scene(
     let surfaces_only =
         (scene.items.iter()).all(|item| matches!(item.geometry, Geometry::Surface(_)));
     let on_grids = !(scene.surface_grids(defaults.grid).iter()).any(TessOptions::is_adaptive);
-    if !surfaces_only || !on_grids || !matches!(format, MeshFormat::Ply | MeshFormat::Glb) {
+    // A device or a pipe takes its bytes in order: glb's JSON comes last.
+    let in_order = super::is_special_file(path);
+    if !surfaces_only
+        || !on_grids
+        || in_order
+        || !matches!(format, MeshFormat::Ply | MeshFormat::Glb)
+    {
         return Ok(None);
     }
     let surfaces = scene.surface_list();
