@@ -280,10 +280,7 @@ pub fn execute_rows_f32(
     vertices: &mut [Vertex],
 ) -> Result<()> {
     check_item_count(plan.surface_count(), surfaces.len())?;
-    let expected: usize = runs
-        .iter()
-        .map(|run| run.rows.len() * plan.items[run.grid].part.grid_u as usize)
-        .sum();
+    let expected = plan.run_vertices(runs);
     if vertices.len() != expected {
         return Err(Error::BufferLength {
             expected,

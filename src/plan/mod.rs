@@ -282,9 +282,7 @@ impl SurfacePlan {
         }
         Some(runs)
     }
-}
 
-impl SurfacePlan {
     /// The vertices of `rows` (whole rows of one of this plan's grids).
     pub fn rows_vertices(&self, rows: &GridRows) -> usize {
         rows.rows.len() * self.items[rows.grid].part.grid_u as usize
