@@ -181,6 +181,15 @@ pub enum Error {
     )]
     OverMemoryBudget { needed: u64, budget: u64 },
     #[error(
+        "{}: the mesh file would take {needed} bytes, and the disk has {available} free: use a coarser grid or another disk",
+        path.display()
+    )]
+    NoRoomOnDisk {
+        path: PathBuf,
+        needed: u64,
+        available: u64,
+    },
+    #[error(
         "the mesh would have {needed} triangles, over the budget of {budget} (--max-triangles): ask for a larger tolerance or budget, or leave the tolerance out to have it chosen"
     )]
     OverTriangleBudget { needed: u64, budget: u64 },

@@ -4007,3 +4007,49 @@ fn outputs_that_are_pipes_are_written_in_place() {
         }
     }
 }
+
+/// A grid streamed to a file is not limited by memory, so a file the disk has no room for
+/// is refused before anything is written, with both figures: the teapot at a grid just over
+/// what /dev/shm (a RAM disk) has free. The CLI runs under `ulimit -f` (64 MiB), so a
+/// regression fails here instead of filling the RAM disk.
+#[cfg(target_os = "linux")]
+#[test]
+fn streamed_files_the_disk_cannot_hold_are_refused() {
+    let df = Command::new("df")
+        .args(["--output=avail", "-B1", "/dev/shm"])
+        .output()
+        .unwrap();
+    let available: u64 = String::from_utf8_lossy(&df.stdout)
+        .lines()
+        .nth(1)
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap();
+    // 32 patches of n² vertices (32 bytes) and 2(n − 1)² faces (13 bytes); u32 indices
+    // allow n ≤ 4729 (about 41 GB).
+    let n = (available as f64 / 1856.0).sqrt() as u64 + 2;
+    assert!(
+        n <= 4729,
+        "/dev/shm has {available} bytes free, more than a grid can fill"
+    );
+    let needed = 32 * (n * n * 32 + 2 * (n - 1).pow(2) * 13);
+    let out = format!("/dev/shm/knotwork-room-{}.ply", std::process::id());
+    let run = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -f 65536; exec \"$0\" tessellate data/teapot.bpt --grid {n}x{n} --backend cpu -o {out}"
+        ))
+        .arg(env!("CARGO_BIN_EXE_knotwork"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "the mesh file would take {needed} bytes, and the disk has"
+        )),
+        "{stderr}"
+    );
+    assert!(!Path::new(&out).exists());
+}

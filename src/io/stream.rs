@@ -80,6 +80,12 @@ pub fn write_grids_streamed(
     let Some(runs) = plan.row_runs(STREAM_RUN_VERTICES) else {
         return Ok(false);
     };
+    let layout = &plan.layout;
+    // The records; headers and JSON are small beside them.
+    let face_bytes = if format == MeshFormat::Ply { 13 } else { 12 };
+    let file_bytes =
+        layout.vertex_count * size_of::<Vertex>() as u64 + layout.index_count / 3 * face_bytes;
+    check_room_on_disk(path, file_bytes)?;
     let vertices = |sink: &mut RunSink| tessellator.execute_runs_f32(plan, surfaces, &runs, sink);
     let (evaluated, kept) = match format {
         MeshFormat::Ply => write_atomic_file(path, |file| {
@@ -373,4 +379,42 @@ fn start_writeback(file: &File, offset: u64, len: usize) {
     }
     #[cfg(not(target_os = "linux"))]
     let _ = (file, offset, len);
+}
+
+/// Refuses, before anything is written, a file of `bytes` that the disk holding `path` has
+/// no room for ([`Error::NoRoomOnDisk`]): a grid streamed to a file is not limited by memory,
+/// so a mistyped grid would otherwise fill the disk. Where the free space cannot be read
+/// (other systems than Linux, a failing call), the write itself reports a full disk.
+fn check_room_on_disk(path: &Path, bytes: u64) -> Result<()> {
+    #[cfg(target_os = "linux")]
+    {
+        use std::os::unix::ffi::OsStrExt;
+        let folder = match path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            Some(folder) => folder,
+            None => Path::new("."),
+        };
+        let Ok(name) = std::ffi::CString::new(folder.as_os_str().as_bytes()) else {
+            return Ok(());
+        };
+        let mut stats = std::mem::MaybeUninit::<libc::statvfs>::uninit();
+        // SAFETY: `name` is a NUL-terminated path and `stats` room for one statvfs, which
+        // the call fills when it returns 0.
+        if unsafe { libc::statvfs(name.as_ptr(), stats.as_mut_ptr()) } == 0 {
+            // SAFETY: filled by the successful call above.
+            let stats = unsafe { stats.assume_init() };
+            // The fields are narrower than u64 on some targets.
+            #[allow(clippy::useless_conversion)]
+            let available = u64::from(stats.f_bavail).saturating_mul(u64::from(stats.f_frsize));
+            if bytes > available {
+                return Err(Error::NoRoomOnDisk {
+                    path: path.to_path_buf(),
+                    needed: bytes,
+                    available,
+                });
+            }
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = (path, bytes);
+    Ok(())
 }
