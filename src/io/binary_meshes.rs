@@ -71,11 +71,28 @@ pub fn write_stl<'a>(mesh: impl Into<AnyMesh<'a>>, w: &mut dyn Write) -> Result<
     let count = u32::try_from(mesh.triangle_count())
         .map_err(|_| std::io::Error::other("more triangles than binary STL can count"))?;
     w.write_all(&count.to_le_bytes())?;
+    // One loop per precision, each with its positions inlined.
+    match mesh {
+        AnyMesh::F64(m) => write_stl_records(&m.indices, |k| m.positions[k], w),
+        AnyMesh::F32(m) => write_stl_records(
+            &m.indices,
+            |k| glam::Vec3::from(m.vertices[k].position).as_dvec3(),
+            w,
+        ),
+    }
+}
+
+/// The STL records of the triangles `indices` over the vertices `position` gives.
+fn write_stl_records(
+    indices: &[u32],
+    position: impl Fn(usize) -> glam::DVec3,
+    w: &mut dyn Write,
+) -> Result<()> {
     let mut records = Vec::with_capacity(TRIANGLES_PER_WRITE * 50);
-    for batch in mesh.indices().chunks(3 * TRIANGLES_PER_WRITE) {
+    for batch in indices.chunks(3 * TRIANGLES_PER_WRITE) {
         records.clear();
         for triangle in batch.chunks_exact(3) {
-            let [a, b, c] = [0, 1, 2].map(|k| mesh.position(triangle[k] as usize));
+            let [a, b, c] = [0, 1, 2].map(|k| position(triangle[k] as usize));
             let normal = (b - a).cross(c - a).normalize_or_zero();
             let record = [normal, a, b, c].map(|v| v.as_vec3().to_array());
             records.extend_from_slice(bytemuck::cast_slice(&record));
