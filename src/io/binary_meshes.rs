@@ -34,7 +34,7 @@ pub fn write_ply<'a>(mesh: impl Into<AnyMesh<'a>>, w: &mut dyn Write) -> Result<
 }
 
 /// Bytes of one PLY face record: the count 3 (u8) and three u32 indices.
-const PLY_FACE_BYTES: usize = 13;
+pub(crate) const PLY_FACE_BYTES: usize = 13;
 
 /// The header of a [`write_ply`] file of `vertex_count` vertices and `triangle_count`
 /// triangles; its vertex records follow (32 bytes each, a [`crate::Vertex`]'s layout), then

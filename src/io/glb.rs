@@ -11,6 +11,11 @@ use gltf::json;
 use json::validation::{Checked, USize64};
 use std::io::{Result, Write};
 
+/// Why a mesh without triangles or lines is refused: glTF accessors cannot be empty, so
+/// such a file would not be valid glTF.
+pub(crate) const NOTHING_TO_DRAW: &str =
+    "glTF needs at least one triangle or line: the input has no surfaces or curves";
+
 /// Bytes per interleaved vertex: position, normal, uv (f32).
 const VERTEX_STRIDE: usize = size_of::<Vertex>();
 
@@ -33,9 +38,7 @@ pub fn write_glb<'a>(
     if indices.is_empty() && polylines.is_empty() {
         // glTF accessors cannot be empty: a file without triangles or lines would not be
         // valid glTF.
-        return Err(std::io::Error::other(
-            "glTF needs at least one triangle or line: the input has no surfaces or curves",
-        ));
+        return Err(std::io::Error::other(NOTHING_TO_DRAW));
     }
     let groups = cover_groups(
         groups,
@@ -95,7 +98,7 @@ pub fn write_glb<'a>(
         groups,
         frames,
     };
-    let json = document(contents, &|range| {
+    let json = document(&contents, &|range| {
         if range == (0..n) {
             (lo, hi)
         } else {
@@ -122,16 +125,16 @@ pub(crate) struct GlbContents<'a> {
 /// group with triangles. `vertex_bounds` gives the (min, max) of the stored positions of a
 /// range of vertices (glTF requires them on POSITION accessors).
 pub(crate) fn document(
-    contents: GlbContents,
+    contents: &GlbContents,
     vertex_bounds: &dyn Fn(std::ops::Range<usize>) -> ([f32; 3], [f32; 3]),
 ) -> Result<Vec<u8>> {
-    let GlbContents {
+    let &GlbContents {
         vertex_count: n,
         index_count,
         polylines,
         curve_points,
-        groups,
-        frames,
+        ref groups,
+        ref frames,
     } = contents;
     let group_of = |item: u32| {
         groups
@@ -317,7 +320,7 @@ pub(crate) fn document(
         }
     }
     let mut nodes = Vec::new();
-    for ((group, primitives), frame) in groups.into_iter().zip(primitives).zip(&frames) {
+    for ((group, primitives), frame) in groups.iter().zip(primitives).zip(frames) {
         if primitives.is_empty() {
             continue;
         }
@@ -331,7 +334,7 @@ pub(crate) fn document(
         let t = frame.translation;
         nodes.push(root.push(json::Node {
             mesh: Some(mesh_index),
-            name: Some(group.name),
+            name: Some(group.name.clone()),
             translation: (t != DVec3::ZERO).then(|| t.as_vec3().to_array()),
             ..Default::default()
         }));
@@ -432,47 +435,67 @@ pub(crate) fn group_spans(parts: &[MeshPart], groups: &[ItemGroup]) -> Vec<Group
         .collect()
 }
 
-/// The frame of each group ([`group_spans`]) with its translation, from the f64 positions
-/// of its vertices and curves. Groups whose vertex spans overlap share one translation,
-/// that of them all.
+/// The frame of each group ([`group_spans`]) with its translation ([`place_frames`]), from
+/// the f64 positions of its vertices and curves.
 fn group_frames(mesh: &AnyMesh, groups: &[ItemGroup]) -> Vec<GroupFrame> {
     let mut frames = group_spans(mesh.parts(), groups);
-    for (frame, group) in frames.iter_mut().zip(groups) {
-        let curve_points = mesh
-            .polylines()
-            .iter()
-            .filter(|l| group.items.contains(&(l.item as usize)))
-            .flat_map(|l| l.positions.iter().copied());
-        let vertices = frame.vertices.clone().map(|k| mesh.position(k));
-        frame.translation = far_centre(vertices.chain(curve_points));
-    }
-    if overlapping(&frames) {
+    let boxes: Vec<_> = frames
+        .iter()
+        .zip(groups)
+        .map(|(frame, group)| {
+            let curve_points = mesh
+                .polylines()
+                .iter()
+                .filter(|l| group.items.contains(&(l.item as usize)))
+                .flat_map(|l| l.positions.iter().copied());
+            box_of(
+                frame
+                    .vertices
+                    .clone()
+                    .map(|k| mesh.position(k))
+                    .chain(curve_points),
+            )
+        })
+        .collect();
+    place_frames(&mut frames, &boxes, || {
         let all = (0..mesh.vertex_count()).map(|k| mesh.position(k));
         let curve_points = mesh
             .polylines()
             .iter()
             .flat_map(|l| l.positions.iter().copied());
-        let translation = far_centre(all.chain(curve_points));
-        for frame in &mut frames {
-            frame.translation = translation;
-        }
-    }
-    frames
-}
-
-/// Whether the vertex spans of consecutive frames overlap.
-pub(crate) fn overlapping(frames: &[GroupFrame]) -> bool {
-    frames
-        .windows(2)
-        .any(|pair| pair[1].vertices.start < pair[0].vertices.end)
-}
-
-/// The centre of `points`' bounding box rounded to f32, if it is farther from the origin
-/// than [`FAR_IN_SIZES`] of the box's diagonal; else zero.
-fn far_centre(points: impl Iterator<Item = DVec3>) -> DVec3 {
-    let (lo, hi) = points.fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
-        (lo.min(p), hi.max(p))
+        box_of(all.chain(curve_points))
     });
+    frames
+}
+
+/// Gives each frame its translation from its group's box (`boxes[k]`, (min, max) of its
+/// positions): the box's centre rounded to f32 where the box is far from the origin for its
+/// size ([`is_far_from_origin`]), else zero. Where the vertex spans of groups overlap (after
+/// welding), every group shares the translation of the box of everything, `all()`.
+pub(crate) fn place_frames(
+    frames: &mut [GroupFrame],
+    boxes: &[(DVec3, DVec3)],
+    all: impl FnOnce() -> (DVec3, DVec3),
+) {
+    let overlap = frames
+        .windows(2)
+        .any(|pair| pair[1].vertices.start < pair[0].vertices.end);
+    let shared = overlap.then(|| far_centre(all()));
+    for (frame, &bounds) in frames.iter_mut().zip(boxes) {
+        frame.translation = shared.unwrap_or_else(|| far_centre(bounds));
+    }
+}
+
+/// The (min, max) box of `points`.
+fn box_of(points: impl Iterator<Item = DVec3>) -> (DVec3, DVec3) {
+    points.fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+        (lo.min(p), hi.max(p))
+    })
+}
+
+/// The centre of the box (`lo`, `hi`) rounded to f32, if it is farther from the origin than
+/// [`FAR_IN_SIZES`] of its diagonal; else zero.
+fn far_centre((lo, hi): (DVec3, DVec3)) -> DVec3 {
     if is_far_from_origin((lo, hi)) {
         (0.5 * (lo + hi)).as_vec3().as_dvec3()
     } else {

@@ -6,13 +6,13 @@
 //! whatever the mesh's size, and the bytes are the ones [`super::write_ply`] and
 //! [`super::write_glb`] write from the same executor's [`crate::Mesh32`].
 
-use super::binary_meshes::{ply_header, push_ply_faces};
+use super::binary_meshes::{PLY_FACE_BYTES, ply_header, push_ply_faces};
 use super::{ItemGroup, MeshFormat, write_atomic_file};
 use crate::error::{Error, Result};
 use crate::geom::BSplineSurface;
 use crate::mesh::TessOptions;
 use crate::mesh::Vertex;
-use crate::plan::{GridLayout, GridRows, SurfacePlan, row_triangles};
+use crate::plan::{GridLayout, GridRows, SurfacePlan};
 use crate::scene::{Geometry, RunSink, Scene, SceneOptions, Tessellator};
 use std::fs::File;
 use std::io::Write;
@@ -82,7 +82,11 @@ pub fn write_grids_streamed(
     };
     let layout = &plan.layout;
     // The records; headers and JSON are small beside them.
-    let face_bytes = if format == MeshFormat::Ply { 13 } else { 12 };
+    let face_bytes = if format == MeshFormat::Ply {
+        PLY_FACE_BYTES as u64
+    } else {
+        12
+    };
     let file_bytes =
         layout.vertex_count * size_of::<Vertex>() as u64 + layout.index_count / 3 * face_bytes;
     check_room_on_disk(path, file_bytes)?;
@@ -178,7 +182,7 @@ fn stream_ply(
     pipelined(file, |send| {
         for run in runs {
             let records = |records: &mut Vec<u8>| {
-                run_triangles(plan, run, &mut indices);
+                plan.run_triangles(run, &mut indices);
                 records.clear();
                 push_ply_faces(&indices, records);
                 Ok(())
@@ -204,26 +208,25 @@ fn stream_glb(
     vertices: &Vertices,
 ) -> std::io::Result<(Result<()>, bool)> {
     use super::glb::{self, EMPTY_BOUNDS, union};
+    use glam::Vec3;
     use std::io::{Seek, SeekFrom};
     let layout = &plan.layout;
     let (vertex_count, index_count) = (layout.vertex_count as usize, layout.index_count as usize);
     if index_count == 0 {
-        return Err(std::io::Error::other(
-            "glTF needs at least one triangle or line: the input has no surfaces or curves",
-        ));
+        return Err(std::io::Error::other(glb::NOTHING_TO_DRAW));
     }
     let groups = super::cover_groups(groups, layout.parts.iter().map(|p| p.item));
-    let contents = || glb::GlbContents {
+    let mut contents = glb::GlbContents {
         vertex_count,
         index_count,
         polylines: &[],
         curve_points: &[],
-        groups: groups.clone(),
         frames: glb::group_spans(&layout.parts, &groups),
+        groups,
     };
     // The JSON with every bound at zero, and room for each of the six numbers of the one
     // POSITION accessor to grow to the longest an f32 prints as (16 characters).
-    let unbounded = glb::document(contents(), &|_| ([0.0; 3], [0.0; 3]))?;
+    let unbounded = glb::document(&contents, &|_| ([0.0; 3], [0.0; 3]))?;
     let json_room = (unbounded.len() + 6 * 16).next_multiple_of(4);
     let bin_length = vertex_count * size_of::<Vertex>() + index_count * 4;
     let head = glb::container_head(&unbounded, json_room, bin_length)?;
@@ -248,7 +251,7 @@ fn stream_glb(
         Ok(()) => pipelined(file, |send| {
             for run in runs {
                 let indices = |indices: &mut Vec<u32>| {
-                    run_triangles(plan, run, indices);
+                    plan.run_triangles(run, indices);
                     Ok(())
                 };
                 if !send(&mut { indices })? {
@@ -263,30 +266,27 @@ fn stream_glb(
         return Ok((evaluated, false));
     }
     file.write_all(glb::container_padding(bin_length))?;
-    // A group far from the origin for its size is stored relative to its centre: not here.
+    // A group far from the origin for its size is stored relative to its centre, by the
+    // writer in memory: the rule is glb's own, applied to the boxes gathered here.
+    let widen = |(lo, hi): glb::Bounds| (Vec3::from(lo).as_dvec3(), Vec3::from(hi).as_dvec3());
     let all = part_bounds.iter().fold(EMPTY_BOUNDS, |a, b| union(a, *b));
-    let frames = contents().frames;
-    let group_bounds = |frame: &glb::GroupFrame| {
-        let parts = layout.parts.iter().enumerate().filter(|(_, p)| {
-            p.vertex_count > 0 && frame.vertices.contains(&(p.first_vertex as usize))
-        });
-        parts.fold(EMPTY_BOUNDS, |bounds, (k, _)| union(bounds, part_bounds[k]))
-    };
-    let widen = |(lo, hi): ([f32; 3], [f32; 3])| {
-        (
-            glam::Vec3::from(lo).as_dvec3(),
-            glam::Vec3::from(hi).as_dvec3(),
-        )
-    };
-    let far = frames
+    let boxes: Vec<_> = (contents.frames.iter())
+        .map(|frame| {
+            let parts = layout.parts.iter().zip(&part_bounds).filter(|(p, _)| {
+                p.vertex_count > 0 && frame.vertices.contains(&(p.first_vertex as usize))
+            });
+            widen(parts.fold(EMPTY_BOUNDS, |bounds, (_, b)| union(bounds, *b)))
+        })
+        .collect();
+    glb::place_frames(&mut contents.frames, &boxes, || widen(all));
+    if contents
+        .frames
         .iter()
-        .filter(|f| !f.vertices.is_empty())
-        .any(|f| super::is_far_from_origin(widen(group_bounds(f))))
-        || (glb::overlapping(&frames) && super::is_far_from_origin(widen(all)));
-    if far {
+        .any(|f| f.translation != glam::DVec3::ZERO)
+    {
         return Ok((Ok(()), false));
     }
-    let json = glb::document(contents(), &|range| {
+    let json = glb::document(&contents, &|range| {
         debug_assert_eq!(
             range,
             0..vertex_count,
@@ -302,20 +302,6 @@ fn stream_glb(
     file.seek(SeekFrom::Start(0))?;
     file.write_all(&glb::container_head(&json, json_room, bin_length)?)?;
     Ok((Ok(()), true))
-}
-
-/// The triangles of the cells in `run`'s rows (a grid's last row has none), into `indices`.
-fn run_triangles(plan: &SurfacePlan, run: &[GridRows], indices: &mut Vec<u32>) {
-    indices.clear();
-    for rows in run {
-        let part = &plan.items[rows.grid].part;
-        let row_len = 6 * (part.grid_u - 1) as usize;
-        for j in rows.rows.start..rows.rows.end.min(part.grid_v - 1) {
-            let start = indices.len();
-            indices.resize(start + row_len, 0);
-            row_triangles(part, j, &mut indices[start..]);
-        }
-    }
 }
 
 /// Fills a buffer with the next run of a file's contents, replacing what it holds (a

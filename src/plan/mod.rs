@@ -292,6 +292,21 @@ impl SurfacePlan {
     pub fn run_vertices(&self, run: &[GridRows]) -> usize {
         run.iter().map(|rows| self.rows_vertices(rows)).sum()
     }
+
+    /// The triangles of the cells in `run`'s rows by [`row_triangles`] (a grid's last row
+    /// has none), into `indices` (replacing what it holds).
+    pub fn run_triangles(&self, run: &[GridRows], indices: &mut Vec<u32>) {
+        indices.clear();
+        for rows in run {
+            let part = &self.items[rows.grid].part;
+            let row_len = 6 * (part.grid_u - 1) as usize;
+            for j in rows.rows.start..rows.rows.end.min(part.grid_v - 1) {
+                let start = indices.len();
+                indices.resize(start + row_len, 0);
+                row_triangles(part, j, &mut indices[start..]);
+            }
+        }
+    }
 }
 
 /// Consecutive rows of one grid of a plan: `grid` indexes [`SurfacePlan::items`], `rows` are
