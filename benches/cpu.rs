@@ -14,8 +14,9 @@
 //! deviation holds the same tolerance, with its triangles (the search measures every
 //! candidate: minutes for the larger models, so only there).
 //!
-//! `cpu_scene`: the teapot at 256×256 per patch through `tessellate_scene`, f64 and f32 — the
-//! Rust side of the Python binding's benchmark (python/bench.py).
+//! `cpu_scene`: the teapot at 256×256 per patch through `tessellate_scene`, f64, f32 and f32
+//! split into one array per attribute (what the binding returns) — the Rust side of the
+//! Python binding's benchmark (python/benches/bench.py).
 //!
 //! `cpu_iges`: reading and meshing an IGES file (trimmed faces planned and evaluated in f64)
 //! at 1e-3 of its diagonal — the rounded cube (7 trimmed faces), the Beetle front lid (134
@@ -94,8 +95,9 @@ fn bench_cpu(c: &mut Criterion) {
     group.finish();
 }
 
-/// The job the Python package's benchmark (python/bench.py) runs through the binding: a read
-/// scene tessellated whole, f64 and f32, on every core — its figure next to the binding's.
+/// The job the Python package's benchmark (python/benches/bench.py) runs through the binding: a read
+/// scene tessellated whole, f64 and f32, on every core — its figure next to the binding's
+/// (whose f32 meshes are split, one array per attribute, as numpy wants them).
 fn bench_scene(c: &mut Criterion) {
     let scene = knotwork::io::read_scene(Path::new("data/teapot.bpt")).expect("teapot");
     let mut group = c.benchmark_group("cpu_scene");
@@ -116,6 +118,13 @@ fn bench_scene(c: &mut Criterion) {
         b.iter(|| {
             CpuTessellator
                 .tessellate_scene_f32(&scene, &defaults)
+                .expect("tessellates")
+        })
+    });
+    group.bench_function("teapot 256x256 per patch, f32 split", |b| {
+        b.iter(|| {
+            CpuTessellator
+                .tessellate_scene_split_f32(&scene, &defaults)
                 .expect("tessellates")
         })
     });

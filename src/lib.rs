@@ -76,5 +76,7 @@ pub use cpu::CpuTessellator;
 pub use error::{Error, Result};
 pub use geom::{BSplineCurve, BSplineSurface, BezierPatch, Interval, KnotVector, TrimmedSurface};
 pub use gpu::{BatchDescriptor, GpuBatch, GpuContext, GpuMesh, GpuTessellator};
-pub use mesh::{AnyMesh, Mesh, Mesh32, MeshPart, Polyline, TessOptions, Tolerance, Vertex};
+pub use mesh::{
+    AnyMesh, Mesh, Mesh32, MeshPart, Polyline, SplitMesh32, TessOptions, Tolerance, Vertex,
+};
 pub use scene::{Dropped, Geometry, Item, ItemGroup, Scene, SceneOptions, Tessellator};

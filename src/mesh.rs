@@ -247,6 +247,88 @@ impl Mesh32 {
     }
 }
 
+/// The f32 mesh with one contiguous array per attribute (what numpy, and vertex buffers
+/// bound one attribute per slot, want) instead of [`Mesh32`]'s interleaved vertices: the
+/// same layout, values and order. Polylines stay f64.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SplitMesh32 {
+    pub positions: Vec<[f32; 3]>,
+    pub normals: Vec<[f32; 3]>,
+    pub uvs: Vec<[f32; 2]>,
+    pub indices: Vec<u32>,
+    /// One entry per input item, in input order.
+    pub parts: Vec<MeshPart>,
+    pub polylines: Vec<Polyline>,
+}
+
+impl SplitMesh32 {
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+
+    /// Sizes the attribute arrays for `count` vertices; memory is touched only where they
+    /// grow (every value is to be overwritten).
+    pub(crate) fn resize_vertices(&mut self, count: usize) {
+        self.positions.resize(count, [0.0; 3]);
+        self.normals.resize(count, [0.0; 3]);
+        self.uvs.resize(count, [0.0; 2]);
+    }
+
+    /// Replaces the vertices, indices and parts with `other`'s, split, keeping this mesh's
+    /// polylines (what surface tessellation leaves alone).
+    pub fn replace_grids(&mut self, other: Mesh32) {
+        let polylines = std::mem::take(&mut self.polylines);
+        *self = SplitMesh32 {
+            polylines,
+            ..other.into()
+        };
+    }
+
+    /// The interleaved mesh (a copy of every vertex).
+    pub fn to_interleaved(&self) -> Mesh32 {
+        let vertices = (self.positions.par_iter().zip(&self.normals).zip(&self.uvs))
+            .map(|((&position, &normal), &uv)| Vertex {
+                position,
+                normal,
+                uv,
+            })
+            .collect();
+        Mesh32 {
+            vertices,
+            indices: self.indices.clone(),
+            parts: self.parts.clone(),
+            polylines: self.polylines.clone(),
+        }
+    }
+}
+
+impl From<Mesh32> for SplitMesh32 {
+    /// Each attribute copied out of the interleaved vertices, on every core.
+    fn from(mesh: Mesh32) -> Self {
+        let vertices = || mesh.vertices.par_iter();
+        let ((positions, normals), uvs) = rayon::join(
+            || {
+                rayon::join(
+                    || vertices().map(|v| v.position).collect(),
+                    || vertices().map(|v| v.normal).collect(),
+                )
+            },
+            || vertices().map(|v| v.uv).collect(),
+        );
+        SplitMesh32 {
+            positions,
+            normals,
+            uvs,
+            indices: mesh.indices,
+            parts: mesh.parts,
+            polylines: mesh.polylines,
+        }
+    }
+}
+
 impl From<&Mesh> for Mesh32 {
     /// The mesh rounded to f32 (positions, normals and uvs each to nearest).
     fn from(mesh: &Mesh) -> Self {

@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use crate::geom::brep::Shell;
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface, TrimmedSurface};
-use crate::mesh::{GridMesh, Mesh, Mesh32, Polyline, TessOptions};
+use crate::mesh::{GridMesh, Mesh, Mesh32, Polyline, SplitMesh32, TessOptions};
 use crate::plan::{GridRows, Seam, SurfacePlan, SurfaceSide};
 use rayon::prelude::*;
 
@@ -332,6 +332,20 @@ pub trait Tessellator {
         mesh.replace_grids(Mesh32::from(wide));
         Ok(())
     }
+    /// As [`Tessellator::execute_surfaces_f32`], into one array per attribute; its
+    /// polylines are left alone. The default splits the interleaved mesh; the CPU rounds
+    /// each row straight into the arrays.
+    fn execute_surfaces_split_f32(
+        &self,
+        plan: &SurfacePlan,
+        surfaces: &[BSplineSurface],
+        mesh: &mut SplitMesh32,
+    ) -> Result<()> {
+        let mut interleaved = Mesh32::default();
+        self.execute_surfaces_f32(plan, surfaces, &mut interleaved)?;
+        mesh.replace_grids(interleaved);
+        Ok(())
+    }
     /// Tessellates Coons patches evaluated directly (any blend, see [`CoonsPatch`]) into
     /// `mesh`, patch k on the grid of `options[k]` over (u, v) ∈ [0, 1]², in the same layout
     /// as surfaces; `mesh`'s surfaces are replaced (its allocations reused), its polylines
@@ -413,6 +427,30 @@ pub trait Tessellator {
         mesh.append(Mesh32::from(trimmed))?;
         mesh.polylines = polylines;
         put_in_item_order(scene, &mut mesh);
+        Ok(mesh)
+    }
+
+    /// As [`Tessellator::tessellate_scene_f32`], with one array per attribute. A scene of
+    /// surfaces on grids is executed straight into the arrays
+    /// ([`Tessellator::execute_surfaces_split_f32`]); any other is tessellated interleaved,
+    /// then split.
+    fn tessellate_scene_split_f32(
+        &self,
+        scene: &Scene,
+        defaults: &SceneOptions,
+    ) -> Result<SplitMesh32> {
+        let surfaces_only =
+            (scene.items.iter()).all(|item| matches!(item.geometry, Geometry::Surface(_)));
+        let on_grids = !(scene.surface_grids(defaults.grid).iter()).any(TessOptions::is_adaptive);
+        if !(surfaces_only && on_grids) {
+            return Ok(self.tessellate_scene_f32(scene, defaults)?.into());
+        }
+        let defaults = &fit_triangle_budget(scene, defaults)?;
+        check_memory(scene, defaults, size_of::<crate::Vertex>() as u64)?;
+        let surfaces = scene.surface_list();
+        let plan = surface_plan(scene, &surfaces, defaults)?;
+        let mut mesh = SplitMesh32::default();
+        self.execute_surfaces_split_f32(&plan, &surfaces, &mut mesh)?;
         Ok(mesh)
     }
 }

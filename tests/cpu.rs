@@ -761,6 +761,52 @@ fn f32_output_is_the_f64_mesh_rounded() {
     assert_eq!(narrow, knotwork::Mesh32::from(&wide));
 }
 
+/// A scene tessellated into one array per attribute is the interleaved f32 mesh, value for
+/// value: where the CPU rounds rows straight into the arrays (surfaces on grids: the teapot
+/// on a grid that is not square, a JSON scene whose items have grids of their own) and where
+/// the mesh is made interleaved and split (a tolerance; Coons patches and curves in the
+/// scene). The memory budget still refuses a mesh too large for it.
+#[test]
+fn split_f32_scenes_are_the_interleaved_meshes() {
+    use knotwork::{SceneOptions, SplitMesh32, Tolerance};
+    let grid = TessOptions::DEFAULT.with_grid(37, 12);
+    let cases = [
+        ("data/teapot.bpt", grid),
+        ("data/scene.json", grid),
+        (
+            "data/teapot.bpt",
+            grid.with_tolerance(Tolerance::Relative(1e-3)),
+        ),
+        ("data/forms.json", grid),
+    ];
+    for (path, grid) in cases {
+        let scene = knotwork::io::read_scene(std::path::Path::new(path)).unwrap();
+        let defaults = SceneOptions {
+            grid,
+            ..SceneOptions::default()
+        };
+        let interleaved = CpuTessellator
+            .tessellate_scene_f32(&scene, &defaults)
+            .unwrap();
+        let split = CpuTessellator
+            .tessellate_scene_split_f32(&scene, &defaults)
+            .unwrap();
+        assert!(split.vertex_count() > 0, "{path}");
+        assert_eq!(split, SplitMesh32::from(interleaved.clone()), "{path}");
+        assert_eq!(split.to_interleaved(), interleaved, "{path}");
+    }
+    let teapot = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt")).unwrap();
+    let small_budget = SceneOptions {
+        grid,
+        memory_budget: Some(1 << 16),
+        ..SceneOptions::default()
+    };
+    assert!(matches!(
+        CpuTessellator.tessellate_scene_split_f32(&teapot, &small_budget),
+        Err(Error::OverMemoryBudget { .. })
+    ));
+}
+
 /// The trait's default f32 call leaves the mesh as it was when the backend fails.
 #[test]
 fn default_f32_tessellation_keeps_the_mesh_on_error() {

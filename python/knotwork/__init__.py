@@ -44,6 +44,7 @@ from ._knotwork import (
     info,
     read,
     tessellate,
+    tessellate_file,
 )
 
 
@@ -63,4 +64,5 @@ __all__ = [
     "info",
     "read",
     "tessellate",
+    "tessellate_file",
 ]

@@ -1,7 +1,7 @@
 """Type stubs of knotwork's native module (re-exported by the package `knotwork`)."""
 
 import os
-from typing import Literal, Optional, Tuple, TypedDict, Union
+from typing import List, Literal, Optional, Tuple, TypedDict, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -91,6 +91,27 @@ def tessellate(
     dtype: Union[None, str, type, np.dtype] = None,
     max_memory: Optional[int] = None,
 ) -> Mesh: ...
+
+class _Written(TypedDict):
+    vertices: int
+    triangles: int
+    left_out: List[str]
+
+def tessellate_file(
+    source: Union[str, os.PathLike[str]],
+    output: Union[str, os.PathLike[str]],
+    *,
+    format: Optional[Literal["obj", "ply", "stl", "glb"]] = None,
+    grid: Union[None, int, Tuple[int, int]] = None,
+    tolerance: Optional[float] = None,
+    tolerance_rel: Optional[float] = None,
+    max_edge: Optional[float] = None,
+    max_angle: Optional[float] = None,
+    max_triangles: Optional[int] = None,
+    samples: int = 65,
+    backend: Literal["auto", "cpu", "gpu"] = "auto",
+    max_memory: Optional[int] = None,
+) -> _Written: ...
 
 class _Case(TypedDict, total=False):
     name: str

@@ -29,6 +29,12 @@ from knotwork import _knotwork
 
 RECORDS = "knotwork-records.jsonl"
 
+# Tasks per CPU by default. Ray hands out whole tasks, so at the end of a job some CPUs sit
+# idle while others finish their last task: with 4 tasks per CPU that tail was up to a
+# quarter of a one-node job (Ray 0.93-1.28x the CLI's time, whose threads take one file at
+# a time); Ray's cost per task (milliseconds) stays small beside tasks of a few dozen files.
+TASKS_PER_CPU = 16
+
 
 def expand_inputs(paths_or_glob):
     """The files of a glob pattern (``**`` recursive), a folder (its surface files), a path
@@ -55,14 +61,8 @@ def _tessellate_one(path, target, format, options):
     start = time.perf_counter()
     record = {"input": path, "output": None, "vertices": 0, "triangles": 0, "left_out": [], "error": None}
     try:
-        mesh = knotwork.tessellate(path, **options)
-        mesh.write(target, format=format)
-        record.update(
-            output=target,
-            vertices=mesh.vertex_count,
-            triangles=mesh.triangle_count,
-            left_out=mesh.left_out,
-        )
+        written = knotwork.tessellate_file(path, target, format=format, **options)
+        record.update(output=target, **written)
     except knotwork.Error as error:
         record["error"] = str(error)
     except (ValueError, TypeError, OSError) as error:
@@ -94,12 +94,14 @@ def tessellate_files(
     **options,
 ):
     """Tessellates every file of ``paths_or_glob`` (see `expand_inputs`) into ``out_dir``
-    on Ray, with knotwork.tessellate's ``options`` (grid, tolerance, tolerance_rel, ...,
+    on Ray, each by knotwork.tessellate_file (as the CLI does: streamed to the disk where it
+    can be) with its ``options`` (grid, tolerance, tolerance_rel, ...,
     backend: "cpu" unless given, as Ray schedules CPUs; pass ``backend="gpu"`` with
     ``ray_remote_args={"num_gpus": 1}`` on GPU nodes).
 
     format: "obj", "ply", "stl" or "glb". files_per_task: files one Ray task tessellates
-    (default: about four tasks per CPU of the cluster). ray_remote_args: resources of each
+    (default: about sixteen tasks per CPU of the cluster, so that the last tasks to finish
+    leave the other CPUs idle for little of the job). ray_remote_args: resources of each
     task (default ``{"num_cpus": 1}``; knotwork then runs single-threaded in it).
 
     Starts a local Ray (``ray.init()``) unless one is running. Returns one record per input,
@@ -115,9 +117,10 @@ def tessellate_files(
     os.makedirs(out_dir, exist_ok=True)
     targets = [os.fspath(t) for t in _knotwork.output_targets(files, out_dir, format)]
     options.setdefault("backend", "cpu")
-    # PLY, STL and glTF carry f32: an f32 mesh goes to them without widening and narrowing
-    # (as the CLI's batch does); OBJ keeps the f64 reference.
-    options.setdefault("dtype", "float64" if format == "obj" else "float32")
+    # The format decides the precision: OBJ is written from the f64 mesh, PLY, STL and glTF
+    # (which carry f32) from the f32 one, as the CLI's batch does.
+    if "dtype" in options:
+        raise TypeError("dtype is not an option of tessellate_files: the format decides it")
     if not ray.is_initialized():
         ray.init()
     remote_args = {"num_cpus": 1}
@@ -128,7 +131,7 @@ def tessellate_files(
         env.setdefault("RAYON_NUM_THREADS", "1")
     if files_per_task is None:
         cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
-        files_per_task = max(1, math.ceil(len(files) / (4 * cpus)))
+        files_per_task = max(1, math.ceil(len(files) / (TASKS_PER_CPU * cpus)))
     chunk = ray.remote(_tessellate_chunk).options(**remote_args)
     jobs = list(zip(files, targets))
     pending = {}  # task -> the jobs it tessellates

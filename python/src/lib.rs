@@ -6,14 +6,13 @@
 
 use knotwork::backend::Backend;
 use knotwork::io::{MeshFormat, SceneFormat};
-use knotwork::mesh::{Mesh32, MeshPart, Polyline, Vertex};
+use knotwork::mesh::{MeshPart, Polyline, SplitMesh32};
 use knotwork::scene::{ItemGroup, SceneOptions, Tessellator};
 use knotwork::{Geometry, TessOptions, Tolerance};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyIndexError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
-use rayon::prelude::*;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
@@ -404,25 +403,20 @@ fn tessellate(
     dtype: Option<Bound<'_, PyAny>>,
     max_memory: Option<u64>,
 ) -> PyResult<PyMesh> {
-    let options = options(
-        grid,
-        tolerance,
-        tolerance_rel,
-        max_edge,
-        max_angle,
+    let job = JobOptions::new(
+        options(
+            grid,
+            tolerance,
+            tolerance_rel,
+            max_edge,
+            max_angle,
+            max_triangles,
+        )?,
+        samples,
         max_triangles,
+        max_memory,
+        backend,
     )?;
-    if samples < 2 {
-        return Err(PyValueError::new_err(format!(
-            "samples is {samples}: a polyline needs at least 2"
-        )));
-    }
-    if max_triangles == Some(0) {
-        return Err(PyValueError::new_err("max_triangles must be at least 1"));
-    }
-    let backend: Backend = backend
-        .parse()
-        .map_err(|e: knotwork::Error| PyValueError::new_err(e.to_string()))?;
     let precision = match dtype {
         Some(dtype) => precision(py, &dtype)?,
         None => Precision::F64,
@@ -436,60 +430,190 @@ fn tessellate(
             Some(path) => error.naming_file(path),
             None => error,
         };
-        tessellate_scene(
-            &scene,
-            options,
-            samples,
-            max_triangles,
-            max_memory,
-            backend,
-            precision,
-        )
-        .map_err(name_file)
+        tessellate_scene(&scene, &job, precision).map_err(name_file)
     })?;
-    let warnings = py.import("warnings")?;
-    let category = py.import("knotwork")?.getattr("IncompleteMeshWarning")?;
-    let fallbacks = std::mem::take(&mut *FALLBACKS.lock().unwrap_or_else(|e| e.into_inner()));
-    for message in mesh.left_out.iter().chain(&fallbacks) {
-        warnings.call_method1("warn", (message, &category, 2))?;
-    }
+    warn_incomplete(py, &mesh.left_out)?;
     Ok(mesh)
 }
 
-/// The GIL-free part of `tessellate`.
-fn tessellate_scene(
-    scene: &knotwork::Scene,
+/// Warns (knotwork.IncompleteMeshWarning) of every face `left_out` and of every GPU→CPU
+/// fallback taken since the last call.
+fn warn_incomplete(py: Python<'_>, left_out: &[String]) -> PyResult<()> {
+    let warnings = py.import("warnings")?;
+    let category = py.import("knotwork")?.getattr("IncompleteMeshWarning")?;
+    let fallbacks = std::mem::take(&mut *FALLBACKS.lock().unwrap_or_else(|e| e.into_inner()));
+    for message in left_out.iter().chain(&fallbacks) {
+        warnings.call_method1("warn", (message, &category, 2))?;
+    }
+    Ok(())
+}
+
+/// A mesh format by name ("obj", "ply", "stl", "glb", or with a leading dot).
+fn mesh_format(name: Option<&str>) -> PyResult<Option<MeshFormat>> {
+    name.map(|name| {
+        MeshFormat::from_extension(name.trim_start_matches('.')).ok_or_else(|| {
+            PyValueError::new_err(format!(
+                "format {name:?} is not a mesh format (obj, ply, stl, glb)"
+            ))
+        })
+    })
+    .transpose()
+}
+
+/// What every tessellating call takes besides its source, checked.
+struct JobOptions {
     grid: TessOptions,
     samples: u32,
     max_triangles: Option<u64>,
     max_memory: Option<u64>,
     backend: Backend,
-    precision: Precision,
-) -> knotwork::Result<PyMesh> {
-    let defaults = SceneOptions {
-        grid,
-        samples,
-        memory_budget: Some(max_memory.unwrap_or_else(knotwork::scene::default_memory_budget)),
-        skip_failed_faces: true,
-        max_triangles,
-    };
-    // The tolerance a triangle budget chose, once, for the tessellation and the report of
-    // left-out faces.
-    let defaults = knotwork::scene::fit_triangle_budget(scene, &defaults)?;
-    let tessellator = tessellator(backend)?;
-    let storage = match precision {
-        Precision::F64 => Storage::F64(tessellator.tessellate_scene(scene, &defaults)?),
-        Precision::F32 => Storage::split(tessellator.tessellate_scene_f32(scene, &defaults)?),
-    };
+}
+
+impl JobOptions {
+    fn new(
+        grid: TessOptions,
+        samples: u32,
+        max_triangles: Option<u64>,
+        max_memory: Option<u64>,
+        backend: &str,
+    ) -> PyResult<JobOptions> {
+        if samples < 2 {
+            return Err(PyValueError::new_err(format!(
+                "samples is {samples}: a polyline needs at least 2"
+            )));
+        }
+        if max_triangles == Some(0) {
+            return Err(PyValueError::new_err("max_triangles must be at least 1"));
+        }
+        let backend: Backend = backend
+            .parse()
+            .map_err(|e: knotwork::Error| PyValueError::new_err(e.to_string()))?;
+        Ok(JobOptions {
+            grid,
+            samples,
+            max_triangles,
+            max_memory,
+            backend,
+        })
+    }
+
+    /// The scene's options: with the tolerance a triangle budget chose, once, for the
+    /// tessellation and the report of left-out faces.
+    fn scene_options(&self, scene: &knotwork::Scene) -> knotwork::Result<SceneOptions> {
+        let defaults = SceneOptions {
+            grid: self.grid,
+            samples: self.samples,
+            memory_budget: Some(
+                (self.max_memory).unwrap_or_else(knotwork::scene::default_memory_budget),
+            ),
+            skip_failed_faces: true,
+            max_triangles: self.max_triangles,
+        };
+        knotwork::scene::fit_triangle_budget(scene, &defaults)
+    }
+}
+
+/// Why the faces of `scene` that have no part among `part_items` were left out, and what
+/// its reader dropped: one line each.
+fn left_out(
+    scene: &knotwork::Scene,
+    defaults: &SceneOptions,
+    part_items: impl Iterator<Item = u32>,
+) -> Vec<String> {
     let mut left_out: Vec<String> = (scene.dropped.iter())
         .map(|d| format!("{} left out: {}", d.what, d.reason))
         .collect();
-    let parts = storage.parts().iter().map(|p| p.item);
     left_out.extend(
-        knotwork::scene::left_out_faces(scene, &defaults, parts)
+        knotwork::scene::left_out_faces(scene, defaults, part_items)
             .into_iter()
             .map(|reason| format!("face left out: {reason}")),
     );
+    left_out
+}
+
+/// Tessellates the surface file `source` straight into the mesh file `output` (OBJ, PLY, STL
+/// or binary glTF: by its extension, or `format`), atomically, as the CLI's
+/// `knotwork tessellate SOURCE -o OUTPUT` does: a grid mesh to PLY or glb is streamed to
+/// the disk as it is made, never whole in memory; OBJ is written from the f64 mesh, the
+/// binary formats from the f32 one. The file-to-file job of batches (knotwork.ray): no
+/// numpy arrays are made.
+///
+/// Options as for `tessellate` (no dtype: the format decides). Returns
+/// {"vertices", "triangles", "left_out"} (left_out as Mesh.left_out, also warned about).
+/// The GIL is released. Raises knotwork.Error naming the file, ValueError for options that
+/// do not go together.
+#[pyfunction]
+#[pyo3(signature = (source, output, *, format = None, grid = None, tolerance = None, tolerance_rel = None, max_edge = None, max_angle = None, max_triangles = None, samples = 65, backend = "auto", max_memory = None))]
+#[allow(clippy::too_many_arguments)]
+fn tessellate_file<'py>(
+    py: Python<'py>,
+    source: PathBuf,
+    output: PathBuf,
+    format: Option<&str>,
+    grid: Option<Grid>,
+    tolerance: Option<f64>,
+    tolerance_rel: Option<f64>,
+    max_edge: Option<f64>,
+    max_angle: Option<f64>,
+    max_triangles: Option<u64>,
+    samples: u32,
+    backend: &str,
+    max_memory: Option<u64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let job = JobOptions::new(
+        options(
+            grid,
+            tolerance,
+            tolerance_rel,
+            max_edge,
+            max_angle,
+            max_triangles,
+        )?,
+        samples,
+        max_triangles,
+        max_memory,
+        backend,
+    )?;
+    let format = mesh_format(format)?;
+    let (written, left_out) = detached(py, || {
+        let run = || {
+            let scene = knotwork::io::read_scene(&source)?;
+            let defaults = job.scene_options(&scene)?;
+            let tessellator = tessellator(job.backend)?;
+            let written = knotwork::io::tessellate_to_file(
+                &output,
+                format,
+                &scene,
+                &defaults,
+                tessellator.as_ref(),
+                false,
+            )?;
+            let left_out = left_out(&scene, &defaults, written.part_items.iter().copied());
+            Ok((written, left_out))
+        };
+        run().map_err(|error: knotwork::Error| error.naming_file(&source))
+    })?;
+    warn_incomplete(py, &left_out)?;
+    let record = PyDict::new(py);
+    record.set_item("vertices", written.vertices)?;
+    record.set_item("triangles", written.triangles)?;
+    record.set_item("left_out", left_out)?;
+    Ok(record)
+}
+
+/// The GIL-free part of `tessellate`.
+fn tessellate_scene(
+    scene: &knotwork::Scene,
+    job: &JobOptions,
+    precision: Precision,
+) -> knotwork::Result<PyMesh> {
+    let defaults = job.scene_options(scene)?;
+    let tessellator = tessellator(job.backend)?;
+    let storage = match precision {
+        Precision::F64 => Storage::F64(tessellator.tessellate_scene(scene, &defaults)?),
+        Precision::F32 => Storage::F32(tessellator.tessellate_scene_split_f32(scene, &defaults)?),
+    };
+    let left_out = left_out(scene, &defaults, storage.parts().iter().map(|p| p.item));
     Ok(PyMesh {
         storage,
         groups: scene.groups(),
@@ -498,72 +622,39 @@ fn tessellate_scene(
     })
 }
 
-/// A mesh's memory: knotwork's f64 mesh as it is, or an f32 mesh split into one array per
-/// attribute (the executors' f32 vertices interleave them; numpy wants each contiguous).
+/// A mesh's memory: knotwork's f64 mesh as it is, or its f32 mesh with one array per
+/// attribute (numpy wants each contiguous).
 enum Storage {
     F64(knotwork::Mesh),
-    F32 {
-        /// The executor's interleaved vertices with their positions moved to the front: its
-        /// first 3·n floats are the positions.
-        vertices: Vec<Vertex>,
-        normals: Vec<[f32; 3]>,
-        uvs: Vec<[f32; 2]>,
-        indices: Vec<u32>,
-        parts: Vec<MeshPart>,
-        polylines: Vec<Polyline>,
-    },
+    F32(SplitMesh32),
 }
 
 impl Storage {
-    /// Normals and uvs copied out on every core (the copy is bound by first touches of fresh
-    /// memory, which the cores share out); then the positions compacted in place, in memory
-    /// already touched.
-    fn split(mut mesh: Mesh32) -> Storage {
-        let (normals, uvs) = rayon::join(
-            || mesh.vertices.par_iter().map(|v| v.normal).collect(),
-            || mesh.vertices.par_iter().map(|v| v.uv).collect(),
-        );
-        // Position k moves from float 8k to float 3k: never past a vertex not yet read.
-        let floats: &mut [f32] = bytemuck::cast_slice_mut(&mut mesh.vertices);
-        const FLOATS_PER_VERTEX: usize = size_of::<Vertex>() / size_of::<f32>();
-        for k in 0..floats.len() / FLOATS_PER_VERTEX {
-            floats.copy_within(FLOATS_PER_VERTEX * k..FLOATS_PER_VERTEX * k + 3, 3 * k);
-        }
-        Storage::F32 {
-            vertices: mesh.vertices,
-            normals,
-            uvs,
-            indices: mesh.indices,
-            parts: mesh.parts,
-            polylines: mesh.polylines,
-        }
-    }
-
     fn parts(&self) -> &[MeshPart] {
         match self {
             Storage::F64(mesh) => &mesh.parts,
-            Storage::F32 { parts, .. } => parts,
+            Storage::F32(mesh) => &mesh.parts,
         }
     }
 
     fn polylines(&self) -> &[Polyline] {
         match self {
             Storage::F64(mesh) => &mesh.polylines,
-            Storage::F32 { polylines, .. } => polylines,
+            Storage::F32(mesh) => &mesh.polylines,
         }
     }
 
     fn indices(&self) -> &[u32] {
         match self {
             Storage::F64(mesh) => &mesh.indices,
-            Storage::F32 { indices, .. } => indices,
+            Storage::F32(mesh) => &mesh.indices,
         }
     }
 
     fn vertex_count(&self) -> usize {
         match self {
             Storage::F64(mesh) => mesh.positions.len(),
-            Storage::F32 { normals, .. } => normals.len(),
+            Storage::F32(mesh) => mesh.vertex_count(),
         }
     }
 
@@ -571,7 +662,7 @@ impl Storage {
     fn layout(&self, field: Field) -> PyResult<(usize, Vec<usize>, &'static str)> {
         let float = match self {
             Storage::F64(_) => "<f8",
-            Storage::F32 { .. } => "<f4",
+            Storage::F32(_) => "<f4",
         };
         let n = self.vertex_count();
         let address = |pointer: *const u8| pointer as usize;
@@ -583,15 +674,13 @@ impl Storage {
                 (address(m.normals.as_ptr().cast()), vec![n, 3], float)
             }
             (Storage::F64(m), Field::Uvs) => (address(m.uvs.as_ptr().cast()), vec![n, 2], float),
-            (Storage::F32 { vertices, .. }, Field::Positions) => {
-                (address(vertices.as_ptr().cast()), vec![n, 3], float)
+            (Storage::F32(m), Field::Positions) => {
+                (address(m.positions.as_ptr().cast()), vec![n, 3], float)
             }
-            (Storage::F32 { normals, .. }, Field::Normals) => {
-                (address(normals.as_ptr().cast()), vec![n, 3], float)
+            (Storage::F32(m), Field::Normals) => {
+                (address(m.normals.as_ptr().cast()), vec![n, 3], float)
             }
-            (Storage::F32 { uvs, .. }, Field::Uvs) => {
-                (address(uvs.as_ptr().cast()), vec![n, 2], float)
-            }
+            (Storage::F32(m), Field::Uvs) => (address(m.uvs.as_ptr().cast()), vec![n, 2], float),
             (_, Field::Indices) => {
                 let indices = self.indices();
                 (
@@ -779,7 +868,7 @@ impl PyMesh {
     fn dtype(&self) -> &'static str {
         match self.storage {
             Storage::F64(_) => "float64",
-            Storage::F32 { .. } => "float32",
+            Storage::F32(_) => "float32",
         }
     }
 
@@ -798,40 +887,11 @@ impl PyMesh {
     /// OBJ and glTF get one group / node per named run of items. The GIL is released.
     #[pyo3(signature = (path, format = None))]
     fn write(&self, py: Python<'_>, path: PathBuf, format: Option<&str>) -> PyResult<()> {
-        let format = format
-            .map(|name| {
-                MeshFormat::from_extension(name.trim_start_matches('.')).ok_or_else(|| {
-                    PyValueError::new_err(format!(
-                        "format {name:?} is not a mesh format (obj, ply, stl, glb)"
-                    ))
-                })
-            })
-            .transpose()?;
+        let format = mesh_format(format)?;
         detached(py, || match &self.storage {
             Storage::F64(mesh) => knotwork::io::write_mesh_as(&path, mesh, &self.groups, format),
-            Storage::F32 {
-                vertices,
-                normals,
-                uvs,
-                indices,
-                parts,
-                polylines,
-            } => {
-                let positions: &[f32] = bytemuck::cast_slice(vertices);
-                let vertices = (positions.chunks_exact(3).zip(normals).zip(uvs))
-                    .map(|((position, &normal), &uv)| Vertex {
-                        position: [position[0], position[1], position[2]],
-                        normal,
-                        uv,
-                    })
-                    .collect();
-                let mesh = Mesh32 {
-                    vertices,
-                    indices: indices.clone(),
-                    parts: parts.clone(),
-                    polylines: polylines.clone(),
-                };
-                knotwork::io::write_mesh_as(&path, &mesh, &self.groups, format)
+            Storage::F32(mesh) => {
+                knotwork::io::write_mesh_as(&path, &mesh.to_interleaved(), &self.groups, format)
             }
         })
     }
@@ -950,6 +1010,7 @@ fn is_surface_file(path: PathBuf) -> bool {
 fn _knotwork(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(read, module)?)?;
     module.add_function(wrap_pyfunction!(tessellate, module)?)?;
+    module.add_function(wrap_pyfunction!(tessellate_file, module)?)?;
     module.add_function(wrap_pyfunction!(conformance, module)?)?;
     module.add_function(wrap_pyfunction!(info, module)?)?;
     module.add_function(wrap_pyfunction!(output_targets, module)?)?;

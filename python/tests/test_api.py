@@ -191,6 +191,40 @@ def test_every_format_is_written_atomically(tmp_path):
     ]
 
 
+def glb_chunks(data):
+    """A glb's JSON (without its padding) and binary chunk."""
+    length = int.from_bytes(data[12:16], "little")
+    return data[20 : 20 + length].rstrip(b" "), data[20 + length + 8 :]
+
+
+def test_tessellate_file_writes_what_the_mesh_would(tmp_path):
+    # Streamed (a grid to PLY and glb) or made whole (OBJ from the f64 mesh, STL, a
+    # tolerance), the file is the one Mesh.write makes of the same job's mesh (a streamed
+    # glb reserves room for its JSON: only the padding differs).
+    jobs = [("ply", {"grid": (7, 5)}), ("glb", {"grid": 6}), ("stl", {"grid": 6}), ("obj", {"grid": 4}),
+            ("glb", {"tolerance_rel": 1e-2})]
+    for k, (format, options) in enumerate(jobs):
+        written = tmp_path / f"file{k}.{format}"
+        record = knotwork.tessellate_file(TEAPOT, written, backend="cpu", **options)
+        dtype = "float64" if format == "obj" else "float32"
+        mesh = knotwork.tessellate(TEAPOT, backend="cpu", dtype=dtype, **options)
+        mesh.write(tmp_path / f"mesh{k}.{format}")
+        same = glb_chunks if format == "glb" else bytes
+        assert same(written.read_bytes()) == same((tmp_path / f"mesh{k}.{format}").read_bytes()), (format, options)
+        assert record == {"vertices": mesh.vertex_count, "triangles": mesh.triangle_count, "left_out": []}
+    with pytest.warns(knotwork.IncompleteMeshWarning, match="crosses"):
+        record = knotwork.tessellate_file(HERE / "data" / "crossing_loops.igs", tmp_path / "c.glb", backend="cpu", tolerance=1e-2)
+    assert len(record["left_out"]) == 1 and record["triangles"] > 0
+    with pytest.raises(knotwork.Error) as error:
+        knotwork.tessellate_file(tmp_path / "missing.bpt", tmp_path / "missing.glb")
+    assert error.value.file == str(tmp_path / "missing.bpt")
+    with pytest.raises(ValueError, match="not a mesh format"):
+        knotwork.tessellate_file(TEAPOT, tmp_path / "t.x", format="fbx")
+    with pytest.raises(knotwork.Error, match="conflict|extension"):
+        knotwork.tessellate_file(TEAPOT, tmp_path / "t.ply", format="stl")
+    assert not any(p.name.startswith(("missing", "t.")) for p in tmp_path.iterdir())
+
+
 def test_written_obj_reads_back_as_the_same_mesh(tmp_path):
     mesh = knotwork.tessellate(TEAPOT, grid=4, backend="cpu", dtype="float32")
     mesh.write(tmp_path / "t.obj")

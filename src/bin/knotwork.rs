@@ -3,8 +3,7 @@
 use clap::Parser;
 use knotwork::backend::Backend;
 use knotwork::cli::{Cli, Command, Job};
-use knotwork::io::{MeshFormat, SceneFormat};
-use knotwork::mesh::WELD_REL_TOLERANCE;
+use knotwork::io::SceneFormat;
 use knotwork::{GpuContext, GpuTessellator, SceneOptions, TessOptions, Tessellator};
 use rayon::prelude::*;
 use std::io::IsTerminal;
@@ -295,65 +294,24 @@ fn process(
         (None, Some(knotwork::Tolerance::Absolute(t))) => Some(t),
         _ => None,
     };
-    // Binary formats carry f32: an f32 mesh goes to them without widening and narrowing
-    // (from the GPU, straight from its buffers); OBJ and welding take the f64 mesh, and so
-    // does glb for a model far from the origin, whose groups it stores relative to a node
-    // translation (f32 world coordinates would lose what the mesh has).
-    let format = job.format.or_else(|| {
-        output
-            .extension()
-            .and_then(|e| MeshFormat::from_extension(&e.to_string_lossy()))
-    });
-    let far_glb = format == Some(MeshFormat::Glb)
-        && scene
-            .items
-            .iter()
-            .any(|item| knotwork::io::is_far_from_origin(item.geometry.control_box()));
-    // A grid mesh goes to PLY or glb as it is made, never whole in host memory.
-    if !job.weld
-        && !far_glb
-        && let Some(layout) =
-            knotwork::io::stream_scene(output, job.format, &scene, &defaults, tessellator)?
-    {
-        let (surfaces, solids, faces) = scene_counts(&scene);
-        return Ok(Tally {
-            surfaces,
-            solids,
-            faces,
-            vertices: layout.vertex_count as usize,
-            triangles: layout.index_count as usize / 3,
-            dropped,
-            chosen_tolerance: chosen,
-            ..Tally::default()
-        });
-    }
-    let groups = scene.groups();
-    let mut merged = None;
-    let f64_mesh = matches!(format, Some(MeshFormat::Obj) | None) || job.weld || far_glb;
-    let (vertices, triangles, skipped) = if f64_mesh {
-        let mut mesh = tessellator.tessellate_scene(&scene, &defaults)?;
-        let skipped = report_skipped(input, &scene, &defaults, mesh.parts.iter().map(|p| p.item));
-        if job.weld {
-            let (welded, report) = mesh.weld(WELD_REL_TOLERANCE * mesh.bounding_box_diagonal());
-            (mesh, merged) = (welded, Some(report.merged_vertices));
-        }
-        knotwork::io::write_mesh_as(output, &mesh, &groups, job.format)?;
-        (mesh.vertex_count(), mesh.triangle_count(), skipped)
-    } else {
-        let mesh = tessellator.tessellate_scene_f32(&scene, &defaults)?;
-        let skipped = report_skipped(input, &scene, &defaults, mesh.parts.iter().map(|p| p.item));
-        knotwork::io::write_mesh_as(output, &mesh, &groups, job.format)?;
-        (mesh.vertex_count(), mesh.triangle_count(), skipped)
-    };
+    let written = knotwork::io::tessellate_to_file(
+        output,
+        job.format,
+        &scene,
+        &defaults,
+        tessellator,
+        job.weld,
+    )?;
+    let skipped = report_skipped(input, &scene, &defaults, written.part_items.into_iter());
     let (surfaces, solids, faces) = scene_counts(&scene);
     Ok(Tally {
         surfaces,
         solids,
         faces,
         curves: scene.curves().count(),
-        vertices,
-        triangles,
-        merged,
+        vertices: written.vertices,
+        triangles: written.triangles,
+        merged: written.merged_vertices,
         dropped: dropped + skipped,
         chosen_tolerance: chosen,
     })

@@ -11,9 +11,9 @@ use super::lanes::Avx2;
 use super::lanes::{F64x4, Portable};
 use crate::error::{Error, Result};
 use crate::geom::{BSplineSurface, degenerate_cross_sq};
-use crate::mesh::{GridMesh, Mesh, Mesh32, MeshPart, TessOptions, Vertex};
+use crate::mesh::{GridMesh, Mesh, Mesh32, MeshPart, SplitMesh32, TessOptions, Vertex};
 use crate::plan::{
-    AxisSamples, GridLayout, GridRows, SurfacePlan, check_item_count, row_triangles,
+    AxisSamples, GridLayout, GridRows, SurfacePlan, SurfaceSamples, check_item_count, row_triangles,
 };
 use glam::{DVec2, DVec3, DVec4};
 use rayon::prelude::*;
@@ -73,13 +73,7 @@ pub fn execute_surfaces_f32(
         .resize(layout.vertex_count as usize, Vertex::default());
     mesh.indices.resize(layout.index_count as usize, 0);
     mesh.parts.clone_from(&layout.parts);
-    let whole_grids: Vec<GridRows> = (plan.items.iter().enumerate())
-        .map(|(grid, samples)| GridRows {
-            grid,
-            rows: 0..samples.part.grid_v,
-        })
-        .collect();
-    execute_rows_f32(plan, surfaces, &whole_grids, &mut mesh.vertices)?;
+    execute_rows_f32(plan, surfaces, &whole_grids(plan), &mut mesh.vertices)?;
     let grids: Vec<MeshPart> = plan.items.iter().map(|item| item.part).collect();
     write_indices(&grids, plan.triangles.as_deref(), &mut mesh.indices);
     if plan.triangles.is_some() {
@@ -277,51 +271,156 @@ pub fn execute_rows_f32(
     plan: &SurfacePlan,
     surfaces: &[BSplineSurface],
     runs: &[GridRows],
-    vertices: &mut [Vertex],
+    mut vertices: &mut [Vertex],
 ) -> Result<()> {
+    let rows = rows_of(plan, surfaces, runs, vertices.len(), |count| {
+        let row;
+        (row, vertices) = std::mem::take(&mut vertices).split_at_mut(count);
+        row
+    })?;
+    evaluate_rows_f32(plan, surfaces, rows, |row, evaluated| {
+        for (vertex, (position, normal, uv)) in row.iter_mut().zip(evaluated.rounded()) {
+            *vertex = Vertex {
+                position,
+                normal,
+                uv,
+            };
+        }
+    });
+    Ok(())
+}
+
+/// As [`execute_surfaces_f32`], into one array per attribute: each row rounded straight
+/// into the three arrays, with no interleaved mesh in between. A plan whose cells are
+/// joined by its own triangles (sampled to a tolerance) is executed interleaved, then split.
+pub fn execute_surfaces_split_f32(
+    plan: &SurfacePlan,
+    surfaces: &[BSplineSurface],
+    mesh: &mut SplitMesh32,
+) -> Result<()> {
+    if plan.triangles.is_some() {
+        let mut interleaved = Mesh32::default();
+        execute_surfaces_f32(plan, surfaces, &mut interleaved)?;
+        mesh.replace_grids(interleaved);
+        return Ok(());
+    }
+    check_item_count(plan.surface_count(), surfaces.len())?;
+    let layout = &plan.layout;
+    let count = layout.vertex_count as usize;
+    mesh.resize_vertices(count);
+    mesh.indices.resize(layout.index_count as usize, 0);
+    mesh.parts.clone_from(&layout.parts);
+    let (mut positions, mut normals, mut uvs) = (
+        &mut mesh.positions[..],
+        &mut mesh.normals[..],
+        &mut mesh.uvs[..],
+    );
+    let rows = rows_of(plan, surfaces, &whole_grids(plan), count, |n| {
+        let (p, n_, u);
+        (p, positions) = std::mem::take(&mut positions).split_at_mut(n);
+        (n_, normals) = std::mem::take(&mut normals).split_at_mut(n);
+        (u, uvs) = std::mem::take(&mut uvs).split_at_mut(n);
+        (p, n_, u)
+    })?;
+    evaluate_rows_f32(plan, surfaces, rows, |(p, n, u), evaluated| {
+        for (k, (position, normal, uv)) in evaluated.rounded().enumerate() {
+            (p[k], n[k], u[k]) = (position, normal, uv);
+        }
+    });
+    let grids: Vec<MeshPart> = plan.items.iter().map(|item| item.part).collect();
+    write_indices(&grids, None, &mut mesh.indices);
+    Ok(())
+}
+
+/// Every row of the plan's grids, whole, in vertex order.
+fn whole_grids(plan: &SurfacePlan) -> Vec<GridRows> {
+    (plan.items.iter().enumerate())
+        .map(|(grid, samples)| GridRows {
+            grid,
+            rows: 0..samples.part.grid_v,
+        })
+        .collect()
+}
+
+/// The rows of `runs` (whole rows of `plan`'s grids), each with its destination: `take(n)`
+/// hands out the next n vertices' worth, in order, of a destination that must hold exactly
+/// the runs' `held` vertices ([`Error::BufferLength`] otherwise).
+fn rows_of<'p, Out>(
+    plan: &'p SurfacePlan,
+    surfaces: &[BSplineSurface],
+    runs: &[GridRows],
+    held: usize,
+    mut take: impl FnMut(usize) -> Out,
+) -> Result<Vec<(&'p SurfaceSamples, usize, Out)>> {
     check_item_count(plan.surface_count(), surfaces.len())?;
     let expected = plan.run_vertices(runs);
-    if vertices.len() != expected {
+    if held != expected {
         return Err(Error::BufferLength {
             expected,
-            found: vertices.len(),
+            found: held,
         });
     }
     let mut rows = Vec::with_capacity(runs.iter().map(|run| run.rows.len()).sum());
-    let mut rest = vertices;
     for run in runs {
         let samples = &plan.items[run.grid];
         for j in run.rows.clone() {
-            let (row, tail) = rest.split_at_mut(samples.part.grid_u as usize);
-            rows.push((samples, j as usize, row));
-            rest = tail;
+            rows.push((samples, j as usize, take(samples.part.grid_u as usize)));
         }
     }
+    Ok(rows)
+}
+
+/// Evaluates each row in f64 into per-thread scratch, rows in parallel, and hands its
+/// vertices rounded once to f32 — (position, normal, uv) in column order — to `write`
+/// with the row's destination.
+fn evaluate_rows_f32<Out: Send>(
+    plan: &SurfacePlan,
+    surfaces: &[BSplineSurface],
+    rows: Vec<(&SurfaceSamples, usize, Out)>,
+    write: impl Fn(Out, RowF64) + Sync,
+) {
+    debug_assert_eq!(plan.surface_count(), surfaces.len());
     let fma = has_fma();
     rows.into_par_iter().for_each_init(
         || (RowScratch::new(0), Vec::new(), Vec::new()),
-        |(scratch, positions, normals), (samples, j, row_vertices)| {
+        |(scratch, positions, normals), (samples, j, out)| {
             let surface = &surfaces[samples.surface];
             let (columns, rows) = (&samples.columns, &samples.rows);
             scratch.fit(surface.count_u());
             positions.resize(columns.len(), DVec3::ZERO);
             normals.resize(columns.len(), DVec3::ZERO);
             evaluate_row(surface, columns, rows, j, fma, scratch, positions, normals);
-            let v = rows.fractions()[j] as f32;
-            let rounded = positions
-                .iter()
-                .zip(normals.iter())
-                .zip(columns.fractions());
-            for (vertex, ((p, n), &u)) in row_vertices.iter_mut().zip(rounded) {
-                *vertex = Vertex {
-                    position: p.as_vec3().to_array(),
-                    normal: n.as_vec3().to_array(),
-                    uv: [u as f32, v],
-                };
-            }
+            let row = RowF64 {
+                positions,
+                normals,
+                us: columns.fractions(),
+                v: rows.fractions()[j],
+            };
+            write(out, row);
         },
     );
-    Ok(())
+}
+
+/// One evaluated grid row in f64: positions, normals and the uv fractions of its columns.
+struct RowF64<'a> {
+    positions: &'a [DVec3],
+    normals: &'a [DVec3],
+    us: &'a [f64],
+    v: f64,
+}
+
+impl RowF64<'_> {
+    /// Each vertex's (position, normal, uv) rounded once to f32, in column order.
+    fn rounded(&self) -> impl Iterator<Item = ([f32; 3], [f32; 3], [f32; 2])> + '_ {
+        let v = self.v as f32;
+        (self.positions.iter().zip(self.normals).zip(self.us)).map(move |((p, n), &u)| {
+            (
+                p.as_vec3().to_array(),
+                n.as_vec3().to_array(),
+                [u as f32, v],
+            )
+        })
+    }
 }
 
 /// Evaluates grid row `j` into `positions` and `normals` (one row each).

@@ -11,7 +11,7 @@ pub use crate::geom::SurfaceSample;
 pub use coons::{execute_coons, tessellate_coons_into};
 pub use grid::{
     evaluate_grid_into, execute_rows_f32, execute_surfaces, execute_surfaces_f32,
-    tessellate_grid_into,
+    execute_surfaces_split_f32, tessellate_grid_into,
 };
 pub use trimmed::{
     TRIMMED_DEFAULT_TOLERANCE_REL, execute_shell, execute_trimmed, mesh_trimmed_faces, shell_plan,
@@ -23,7 +23,7 @@ use crate::Tessellator;
 use crate::error::Result;
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
-use crate::mesh::{Mesh, Mesh32, Polyline, TessOptions, Vertex};
+use crate::mesh::{Mesh, Mesh32, Polyline, SplitMesh32, TessOptions, Vertex};
 use crate::plan::{CurvePlan, GridRows, SurfacePlan, check_item_count};
 use crate::scene::RunSink;
 use rayon::prelude::*;
@@ -74,6 +74,15 @@ impl Tessellator for CpuTessellator {
         mesh: &mut Mesh32,
     ) -> Result<()> {
         execute_surfaces_f32(plan, surfaces, mesh)
+    }
+
+    fn execute_surfaces_split_f32(
+        &self,
+        plan: &SurfacePlan,
+        surfaces: &[BSplineSurface],
+        mesh: &mut SplitMesh32,
+    ) -> Result<()> {
+        execute_surfaces_split_f32(plan, surfaces, mesh)
     }
 
     fn tessellate_coons_into(

@@ -234,6 +234,76 @@ pub fn output_format(path: &Path, format: Option<MeshFormat>) -> Result<MeshForm
     })
 }
 
+/// What [`tessellate_to_file`] wrote.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct WrittenMesh {
+    pub vertices: usize,
+    pub triangles: usize,
+    /// Vertices merged by welding (`None`: not welded).
+    pub merged_vertices: Option<usize>,
+    /// The scene item of every part written, in order (a trimmed or shell face left out has
+    /// none: see [`crate::scene::left_out_faces`]).
+    pub part_items: Vec<u32>,
+}
+
+/// Tessellates `scene` with `tessellator` under `defaults` into `path` (in `format`, or the
+/// one its extension names), atomically — the whole file-to-file job of one input, as the
+/// CLI and the Python package run it. A grid mesh for PLY or glb is streamed as it is made
+/// ([`stream_scene`]); any other is made whole: in f64 for OBJ, for welding (`weld`: vertices
+/// within [`crate::mesh::WELD_REL_TOLERANCE`] of the diagonal merged) and for a glb far from
+/// the origin (stored relative to node translations, see [`is_far_from_origin`]), in f32 —
+/// straight from the executor — for the other binary formats.
+pub fn tessellate_to_file(
+    path: &Path,
+    format: Option<MeshFormat>,
+    scene: &Scene,
+    defaults: &crate::SceneOptions,
+    tessellator: &dyn crate::Tessellator,
+    weld: bool,
+) -> Result<WrittenMesh> {
+    let chosen = output_format(path, format)?;
+    let far_glb = chosen == MeshFormat::Glb
+        && (scene.items.iter()).any(|item| is_far_from_origin(item.geometry.control_box()));
+    if !weld
+        && !far_glb
+        && let Some(layout) = stream_scene(path, format, scene, defaults, tessellator)?
+    {
+        return Ok(WrittenMesh {
+            vertices: layout.vertex_count as usize,
+            triangles: layout.index_count as usize / 3,
+            merged_vertices: None,
+            part_items: layout.parts.iter().map(|part| part.item).collect(),
+        });
+    }
+    let groups = scene.groups();
+    let part_items = |parts: &[crate::MeshPart]| parts.iter().map(|part| part.item).collect();
+    if chosen == MeshFormat::Obj || weld || far_glb {
+        let mut mesh = tessellator.tessellate_scene(scene, defaults)?;
+        let mut merged_vertices = None;
+        if weld {
+            let tolerance = crate::mesh::WELD_REL_TOLERANCE * mesh.bounding_box_diagonal();
+            let (welded, report) = mesh.weld(tolerance);
+            (mesh, merged_vertices) = (welded, Some(report.merged_vertices));
+        }
+        write_mesh_as(path, &mesh, &groups, format)?;
+        Ok(WrittenMesh {
+            vertices: mesh.vertex_count(),
+            triangles: mesh.triangle_count(),
+            merged_vertices,
+            part_items: part_items(&mesh.parts),
+        })
+    } else {
+        let mesh = tessellator.tessellate_scene_f32(scene, defaults)?;
+        write_mesh_as(path, &mesh, &groups, format)?;
+        Ok(WrittenMesh {
+            vertices: mesh.vertex_count(),
+            triangles: mesh.triangle_count(),
+            merged_vertices: None,
+            part_items: part_items(&mesh.parts),
+        })
+    }
+}
+
 /// Writes `mesh` (f64 or f32) to `path` in `format`, or in the format its extension names,
 /// atomically. `groups` name runs of items ([`Scene::groups`]): glTF gets one mesh and node
 /// per group, OBJ one `g` group each; PLY and STL ignore them.

@@ -1,7 +1,10 @@
 """What the Python binding costs, measured: run with a release build of the package installed
 (`pip install ./python`) from the repository root.
 
-    python python/bench.py [--files 200] [--occt]
+    python python/benches/bench.py [--files 200] [--occt]
+
+(It lives outside python/knotwork's parent folder so that Python, which puts a script's
+folder first on its path, imports the installed package, not its uncompiled sources.)
 
 1. The teapot at 256x256 vertices per patch (2.1 M vertices) on the CPU, f64 and f32:
    `knotwork.tessellate` on a read Scene, median of 7, in M vertices/s. The Rust API's figure
@@ -36,7 +39,7 @@ try:
 except ImportError:
     ray = None
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 DATA = ROOT / "data"
 
 
