@@ -118,7 +118,7 @@ pub enum Error {
     )]
     SeamGap { seam: usize, gap: f64, allowed: f64 },
     #[error(
-        "{what} cannot be sampled to a tolerance yet: give them a grid (JSON \"grid\" or --grid)"
+        "{what} cannot be sampled to a tolerance yet: give them a grid (JSON \"grid\", --grid or grid=)"
     )]
     NoToleranceFor { what: &'static str },
     #[error(
@@ -177,7 +177,7 @@ pub enum Error {
     )]
     MeshTooLarge { vertices: u64, indices: u64 },
     #[error(
-        "the mesh would take {needed} bytes of memory, over the budget of {budget} (--max-memory): use a coarser grid or a larger budget"
+        "the mesh would take {needed} bytes of memory, over the budget of {budget} (--max-memory, or max_memory= from Python): use a coarser grid or a larger budget"
     )]
     OverMemoryBudget { needed: u64, budget: u64 },
     #[error(
@@ -190,11 +190,11 @@ pub enum Error {
         available: u64,
     },
     #[error(
-        "the mesh would have {needed} triangles, over the budget of {budget} (--max-triangles): ask for a larger tolerance or budget, or leave the tolerance out to have it chosen"
+        "the mesh would have {needed} triangles, over the budget of {budget} (--max-triangles, or max_triangles= from Python): ask for a larger tolerance or budget, or leave the tolerance out to have it chosen"
     )]
     OverTriangleBudget { needed: u64, budget: u64 },
     #[error(
-        "a budget of {budget} triangles is below the {least} the scene takes at its coarsest (one segment per knot span, grids as given): raise --max-triangles"
+        "a budget of {budget} triangles is below the {least} the scene takes at its coarsest (one segment per knot span, grids as given): raise --max-triangles (max_triangles= from Python)"
     )]
     TriangleBudgetTooSmall { budget: u64, least: u64 },
     #[error("{message}")]

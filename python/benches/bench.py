@@ -123,16 +123,19 @@ def folder_throughput(count):
         cpus = int(ray.cluster_resources()["CPU"])
         warm = [str(p) for p in files[: 4 * cpus]]
         knotwork.ray.tessellate_files(warm, work / "warm", format="glb", files_per_task=1)
-        # The CLI and Ray in turn, three rounds: on two cores the spread between runs is as
-        # large as the difference.
+        # The CLI and Ray in turn, five rounds, each going first in every other round (what
+        # ran just before, and the disk's work on its deleted files, slows a stage): on two
+        # cores the spread between runs is as large as the difference.
         ratios = []
-        for round in range(3):
-            cli_seconds = timed(f"CLI batch [{round + 1}]", cli_batch)
-            ray_seconds = timed(
-                f"knotwork.ray [{round + 1}]",
-                lambda out: knotwork.ray.tessellate_files(str(inputs), out, format="glb"),
-            )
-            ratios.append(ray_seconds / cli_seconds)
+        for round in range(5):
+            def ray_batch(out):
+                knotwork.ray.tessellate_files(str(inputs), out, format="glb")
+
+            stages = [("CLI batch", cli_batch), ("knotwork.ray", ray_batch)]
+            if round % 2:
+                stages.reverse()
+            seconds = {name: timed(f"{name} [{round + 1}]", job) for name, job in stages}
+            ratios.append(seconds["knotwork.ray"] / seconds["CLI batch"])
         print(f"  Ray / CLI time per round: {', '.join(f'{r:.2f}' for r in ratios)}; median {statistics.median(ratios):.2f}")
         ray.shutdown()
     finally:

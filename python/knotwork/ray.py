@@ -30,9 +30,10 @@ from knotwork import _knotwork
 RECORDS = "knotwork-records.jsonl"
 
 # Tasks per CPU by default. Ray hands out whole tasks, so at the end of a job some CPUs sit
-# idle while others finish their last task: with 4 tasks per CPU that tail was up to a
-# quarter of a one-node job (Ray 0.93-1.28x the CLI's time, whose threads take one file at
-# a time); Ray's cost per task (milliseconds) stays small beside tasks of a few dozen files.
+# idle while others finish their last task; the CLI's threads take one file at a time. On
+# 1000 small files on two CPUs, Ray took 1.04-1.09x the CLI's time with 4 tasks per CPU and
+# 0.99-1.06x with 16 (python/benches/bench.py); Ray's cost per task (milliseconds) stays
+# small beside tasks of a few dozen files.
 TASKS_PER_CPU = 16
 
 

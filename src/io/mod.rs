@@ -262,8 +262,12 @@ pub fn tessellate_to_file(
     weld: bool,
 ) -> Result<WrittenMesh> {
     let chosen = output_format(path, format)?;
+    #[cfg(feature = "gltf")]
     let far_glb = chosen == MeshFormat::Glb
         && (scene.items.iter()).any(|item| is_far_from_origin(item.geometry.control_box()));
+    // Without glTF, glb is refused by the writer.
+    #[cfg(not(feature = "gltf"))]
+    let far_glb = false;
     if !weld
         && !far_glb
         && let Some(layout) = stream_scene(path, format, scene, defaults, tessellator)?
