@@ -134,6 +134,13 @@ pub enum Error {
     SampleCounts { expected: usize, found: usize },
     #[error("trim loop {loop_index} {problem}")]
     InvalidTrimLoop { loop_index: usize, problem: String },
+    /// A special curve or point of a face (OBJ `scrv`, `sp`): `what` is "curve" or "point".
+    #[error("special {what} {index} {problem}")]
+    InvalidSpecial {
+        what: &'static str,
+        index: usize,
+        problem: String,
+    },
     #[error(
         "the trimmed face needs more than {vertices} vertices for tolerance {tolerance:e}: ask for a larger tolerance"
     )]

@@ -2146,6 +2146,146 @@ fn a_disc_with_a_square_hole_is_meshed_within_its_tolerance() {
     assert!((again_area - uv_area).abs() < 1e-3 * uv_area);
 }
 
+/// A face's special curves (OBJ `scrv`) are edges of its mesh and its special points (`sp`)
+/// vertices, where they lie inside it: on a curved biquadratic trimmed to a disc, a straight
+/// special curve and a chain of two are each covered end to end by mesh edges through the
+/// mesh vertices on them (and no triangle is crossed by them), the special points inside
+/// the disc are vertices and the one outside is not; the deviation still holds.
+#[test]
+fn special_curves_and_points_are_edges_and_vertices_of_the_mesh() {
+    use glam::DVec2;
+    use knotwork::geom::SpecialCurve;
+    let net: Vec<DVec3> = (0..9)
+        .map(|k| {
+            DVec3::new(
+                (k % 3) as f64,
+                (k / 3) as f64,
+                [0.0, 1.5, -0.5][k % 3] * [1.0, -1.0, 2.0][k / 3],
+            )
+        })
+        .collect();
+    let surface = BSplineSurface::try_new(
+        KnotVector::clamped_uniform(2, 3).unwrap(),
+        KnotVector::clamped_uniform(2, 3).unwrap(),
+        &net,
+        None,
+    )
+    .unwrap();
+    let segment = |from: DVec2, to: DVec2| {
+        let knots = KnotVector::from_breakpoints(1, &[0.0, 1.0]).unwrap();
+        BSplineCurve::try_new(knots, &[from.extend(0.0), to.extend(0.0)], None).unwrap()
+    };
+    let line = [DVec2::new(0.25, 0.3), DVec2::new(0.8, 0.65)];
+    let chain = [
+        DVec2::new(0.35, 0.7),
+        DVec2::new(0.5, 0.78),
+        DVec2::new(0.66, 0.7),
+    ];
+    let specials = vec![
+        SpecialCurve {
+            curves: vec![segment(line[0], line[1])],
+        },
+        SpecialCurve {
+            curves: vec![segment(chain[0], chain[1]), segment(chain[1], chain[2])],
+        },
+    ];
+    let inside_points = [DVec2::new(0.45, 0.35), DVec2::new(0.62, 0.4)];
+    let outside_point = DVec2::new(0.05, 0.05);
+    let face = TrimmedSurface::try_new(
+        surface.clone(),
+        ParamMap::SAME,
+        Some(uv_circle(DVec2::splat(0.5), 0.4, false)),
+        vec![],
+    )
+    .unwrap()
+    .with_special(
+        specials,
+        vec![inside_points[0], inside_points[1], outside_point],
+    )
+    .unwrap();
+    let tolerance = 2e-3 * surface.control_box_diagonal();
+    let mesh = trimmed_mesh(&face, tolerance);
+    assert!(common::worst_deviation(std::slice::from_ref(&surface), &mesh) <= tolerance);
+    let edges: std::collections::HashSet<[u32; 2]> = mesh
+        .indices
+        .chunks(3)
+        .flat_map(|t| (0..3).map(move |k| [t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3])]))
+        .collect();
+    let near = |a: DVec2, b: DVec2| (a - b).length() < 1e-12;
+    for (a, b) in [
+        (line[0], line[1]),
+        (chain[0], chain[1]),
+        (chain[1], chain[2]),
+    ] {
+        let direction = b - a;
+        let mut on: Vec<(f64, u32)> = (0..mesh.uvs.len())
+            .filter_map(|k| {
+                let p = mesh.uvs[k];
+                let t = (p - a).dot(direction) / direction.length_squared();
+                let off = (p - a).perp_dot(direction).abs() / direction.length();
+                (off < 1e-12 && (-1e-12..=1.0 + 1e-12).contains(&t)).then_some((t, k as u32))
+            })
+            .collect();
+        on.sort_by(|x, y| x.0.total_cmp(&y.0));
+        assert!(on.len() >= 2, "{a} – {b}: {} vertices on it", on.len());
+        assert!(
+            near(mesh.uvs[on[0].1 as usize], a) && near(mesh.uvs[on.last().unwrap().1 as usize], b)
+        );
+        for pair in on.windows(2) {
+            let (p, q) = (pair[0].1, pair[1].1);
+            assert!(
+                edges.contains(&[p.min(q), p.max(q)]),
+                "{a} – {b}: no mesh edge between {} and {}",
+                mesh.uvs[p as usize],
+                mesh.uvs[q as usize]
+            );
+        }
+        // No triangle edge crosses the special segment between its ends.
+        for &[p, q] in &edges {
+            let (c, d) = (mesh.uvs[p as usize], mesh.uvs[q as usize]);
+            let side = |x: DVec2| direction.perp_dot(x - a);
+            let across = |x: DVec2, y: DVec2, u: DVec2, w: DVec2| {
+                (y - x).perp_dot(u - x) * (y - x).perp_dot(w - x)
+            };
+            let scale = direction.length() * (d - c).length();
+            assert!(
+                !(across(a, b, c, d) < -1e-9 * scale * scale
+                    && across(c, d, a, b) < -1e-9 * scale * scale),
+                "edge {c} – {d} crosses {a} – {b} (sides {} {})",
+                side(c),
+                side(d)
+            );
+        }
+    }
+    for point in inside_points {
+        assert!(
+            mesh.uvs.iter().any(|&uv| near(uv, point)),
+            "special point {point}"
+        );
+    }
+    assert!(
+        !mesh
+            .uvs
+            .iter()
+            .any(|&uv| (uv - outside_point).length() < 1e-3)
+    );
+    // A special point outside the surface's range is refused by name.
+    let refused = TrimmedSurface::try_new(surface, ParamMap::SAME, None, vec![])
+        .unwrap()
+        .with_special(vec![], vec![DVec2::new(0.5, 0.5), DVec2::new(1.5, 0.5)]);
+    assert!(
+        matches!(
+            refused,
+            Err(Error::InvalidSpecial {
+                what: "point",
+                index: 1,
+                ..
+            })
+        ),
+        "{refused:?}"
+    );
+}
+
 /// A surface with a crease (degree 1 along u, a kink at u = 0.5) trimmed by a circle across
 /// it: no triangle straddles the crease, and the deviation stays within the tolerance.
 #[test]

@@ -2544,15 +2544,43 @@ fn obj_trim_and_hole_loops_cut_the_surface() {
         "parm u 0 0 1 2 3 4 4\ntrim 0 4 1\nend",
     ));
     assert!(e.to_string().contains("trimming belongs to `surf`"), "{e}");
-    // Special curves and points are read, and the note says they are not meshed yet.
-    let scene = obj(&obj_disc_with_square_hole(
-        "trim 0 4 1\nhole 0 4 2\nsp 1 2\nscrv 0 1 2",
-    ));
+    // Special curves (`scrv`, pieces like a loop's) and points (`sp`, `vp` references) are
+    // kept on the face (tests/cpu.rs meshes them); alone they make a face of the whole
+    // surface. Bad references name their line.
+    for (first, outer) in [
+        ("trim 0 4 1\nhole 0 4 2\nsp 1 -1\nscrv 0 1 2 1 2 -1", true),
+        ("scrv 0 1 2\nsp 2", false),
+    ] {
+        let scene = obj(&obj_disc_with_square_hole(first));
+        assert!(scene.notes.is_empty(), "{:?}", scene.notes);
+        let knotwork::Geometry::Trimmed(face) = &scene.items[0].geometry else {
+            panic!("{first}: not a trimmed face");
+        };
+        assert_eq!(face.outer().is_some(), outer, "{first}");
+        let pieces: Vec<usize> = face
+            .special_curves()
+            .iter()
+            .map(|c| c.curves.len())
+            .collect();
+        assert_eq!(pieces, if outer { vec![2] } else { vec![1] }, "{first}");
+        let points = face.special_points();
+        assert_eq!(
+            points[0],
+            if outer {
+                glam::DVec2::new(4.0, 0.0)
+            } else {
+                glam::DVec2::new(4.0, 4.0)
+            }
+        );
+    }
+    let e = obj_error(&obj_disc_with_square_hole("trim 0 4 1\nsp 1 99"));
     assert!(
-        scene.notes.iter().any(|n| n.contains("scrv")),
-        "{:?}",
-        scene.notes
+        matches!(e.root(), Error::VertexReference { reference: 99, .. }),
+        "{e}"
     );
+    assert_eq!(e.line(), Some(34));
+    let e = obj_error(&obj_disc_with_square_hole("trim 0 4 1\nscrv 0 1 2 3 4 2"));
+    assert!(e.to_string().contains("special curve 0 is broken"), "{e}");
 }
 
 /// The same face in a JSON scene: `trim` an arc, `holes` one square of four Bezier lines.

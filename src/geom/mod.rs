@@ -35,7 +35,7 @@ pub use knots::{KnotVector, MAX_DEGREE};
 pub use normal_turn::NORMAL_EXEMPT_FRACTION;
 pub(crate) use surface::cartesian_box;
 pub use surface::{BSplineSurface, Interval};
-pub use trim::{AxisMap, LOOP_GAP, ParamMap, TrimLoop, TrimmedSurface};
+pub use trim::{AxisMap, LOOP_GAP, ParamMap, SpecialCurve, TrimLoop, TrimmedSurface};
 
 use crate::error::{Error, Result};
 use glam::{DVec3, DVec4};

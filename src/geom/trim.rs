@@ -110,15 +110,27 @@ pub struct TrimLoop {
     pub curves: Vec<BSplineCurve>,
 }
 
-/// A surface with its outer loop (`None`: the boundary of its evaluation range) and holes.
-/// Which side of a loop is kept does not depend on its orientation: the region is the set of
-/// points inside the outer loop and outside every hole (odd crossing count).
+/// An open chain of curves in the file's parameter plane (each starting where the one
+/// before ends) that the mesh must follow with its edges, as OBJ's `scrv` asks: a feature
+/// line, a seam to a neighbour. It cuts nothing away.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpecialCurve {
+    pub curves: Vec<BSplineCurve>,
+}
+
+/// A surface with its outer loop (`None`: the boundary of its evaluation range) and holes,
+/// and the special curves and points (in the file's parameters) its mesh must have as edges
+/// and vertices where they lie inside it. Which side of a loop is kept does not depend on
+/// its orientation: the region is the set of points inside the outer loop and outside every
+/// hole (odd crossing count).
 #[derive(Clone, Debug, PartialEq)]
 pub struct TrimmedSurface {
     surface: BSplineSurface,
     map: ParamMap,
     outer: Option<TrimLoop>,
     holes: Vec<TrimLoop>,
+    special_curves: Vec<SpecialCurve>,
+    special_points: Vec<DVec2>,
 }
 
 /// How far (as a fraction of the diagonal of the surface's parameter range) a loop's curves
@@ -143,9 +155,9 @@ impl TrimmedSurface {
             map,
             outer,
             holes,
+            special_curves: Vec::new(),
+            special_points: Vec::new(),
         };
-        let (range_u, range_v) = (face.surface.range_u(), face.surface.range_v());
-        let slack = LOOP_GAP * range_u.width().hypot(range_v.width());
         for (loop_index, trim_loop) in face.loops() {
             let problem = |problem: String| Error::InvalidTrimLoop {
                 loop_index,
@@ -154,33 +166,109 @@ impl TrimmedSurface {
             let Some(last) = trim_loop.curves.last() else {
                 return Err(problem("has no curves".into()));
             };
-            let mut previous_end = face.curve_point(last, last.range().end);
-            for (k, curve) in trim_loop.curves.iter().enumerate() {
-                let (start, end) = (curve.range().start, curve.range().end);
-                let (first, final_point) =
-                    (face.curve_point(curve, start), face.curve_point(curve, end));
-                for p in face.curve_samples(curve) {
-                    let outside = (range_u.start - p.x)
-                        .max(p.x - range_u.end)
-                        .max(range_v.start - p.y)
-                        .max(p.y - range_v.end);
-                    if outside.is_nan() || outside > slack {
-                        return Err(problem(format!(
-                            "curve {k} reaches ({}, {}), outside the surface's range [{}, {}] × [{}, {}]",
-                            p.x, p.y, range_u.start, range_u.end, range_v.start, range_v.end
-                        )));
-                    }
-                }
-                let gap = (first - previous_end).length();
-                if gap.is_nan() || gap > slack {
-                    return Err(problem(format!(
-                        "is not closed: curve {k} starts {gap:e} (in parameters) away from where the curve before it ends"
-                    )));
-                }
-                previous_end = final_point;
-            }
+            let closing = face.curve_point(last, last.range().end);
+            face.check_chain(&trim_loop.curves, Some(closing))
+                .map_err(problem)?;
         }
         Ok(face)
+    }
+
+    /// The face with special curves and points (OBJ `scrv`, `sp`) its mesh must have as
+    /// edges and vertices, in the file's parameters. Each curve is a chain (each curve
+    /// starting where the one before ends) and, like the points, lies in the surface's range
+    /// (both within [`LOOP_GAP`]), else [`Error::InvalidSpecial`] names it. Where they lie
+    /// outside the face's loops they are left out, and a special curve may not cross a loop.
+    pub fn with_special(mut self, curves: Vec<SpecialCurve>, points: Vec<DVec2>) -> Result<Self> {
+        for (index, special) in curves.iter().enumerate() {
+            let problem = |problem: String| Error::InvalidSpecial {
+                what: "curve",
+                index,
+                problem,
+            };
+            if special.curves.is_empty() {
+                return Err(problem("has no curves".into()));
+            }
+            self.check_chain(&special.curves, None).map_err(problem)?;
+        }
+        for (index, &point) in points.iter().enumerate() {
+            self.check_inside(self.map.apply(point))
+                .map_err(|problem| Error::InvalidSpecial {
+                    what: "point",
+                    index,
+                    problem,
+                })?;
+        }
+        (self.special_curves, self.special_points) = (curves, points);
+        Ok(self)
+    }
+
+    /// Whether `curves` form a chain inside the surface's range (checked at each curve's
+    /// knots and 8 points per span), the first starting at `start` where one is given (a
+    /// loop closes on its last curve's end); what is wrong, if not.
+    fn check_chain(
+        &self,
+        curves: &[BSplineCurve],
+        start: Option<DVec2>,
+    ) -> std::result::Result<(), String> {
+        let slack = self.parameter_slack();
+        let mut previous_end = start;
+        for (k, curve) in curves.iter().enumerate() {
+            let (first, final_point) = (
+                self.curve_point(curve, curve.range().start),
+                self.curve_point(curve, curve.range().end),
+            );
+            for p in self.curve_samples(curve) {
+                self.check_inside(p)
+                    .map_err(|reach| format!("curve {k} {reach}"))?;
+            }
+            if let Some(previous_end) = previous_end {
+                let gap = (first - previous_end).length();
+                if gap.is_nan() || gap > slack {
+                    let what = if start.is_some() {
+                        "is not closed"
+                    } else {
+                        "is broken"
+                    };
+                    return Err(format!(
+                        "{what}: curve {k} starts {gap:e} (in parameters) away from where the curve before it ends"
+                    ));
+                }
+            }
+            previous_end = Some(final_point);
+        }
+        Ok(())
+    }
+
+    /// Whether the surface parameters `p` lie in the surface's range (within [`LOOP_GAP`]).
+    fn check_inside(&self, p: DVec2) -> std::result::Result<(), String> {
+        let (range_u, range_v) = (self.surface.range_u(), self.surface.range_v());
+        let outside = (range_u.start - p.x)
+            .max(p.x - range_u.end)
+            .max(range_v.start - p.y)
+            .max(p.y - range_v.end);
+        if outside.is_nan() || outside > self.parameter_slack() {
+            return Err(format!(
+                "reaches ({}, {}), outside the surface's range [{}, {}] × [{}, {}]",
+                p.x, p.y, range_u.start, range_u.end, range_v.start, range_v.end
+            ));
+        }
+        Ok(())
+    }
+
+    /// [`LOOP_GAP`] of the diagonal of the surface's parameter range.
+    fn parameter_slack(&self) -> f64 {
+        let (range_u, range_v) = (self.surface.range_u(), self.surface.range_v());
+        LOOP_GAP * range_u.width().hypot(range_v.width())
+    }
+
+    /// The special curves (OBJ `scrv`) the mesh follows with its edges.
+    pub fn special_curves(&self) -> &[SpecialCurve] {
+        &self.special_curves
+    }
+
+    /// The special points (OBJ `sp`, in the file's parameters) the mesh has as vertices.
+    pub fn special_points(&self) -> &[DVec2] {
+        &self.special_points
     }
 
     /// The face with its surface's control points moved by the affine map `f` (loops and

@@ -8,15 +8,17 @@
 //! `vp u v [w]` parameter vertices, `curv2` parameter-space curves over them, and in a
 //! `surf` body `trim`/`hole` loops of `u0 u1 curv2` triples make a trimmed face (several
 //! `trim` loops are kept as further loops: the face is what an odd number of loops
-//! encloses). `scrv` and `sp` are checked but not yet meshed as constraints (a note says
-//! so). Polygonal and display statements are ignored.
+//! encloses); `scrv` special curves (the same triples, an open chain) and `sp` special points
+//! (`vp` references) are edges and vertices the face's mesh must have — a surface with them
+//! and no loop is a face of its whole range. Polygonal and display statements are ignored.
 
 use crate::error::{Error, Result};
 use crate::geom::{
-    BSplineCurve, BSplineSurface, Interval, KnotVector, ParamMap, TrimLoop, TrimmedSurface,
+    BSplineCurve, BSplineSurface, Interval, KnotVector, ParamMap, SpecialCurve, TrimLoop,
+    TrimmedSurface,
 };
 use crate::scene::{Geometry, Item, Scene};
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 
 /// Parses OBJ text. Errors carry the 1-based line ([`Error::AtLine`]).
 pub fn read_obj_freeform(text: &str) -> Result<Scene> {
@@ -98,8 +100,8 @@ enum Kind {
     ParamCurve,
 }
 
-/// A trimming loop of a `surf` body: (u0, u1, `curv2` index) triples, and whether it is a
-/// `hole`.
+/// A trimming loop or special curve of a `surf` body: (u0, u1, `curv2` index) triples, and
+/// whether it is a `hole`.
 struct LoopStatement {
     hole: bool,
     line: usize,
@@ -115,8 +117,10 @@ struct Element {
     parm_u: Option<(usize, Vec<f64>)>,
     parm_v: Option<(usize, Vec<f64>)>,
     loops: Vec<LoopStatement>,
-    /// `scrv` and `sp` statements seen (not yet meshed as constraints).
-    special: usize,
+    /// `scrv` statements.
+    special_curves: Vec<LoopStatement>,
+    /// The `vp` of every `sp` reference.
+    special_points: Vec<usize>,
 }
 
 impl Element {
@@ -140,8 +144,6 @@ struct Reader {
     param_vertices: Vec<(DVec3, f64)>,
     /// Every `curv2`, in file order.
     param_curves: Vec<BSplineCurve>,
-    /// Whether a note on unmeshed `scrv`/`sp` statements was made.
-    noted_special: bool,
     cstype: Option<CsType>,
     degrees: Option<(usize, Option<usize>)>,
     element: Option<Element>,
@@ -328,7 +330,8 @@ impl Reader {
             parm_u: None,
             parm_v: None,
             loops: Vec::new(),
-            special: 0,
+            special_curves: Vec::new(),
+            special_points: Vec::new(),
         });
         Ok(())
     }
@@ -375,21 +378,22 @@ impl Reader {
                         ))
                     })
                     .collect::<Result<Vec<_>>>()?;
+                let statement = LoopStatement {
+                    hole: keyword == "hole",
+                    line,
+                    pieces,
+                };
                 if keyword == "scrv" {
-                    element.special += 1;
+                    element.special_curves.push(statement);
                 } else {
-                    element.loops.push(LoopStatement {
-                        hole: keyword == "hole",
-                        line,
-                        pieces,
-                    });
+                    element.loops.push(statement);
                 }
             }
             "sp" => {
                 for r in args {
-                    resolve(r, self.param_vertices.len())?;
+                    let index = resolve(r, self.param_vertices.len())?;
+                    element.special_points.push(index);
                 }
-                element.special += 1;
             }
             "end" => {
                 let element = self.element.take().expect("checked above");
@@ -444,22 +448,26 @@ impl Reader {
                 let surface = BSplineSurface::try_new(ku, kv, &points, weights.as_deref())
                     .and_then(|s| s.with_range(range_u, range_v))
                     .map_err(|e| e.at_line(line))?;
-                if element.special > 0 && !self.noted_special {
-                    self.noted_special = true;
-                    self.scene.notes.push(format!(
-                        "line {line}: special curves and points (`scrv`, `sp`) are not yet kept as mesh edges and vertices"
-                    ));
-                }
-                if element.loops.is_empty() {
+                let special =
+                    !element.special_curves.is_empty() || !element.special_points.is_empty();
+                if element.loops.is_empty() && !special {
                     self.push(Geometry::Surface(surface));
                 } else {
-                    let face = self.trimmed(surface, element.loops).map_err(|e| {
-                        if e.line().is_some() {
-                            e
-                        } else {
-                            e.at_line(line)
-                        }
-                    })?;
+                    let face = (self.trimmed(surface, &element.loops))
+                        .and_then(|face| {
+                            self.with_special(
+                                face,
+                                &element.special_curves,
+                                &element.special_points,
+                            )
+                        })
+                        .map_err(|e| {
+                            if e.line().is_some() {
+                                e
+                            } else {
+                                e.at_line(line)
+                            }
+                        })?;
                     self.push(Geometry::Trimmed(Box::new(face)));
                 }
             }
@@ -480,34 +488,16 @@ impl Reader {
         Ok(())
     }
 
-    /// The face `loops` cut from `surface`: the first `trim` loop is its outer loop, the
-    /// other loops (holes, further `trim` loops) its further loops. Each piece is its
-    /// `curv2` over [u0, u1], run backwards where u0 > u1.
-    fn trimmed(
-        &self,
-        surface: BSplineSurface,
-        loops: Vec<LoopStatement>,
-    ) -> Result<TrimmedSurface> {
+    /// The face `loops` cut from `surface`: the first `trim` loop is its outer loop (none:
+    /// the surface's whole range), the other loops (holes, further `trim` loops) its further
+    /// loops.
+    fn trimmed(&self, surface: BSplineSurface, loops: &[LoopStatement]) -> Result<TrimmedSurface> {
         let mut outer = None;
         let mut others = Vec::new();
         for statement in loops {
-            let curves = statement
-                .pieces
-                .iter()
-                .map(|&(u0, u1, k)| {
-                    let curve = &self.param_curves[k];
-                    if u0 > u1 {
-                        curve
-                            .clone()
-                            .with_range(Interval::new(u1, u0))
-                            .map(|c| c.reversed())
-                    } else {
-                        curve.clone().with_range(Interval::new(u0, u1))
-                    }
-                })
-                .collect::<Result<Vec<_>>>()
-                .map_err(|e| e.at_line(statement.line))?;
-            let trim_loop = TrimLoop { curves };
+            let trim_loop = TrimLoop {
+                curves: self.pieces(statement)?,
+            };
             if !statement.hole && outer.is_none() {
                 outer = Some(trim_loop);
             } else {
@@ -515,5 +505,44 @@ impl Reader {
             }
         }
         TrimmedSurface::try_new(surface, ParamMap::SAME, outer, others)
+    }
+
+    /// `face` with its element's special curves (`scrv`) and points (`sp`: `vp` indices).
+    fn with_special(
+        &self,
+        face: TrimmedSurface,
+        curves: &[LoopStatement],
+        points: &[usize],
+    ) -> Result<TrimmedSurface> {
+        let curves = (curves.iter())
+            .map(|statement| {
+                Ok(SpecialCurve {
+                    curves: self.pieces(statement)?,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let points: Vec<DVec2> = (points.iter())
+            .map(|&k| self.param_vertices[k].0.truncate())
+            .collect();
+        face.with_special(curves, points)
+    }
+
+    /// The curves of a loop or special curve: each piece's `curv2` over [u0, u1], run
+    /// backwards where u0 > u1. Errors name the statement's line.
+    fn pieces(&self, statement: &LoopStatement) -> Result<Vec<BSplineCurve>> {
+        (statement.pieces.iter())
+            .map(|&(u0, u1, k)| {
+                let curve = &self.param_curves[k];
+                if u0 > u1 {
+                    curve
+                        .clone()
+                        .with_range(Interval::new(u1, u0))
+                        .map(|c| c.reversed())
+                } else {
+                    curve.clone().with_range(Interval::new(u0, u1))
+                }
+            })
+            .collect::<Result<Vec<_>>>()
+            .map_err(|e| e.at_line(statement.line))
     }
 }

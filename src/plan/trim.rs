@@ -11,6 +11,9 @@
 //!    parameter box allows tol/2 ([`crate::geom::DerivativeBound`]); then until the box of
 //!    every two consecutive pieces allows the tolerance (the ear they make meets it).
 //!    Every piece is cut where the loop crosses a cell boundary, at the crossing.
+//!    Special curves (OBJ `scrv`) are sampled the same way as open polylines, and with the
+//!    special points (`sp`) their samples inside the face are vertices, their segments
+//!    constraint edges that cut nothing away.
 //! 3. The cell boundaries and grid lines inside the face are constraint edges beside the
 //!    loop segments: every triangle lies in one cell, whose own bound holds for it (the
 //!    bound of a neighbour, or across a C⁰ knot, would not), and the interior keeps the
@@ -68,16 +71,25 @@ pub fn plan_trimmed_within(
         lines: bounds.interior_lines(),
         snap_width: [surface.range_u(), surface.range_v()].map(|r| 1e-12 * r.width()),
     };
-    let mut polylines = loop_polylines(face, &bounds, &lines, limits, max_vertices)?;
+    let (mut polylines, special_curves) =
+        loop_polylines(face, &bounds, &lines, limits, max_vertices)?;
     for polyline in &mut polylines {
         *polyline = with_line_crossings(polyline, &lines);
     }
+    let special_points: Vec<DVec2> = (face.special_points().iter())
+        .map(|&p| lines.snap(clamp_to_range(surface, face.map().apply(p))))
+        .collect();
+    let special = Special {
+        curves: &special_curves,
+        points: &special_points,
+    };
     let triangulation = triangulate(
         surface,
         &grid,
         &bounds,
         &lines,
         &polylines,
+        &special,
         limits,
         max_vertices,
         false,
@@ -91,6 +103,23 @@ pub(crate) struct Triangulated {
     /// For each plan vertex, the point of the polylines (numbered through all of them in
     /// order) it is, or `None` for a vertex inside the face.
     pub boundary_point: Vec<Option<usize>>,
+}
+
+/// What a face's mesh must follow inside it besides its loops: special curves as open
+/// polylines and special points, in the surface's parameters.
+#[derive(Default)]
+struct Special<'a> {
+    curves: &'a [Vec<DVec2>],
+    points: &'a [DVec2],
+}
+
+/// `p` clamped into the surface's parameter range.
+fn clamp_to_range(surface: &crate::geom::BSplineSurface, p: DVec2) -> DVec2 {
+    let (range_u, range_v) = (surface.range_u(), surface.range_v());
+    DVec2::new(
+        p.x.clamp(range_u.start, range_u.end),
+        p.y.clamp(range_v.start, range_v.end),
+    )
 }
 
 /// Plans a face of `surface` whose boundary is given and kept: closed `polylines` in the
@@ -117,6 +146,7 @@ pub(crate) fn plan_fixed_boundary(
         &bounds,
         &lines,
         polylines,
+        &Special::default(),
         limits,
         max_vertices,
         true,
@@ -133,6 +163,7 @@ fn triangulate(
     bounds: &CellBounds,
     lines: &CellLines,
     polylines: &[Vec<DVec2>],
+    special: &Special,
     limits: SamplingLimits,
     max_vertices: usize,
     fixed: bool,
@@ -158,6 +189,29 @@ fn triangulate(
     }
     let loop_segments = edges.clone();
     let loop_edges: HashSet<[usize; 2]> = edges.iter().map(|&[a, b]| edge_key(a, b)).collect();
+    // Special curves and points inside the face: vertices and constraint edges that cut
+    // nothing away (not loop edges: the inside parity does not see them).
+    let mut kept_edges = loop_edges.clone();
+    let mut special_segments: Vec<([usize; 2], usize)> = Vec::new();
+    for (index, polyline) in special.curves.iter().enumerate() {
+        let ids: Vec<Option<usize>> = (polyline.iter())
+            .map(|&p| region.contains(p).then(|| vertices.add(p)))
+            .collect();
+        for pair in ids.windows(2) {
+            if let [Some(a), Some(b)] = *pair
+                && a != b
+                && kept_edges.insert(edge_key(a, b))
+            {
+                edges.push([a, b]);
+                special_segments.push(([a, b], index));
+            }
+        }
+    }
+    for &p in special.points {
+        if region.contains(p) {
+            vertices.add(p);
+        }
+    }
     // The grid lines of the cells between samples inside the face: constraints wherever
     // they cross no loop, so the interior keeps the cells' own rectangles, whose bounds
     // hold (a Delaunay triangle could join a coarse cell to a fine one).
@@ -188,9 +242,9 @@ fn triangulate(
         }
     }
     if fixed {
-        grid_lines.extend(vertices.line_edges(&region, &loop_edges));
+        grid_lines.extend(vertices.line_edges(&region, &kept_edges));
     } else {
-        edges.extend(vertices.line_edges(&region, &loop_edges));
+        edges.extend(vertices.line_edges(&region, &kept_edges));
     }
 
     let points: Vec<Point2<f64>> = vertices
@@ -208,8 +262,19 @@ fn triangulate(
             problem: format!("cannot be triangulated: {error}"),
         })?;
     if let Some(&conflict) = conflicts.first() {
-        // Constraints go in order, so the edge refused is of the later loop of the two.
+        // Constraints go in order, so the edge refused is of the later loop of the two (a
+        // special curve's, where one crosses a loop or another special curve).
         let at = vertices.positions[conflict[0]];
+        if let Some(&(_, index)) = special_segments.iter().find(|(edge, _)| *edge == conflict) {
+            return Err(Error::InvalidSpecial {
+                what: "curve",
+                index,
+                problem: format!(
+                    "crosses a trim loop or another special curve near (u, v) = ({}, {})",
+                    at.x, at.y
+                ),
+            });
+        }
         let loop_index = loop_segments
             .iter()
             .position(|&edge| edge == conflict)
@@ -439,21 +504,17 @@ impl FaceTriangulation {
 }
 
 /// Every loop of the face as a closed polyline in surface parameters (no repeated end).
+#[allow(clippy::type_complexity)]
 fn loop_polylines(
     face: &TrimmedSurface,
     bounds: &CellBounds,
     lines: &CellLines,
     limits: SamplingLimits,
     max_vertices: usize,
-) -> Result<Vec<Vec<DVec2>>> {
+) -> Result<(Vec<Vec<DVec2>>, Vec<Vec<DVec2>>)> {
     let surface = face.surface();
     let (range_u, range_v) = (surface.range_u(), surface.range_v());
-    let clamp = |p: DVec2| {
-        DVec2::new(
-            p.x.clamp(range_u.start, range_u.end),
-            p.y.clamp(range_v.start, range_v.end),
-        )
-    };
+    let clamp = |p: DVec2| clamp_to_range(surface, p);
     // Whether the parameter box of `points` allows `tolerance` and the longest edge.
     let box_allows = |points: &[DVec2], tolerance: f64| {
         let low = points.iter().fold(points[0], |low, &p| low.min(p));
@@ -534,7 +595,35 @@ fn loop_polylines(
         }
         polylines.push(polyline);
     }
-    Ok(polylines)
+    // Special curves: open polylines sampled as loops are (no ears: they bound no triangle
+    // on their own), cut at the cell lines they cross.
+    let mut specials = Vec::new();
+    for special in face.special_curves() {
+        let mut polyline = Vec::new();
+        for curve in &special.curves {
+            let at = |t: f64| lines.snap(clamp(face.curve_point(curve, t)));
+            let minimum = if curve.degree() > 1 { 2 } else { 1 };
+            let room = max_vertices.saturating_sub(polyline.len());
+            let mut pieces = Vec::new();
+            sample_path(
+                &at,
+                &curve.span_breaks(),
+                minimum,
+                lines,
+                &accept,
+                room,
+                &mut pieces,
+            )
+            .ok_or_else(too_fine)?;
+            polyline.extend(pieces.into_iter().map(|(_, p)| p));
+        }
+        if let Some(last) = special.curves.last() {
+            polyline.push(lines.snap(clamp(face.curve_point(last, last.range().end))));
+        }
+        polyline.dedup();
+        specials.push(polyline);
+    }
+    Ok((polylines, specials))
 }
 
 /// One part of a loop: a point function over consecutive `breaks` (where its second
