@@ -2581,6 +2581,17 @@ fn obj_trim_and_hole_loops_cut_the_surface() {
     assert_eq!(e.line(), Some(34));
     let e = obj_error(&obj_disc_with_square_hole("trim 0 4 1\nscrv 0 1 2 3 4 2"));
     assert!(e.to_string().contains("special curve 0 is broken"), "{e}");
+    // The shipped example: its special point is a vertex of the scene's mesh.
+    let scene = read_scene(Path::new("data/special_curves.obj")).unwrap();
+    let knotwork::Geometry::Trimmed(face) = &scene.items[0].geometry else {
+        panic!("data/special_curves.obj: not a trimmed face");
+    };
+    let point = face.special_points()[0];
+    let at = face.surface().point(point.x, point.y);
+    let mesh = CpuTessellator
+        .tessellate_scene(&scene, &knotwork::SceneOptions::default())
+        .unwrap();
+    assert!(mesh.positions.iter().any(|p| (*p - at).length() < 1e-12));
 }
 
 /// The same face in a JSON scene: `trim` an arc, `holes` one square of four Bezier lines.
