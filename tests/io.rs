@@ -2337,6 +2337,149 @@ fn trimmed_faces_are_planned_within_the_memory_budget() {
     );
 }
 
+/// IGES 104 conic arcs in standard position become exact rational quadratics: ellipses
+/// (counter-clockwise), hyperbolas along x and along y (on the branch of their ends) and
+/// parabolas opening along y and along x — every sampled point satisfies the conic's
+/// equation to rounding, at ZT, from the start point to the end point, moving one way along
+/// the branch. A rotated conic (B ≠ 0) and ends on two branches are refused by entity.
+#[test]
+fn iges_conic_arcs_are_exact() {
+    let (sh, ch) = (f64::sinh, f64::cosh);
+    // (A, B, C, D, E, F, ZT), start, end, the branch parameter of a point.
+    type Param = fn(f64, f64) -> f64;
+    type Case = ([f64; 7], [f64; 2], [f64; 2], Param);
+    let cases: [Case; 5] = [
+        // x²/9 + y²/4 = 1, a quarter turn and a bit.
+        (
+            [4.0, 0.0, 9.0, 0.0, 0.0, -36.0, 0.5],
+            [3.0, 0.0],
+            [3.0 * 1.7f64.cos(), 2.0 * 1.7f64.sin()],
+            |x, y| (y / 2.0).atan2(x / 3.0),
+        ),
+        // x²/4 − y²/9 = 1, right branch, hyperbolic angle −0.5 to 1.2.
+        (
+            [9.0, 0.0, -4.0, 0.0, 0.0, -36.0, 1.5],
+            [2.0 * ch(-0.5), 3.0 * sh(-0.5)],
+            [2.0 * ch(1.2), 3.0 * sh(1.2)],
+            |_, y| (y / 3.0).asinh(),
+        ),
+        // y²/9 − x²/4 = 1, lower branch, from x = 2·sinh(0.8) back to 2·sinh(−0.3).
+        (
+            [-9.0, 0.0, 4.0, 0.0, 0.0, -36.0, 0.0],
+            [2.0 * sh(0.8), -3.0 * ch(0.8)],
+            [2.0 * sh(-0.3), -3.0 * ch(-0.3)],
+            |x, _| (x / 2.0).asinh(),
+        ),
+        // y = x²/2 from x = −1 to 2.
+        (
+            [0.5, 0.0, 0.0, 0.0, -1.0, 0.0, -2.0],
+            [-1.0, 0.5],
+            [2.0, 2.0],
+            |x, _| x,
+        ),
+        // x = −2y² from y = 1 to −0.5.
+        (
+            [0.0, 0.0, 2.0, 1.0, 0.0, 0.0, 0.0],
+            [-2.0, 1.0],
+            [-0.5, -0.5],
+            |_, y| y,
+        ),
+    ];
+    let mut entities: Vec<Entity> = cases
+        .iter()
+        .map(|(coefficients, start, end, _)| {
+            let numbers: Vec<String> = coefficients
+                .iter()
+                .chain(start)
+                .chain(end)
+                .map(|x| format!("{x:?}"))
+                .collect();
+            entity(104, &numbers.iter().map(String::as_str).collect::<Vec<_>>())
+        })
+        .collect();
+    entities.push(entity(
+        104,
+        &[
+            "1.", "0.5", "1.", "0.", "0.", "-1.", "0.", "1.", "0.", "0.", "1.",
+        ],
+    ));
+    entities.push(entity(
+        104,
+        &[
+            "1.", "0.", "-1.", "0.", "0.", "-1.", "0.", "1.", "0.", "-1.", "0.",
+        ],
+    ));
+    // Free-standing curves are not meshed: each conic is the directrix of a tabulated
+    // cylinder one unit up, whose edge at the start of its generatrix is the conic.
+    let conics = entities.len();
+    for k in 0..conics {
+        let [x, y, z] = cases.get(k).map_or([1.0, 0.0, 0.0], |(c, start, _, _)| {
+            [start[0], start[1], c[6]]
+        });
+        let numbers = [
+            format!("{}", 2 * k + 1),
+            format!("{x:?}"),
+            format!("{y:?}"),
+            format!("{:?}", z + 1.0),
+        ];
+        entities.push(entity(
+            122,
+            &numbers.iter().map(String::as_str).collect::<Vec<_>>(),
+        ));
+    }
+    let scene = knotwork::io::read_iges(&iges_file(&entities, 2)).unwrap();
+    let surfaces = scene.surface_list();
+    assert_eq!(surfaces.len(), cases.len());
+    for (k, (surface, ([a, b, c, d, e, f, z], start, end, param))) in
+        surfaces.iter().zip(&cases).enumerate()
+    {
+        let scale = [a, b, c, d, e, f]
+            .iter()
+            .fold(0.0f64, |m, x| m.max(x.abs()));
+        let (range_u, range_v) = (surface.range_u(), surface.range_v());
+        // The directrix: the side along which z stays at ZT.
+        let sides: [Box<dyn Fn(f64) -> DVec3>; 2] = [
+            Box::new(|t| surface.point(range_u.lerp(t), range_v.start)),
+            Box::new(|t| surface.point(range_u.start, range_v.lerp(t))),
+        ];
+        let directrix = sides
+            .iter()
+            .find(|side| (0..=8).all(|i| (side(f64::from(i) / 8.0).z - z).abs() < 1e-12))
+            .unwrap_or_else(|| panic!("conic {k}: no side at z = {z}"));
+        let (first, last) = (directrix(0.0), directrix(1.0));
+        assert!(
+            (first - DVec3::new(start[0], start[1], *z)).length() < 1e-12,
+            "conic {k} starts at {first}"
+        );
+        assert!(
+            (last - DVec3::new(end[0], end[1], *z)).length() < 1e-12,
+            "conic {k} ends at {last}"
+        );
+        let along = |p: DVec3| param(p.x, p.y);
+        let (t0, t1) = (along(first), along(last));
+        let mut previous = t0;
+        for i in 0..=200 {
+            let p = directrix(f64::from(i) / 200.0);
+            let residual = a * p.x * p.x + b * p.x * p.y + c * p.y * p.y + d * p.x + e * p.y + f;
+            let size = 1.0 + p.x * p.x + p.y * p.y;
+            assert!(
+                residual.abs() <= 1e-13 * scale * size,
+                "conic {k}: {p} is {residual:e} off"
+            );
+            let t = along(p);
+            assert!(
+                (t - previous) * (t1 - t0) >= -1e-12,
+                "conic {k} turns back at {p}"
+            );
+            previous = t;
+        }
+    }
+    let dropped: Vec<&str> = scene.dropped.iter().map(|d| d.reason.as_str()).collect();
+    assert_eq!(dropped.len(), 2, "{dropped:?}");
+    assert!(dropped[0].contains("standard position"), "{dropped:?}");
+    assert!(dropped[1].contains("different branches"), "{dropped:?}");
+}
+
 #[test]
 fn iges_classic_surfaces_convert_exactly() {
     use std::f64::consts::PI;

@@ -803,30 +803,123 @@ fn sweep(a: f64, b: f64, closed: bool) -> Interval {
     Interval::new(a, end)
 }
 
-/// 104 form 1: an ellipse x²/a² + y²/b² = 1 in standard position (A x² + C y² + F = 0),
-/// from start to end counter-clockwise, at z = ZT.
+/// 104: a conic arc in standard position at z = ZT, from (X1, Y1) to (X2, Y2), as the
+/// exact rational quadratic B-spline: an ellipse A x² + C y² + F = 0 (A·C > 0, traversed
+/// counter-clockwise; form 1), a hyperbola of the same equation with A·C < 0 (along its
+/// branch; form 2: one rational quadratic segment, middle weight cosh of half the
+/// hyperbolic angle) or a parabola A x² + E y = 0 or C y² + D x = 0 (a polynomial quadratic;
+/// form 3). The coefficients decide; any other conic (rotated, off centre) is refused.
 fn conic_arc(r: &Record, form: i64) -> Result<BSplineCurve> {
     let [a, b, c, d, e, f] = [1, 2, 3, 4, 5, 6].map(|k| r.real(k));
     let (a, b, c, d, e, f) = (a?, b?, c?, d?, e?, f?);
-    let scale = a.abs().max(c.abs()).max(f.abs());
-    let (semi_x, semi_y) = ((-f / a).sqrt(), (-f / c).sqrt());
-    let standard = [b, d, e].iter().all(|x| x.abs() <= 1e-12 * scale);
-    if form > 1
-        || !standard
-        || !(semi_x.is_finite() && semi_y.is_finite() && semi_x > 0.0 && semi_y > 0.0)
-    {
-        return Err(Error::Unsupported {
-            what: format!(
-                "conic arc form {form} with coefficients {a}, {b}, {c}, {d}, {e}, {f}: only ellipses in standard position are read"
-            ),
-        });
-    }
     let z = r.real(7)?;
-    let (x1, y1, x2, y2) = (r.real(8)?, r.real(9)?, r.real(10)?, r.real(11)?);
+    let (start, end) = (
+        glam::DVec2::new(r.real(8)?, r.real(9)?),
+        glam::DVec2::new(r.real(10)?, r.real(11)?),
+    );
+    let scale = [a, b, c, d, e, f]
+        .iter()
+        .fold(0.0f64, |m, x| m.max(x.abs()));
+    let zero = |x: f64| x.abs() <= 1e-12 * scale;
+    let refused = || Error::Unsupported {
+        what: format!(
+            "conic arc form {form} with coefficients {a}, {b}, {c}, {d}, {e}, {f}: only ellipses, hyperbolas and parabolas in standard position are read"
+        ),
+    };
+    let at_z = |p: glam::DVec2| p.extend(z);
+    let finite = [a, b, c, d, e, f, z, start.x, start.y, end.x, end.y]
+        .iter()
+        .all(|x| x.is_finite());
+    if !finite || !zero(b) {
+        return Err(refused());
+    }
+    // Centred conics: A x² + C y² + F = 0.
+    if zero(d) && zero(e) && !zero(a) && !zero(c) && !zero(f) {
+        let (p, q) = (-f / a, -f / c);
+        if p > 0.0 && q > 0.0 {
+            return ellipse_arc(p.sqrt(), q.sqrt(), start, end, z);
+        }
+        if p < 0.0 && q < 0.0 {
+            return Err(refused()); // no real point
+        }
+        // A hyperbola: along x where p > 0 (x = ±a·cosh t, y = b·sinh t), else along y.
+        let along_x = p > 0.0;
+        let (semi_major, semi_minor) = if along_x {
+            (p.sqrt(), (-q).sqrt())
+        } else {
+            (q.sqrt(), (-p).sqrt())
+        };
+        // In the hyperbola's own axes (major first), each end's branch sign and parameter.
+        let own = |p: glam::DVec2| {
+            if along_x {
+                p
+            } else {
+                glam::DVec2::new(p.y, p.x)
+            }
+        };
+        let (s0, s1) = (own(start), own(end));
+        let branch = s0.x.signum();
+        if s0.x == 0.0 || s1.x.signum() != branch {
+            return Err(Error::Unsupported {
+                what: format!(
+                    "conic arc from ({}, {}) to ({}, {}): the ends lie on different branches of the hyperbola",
+                    start.x, start.y, end.x, end.y
+                ),
+            });
+        }
+        let (t0, t1) = ((s0.y / semi_minor).asinh(), (s1.y / semi_minor).asinh());
+        let (middle, half) = (0.5 * (t0 + t1), 0.5 * (t1 - t0));
+        let point = |t: f64, stretch: f64| {
+            let p = glam::DVec2::new(
+                branch * semi_major * t.cosh() * stretch,
+                semi_minor * t.sinh() * stretch,
+            );
+            at_z(own(p))
+        };
+        let control = [
+            point(t0, 1.0),
+            point(middle, 1.0 / half.cosh()),
+            point(t1, 1.0),
+        ];
+        return BSplineCurve::try_new(
+            KnotVector::clamped_uniform(2, 3)?,
+            &control,
+            Some(&[1.0, half.cosh(), 1.0]),
+        );
+    }
+    // Parabolas: y = k·x² (A x² + E y = 0) or x = k·y² (C y² + D x = 0).
+    let parabola = |k: f64, along: fn(glam::DVec2) -> glam::DVec2| {
+        let (p0, p1) = (along(start).x, along(end).x);
+        let control = [
+            glam::DVec2::new(p0, k * p0 * p0),
+            glam::DVec2::new(0.5 * (p0 + p1), k * p0 * p1),
+            glam::DVec2::new(p1, k * p1 * p1),
+        ]
+        .map(|p| at_z(along(p)));
+        BSplineCurve::try_new(KnotVector::clamped_uniform(2, 3)?, &control, None)
+    };
+    if zero(c) && zero(d) && zero(f) && !zero(a) && !zero(e) {
+        return parabola(-a / e, |p| p);
+    }
+    if zero(a) && zero(e) && zero(f) && !zero(c) && !zero(d) {
+        return parabola(-c / d, |p| glam::DVec2::new(p.y, p.x));
+    }
+    Err(refused())
+}
+
+/// An ellipse x²/a² + y²/b² = 1 from `start` to `end` counter-clockwise (a full turn where
+/// they meet), at height `z`.
+fn ellipse_arc(
+    semi_x: f64,
+    semi_y: f64,
+    start: glam::DVec2,
+    end: glam::DVec2,
+    z: f64,
+) -> Result<BSplineCurve> {
     let angles = sweep(
-        (y1 / semi_y).atan2(x1 / semi_x),
-        (y2 / semi_y).atan2(x2 / semi_x),
-        (x1 - x2).hypot(y1 - y2) <= 1e-12 * semi_x.max(semi_y),
+        (start.y / semi_y).atan2(start.x / semi_x),
+        (end.y / semi_y).atan2(end.x / semi_x),
+        (start - end).length() <= 1e-12 * semi_x.max(semi_y),
     );
     let (knots, unit) = shapes::unit_arc(angles)?;
     let points: Vec<DVec3> = unit
