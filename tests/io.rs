@@ -2606,6 +2606,103 @@ fn assert_disc_with_square_hole(scene: &Scene, scale: f64, what: &str) {
     }
 }
 
+/// IGES 108 bounded planes: alone, the region their boundary encloses (a disc of radius 4
+/// facing +z at z = 0, another facing −z at z = 2: area within the chords' loss of 16π,
+/// every vertex on its plane and inside its circle, normals the plane's); as the surface of
+/// a 144, the disc with the square hole again, its loops given in model space only and
+/// projected (IGES gives a plane no parameters). An unbounded plane (form 0) is a note.
+#[test]
+fn iges_bounded_planes_are_faces() {
+    use std::f64::consts::PI;
+    let plane = |normal: [&str; 4], boundary: usize, form: u32| Entity {
+        form,
+        ..entity(
+            108,
+            &[
+                normal[0],
+                normal[1],
+                normal[2],
+                normal[3],
+                &boundary.to_string(),
+                "0",
+                "0",
+                "0",
+                "0",
+            ],
+        )
+    };
+    let entities = vec![
+        entity(100, &["0.0", "0.0", "0.0", "4.0", "0.0", "4.0", "0.0"]), // 1
+        plane(["0", "0", "1", "0"], 1, 1),                               // 3
+        entity(100, &["2.0", "0.0", "0.0", "4.0", "0.0", "4.0", "0.0"]), // 5
+        plane(["0", "0", "-1", "-2"], 5, 1),                             // 7
+        plane(["1", "0", "0", "0"], 0, 0),                               // 9
+    ];
+    let scene = iges_scene(&entities, 2);
+    assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
+    assert!(
+        scene.notes.iter().any(|n| n.contains("unbounded planes")),
+        "{:?}",
+        scene.notes
+    );
+    let faces = trimmed_faces(&scene);
+    assert_eq!(faces.len(), 2);
+    let tolerance = 1e-3;
+    let defaults = knotwork::SceneOptions {
+        grid: TessOptions::DEFAULT.with_tolerance(knotwork::Tolerance::Absolute(tolerance)),
+        ..Default::default()
+    };
+    let mesh = CpuTessellator.tessellate_scene(&scene, &defaults).unwrap();
+    assert_winding_follows_normals(&mesh);
+    for (part, (z, up)) in mesh.parts.iter().zip([(0.0, 1.0), (2.0, -1.0)]) {
+        let vertices = part.first_vertex as usize..(part.first_vertex + part.vertex_count) as usize;
+        for k in vertices {
+            let p = mesh.positions[k];
+            assert!(
+                (p.z - z).abs() < 1e-12 && p.truncate().length() < 4.0 + 1e-9,
+                "{p}"
+            );
+            assert!((mesh.normals[k] - DVec3::new(0.0, 0.0, up)).length() < 1e-12);
+        }
+        let first = part.first_index as usize;
+        let area: f64 = mesh.indices[first..first + part.index_count as usize]
+            .chunks_exact(3)
+            .map(|t| {
+                let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum();
+        let exact = 16.0 * PI;
+        assert!(
+            area <= exact && area >= exact - 8.0 * PI * tolerance,
+            "area {area}"
+        );
+    }
+    // A 144 over a plane bounded by a 10 × 10 square, its loops by model-space curves (the
+    // circle and the square hole of `disc_with_square_hole`).
+    let square = [[-5.0, -5.0], [5.0, -5.0], [5.0, 5.0], [-5.0, 5.0]];
+    let mut entities = vec![
+        entity(100, &["0.0", "0.0", "0.0", "4.0", "0.0", "4.0", "0.0"]), // 1
+    ];
+    for corners in [[[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]], square] {
+        for k in 0..4 {
+            let (a, b) = (corners[k], corners[(k + 1) % 4]);
+            entities.push(iges_line([a[0], a[1], 0.0], [b[0], b[1], 0.0]));
+        }
+    }
+    // 3..9: hole lines, 11..17: square lines, 19: hole composite, 21: square composite.
+    entities.push(entity(102, &["4", "3", "5", "7", "9"]));
+    entities.push(entity(102, &["4", "11", "13", "15", "17"]));
+    entities.push(plane(["0", "0", "1", "0"], 21, 1)); // 23
+    // The outer loop also names a parameter-space curve (the square): on a plane it is
+    // not in knotwork's parameters, and the model-space circle wins.
+    entities.push(entity(142, &["0", "23", "21", "1", "2"])); // 25
+    entities.push(entity(142, &["0", "23", "0", "19", "2"])); // 27
+    entities.push(entity(144, &["23", "1", "1", "25", "27"])); // 29
+    let scene = iges_scene(&entities, 2);
+    assert_disc_with_square_hole(&scene, 1.0, "144 over 108");
+}
+
 #[test]
 fn iges_trimmed_and_bounded_faces_keep_what_their_loops_enclose() {
     for bounded in [false, true] {
@@ -2994,18 +3091,14 @@ fn iges_bad_files_are_refused_by_line_or_dropped_by_entity() {
     no_curve[7].params[2] = "0".into();
     let reason = &iges_scene(&no_curve, 2).dropped[0].reason;
     assert!(reason.contains("neither"), "{reason}");
-    let mut plane = entity(
-        108,
-        &["0.0", "0.0", "1.0", "0.0", "0", "0.0", "0.0", "0.0", "1.0"],
-    );
-    plane.form = 0;
-    let scene = iges_scene(&[plane, iges_plane(0.0, 1.0, 0.0, 1.0)], 2);
+    let offset = entity(140, &["0", "0.0", "0.0", "1.0", "1.0", "3"]);
+    let scene = iges_scene(&[offset, iges_plane(0.0, 1.0, 0.0, 1.0)], 2);
     assert_eq!(scene.surface_list().len(), 1);
     assert!(
         scene
             .notes
             .iter()
-            .any(|n| n.contains("1 × type 108 (plane)")),
+            .any(|n| n.contains("1 × type 140 (offset surface)")),
         "{:?}",
         scene.notes
     );

@@ -19,7 +19,7 @@ use std::f64::consts::TAU;
 const MAX_DEPTH: usize = 64;
 
 /// Surface types that become items when nothing refers to them.
-const SURFACE_KINDS: [u32; 6] = [118, 120, 122, 128, 143, 144];
+const SURFACE_KINDS: [u32; 7] = [108, 118, 120, 122, 128, 143, 144];
 /// Curve types read (as parts of surfaces and loops).
 const CURVE_KINDS: [u32; 8] = [100, 102, 104, 106, 110, 112, 126, 142];
 /// Types that carry no geometry of their own (attributes, annotation, structure).
@@ -75,6 +75,12 @@ impl<'a> Model<'a> {
             if !SURFACE_KINDS.contains(&entry.kind) || referenced.contains(&k) {
                 continue;
             }
+            if entry.kind == 108 && entry.form == 0 {
+                self.notes.borrow_mut().insert(
+                    "unbounded planes (108 form 0) are construction geometry: not meshed".into(),
+                );
+                continue;
+            }
             match self.item(entry) {
                 Ok(geometry) => scene.items.push(Item {
                     name: Some(item_name(entry)),
@@ -112,6 +118,7 @@ impl<'a> Model<'a> {
     fn item(&self, entry: &DirectoryEntry) -> Result<Geometry> {
         Ok(match entry.kind {
             143 | 144 => Geometry::Trimmed(Box::new(self.trimmed(entry)?)),
+            108 => Geometry::Trimmed(Box::new(self.bounded_plane(entry)?)),
             _ => Geometry::Surface(self.surface(entry, 0)?.surface),
         })
     }
@@ -123,7 +130,10 @@ impl<'a> Model<'a> {
     fn referenced(&self) -> BTreeSet<usize> {
         let mut referenced = BTreeSet::new();
         for entry in &self.directory {
-            if !matches!(entry.kind, 102 | 118 | 120 | 122 | 141 | 142 | 143 | 144) {
+            if !matches!(
+                entry.kind,
+                102 | 108 | 118 | 120 | 122 | 141 | 142 | 143 | 144
+            ) {
                 continue;
             }
             let Ok(r) = self.sections.record(entry, &self.global) else {
@@ -132,6 +142,7 @@ impl<'a> Model<'a> {
             let count = |k: usize| r.count(k, r.len()).unwrap_or(0);
             let fields: Vec<usize> = match entry.kind {
                 102 => (2..2 + count(1)).collect(),
+                108 => vec![5],
                 118 | 120 => vec![1, 2],
                 122 => vec![1],
                 142 => vec![2, 3, 4],
@@ -360,6 +371,7 @@ impl<'a> Model<'a> {
         self.within(entry, depth, |r| {
             let (surface, map) = match entry.kind {
                 128 => (rational_surface(r)?, Some(ParamMap::SAME)),
+                108 => (self.plane(entry, r, depth)?.0, Some(ParamMap::SAME)),
                 118 => {
                     let first = self.curve(self.pointed(r, 1)?, depth + 1)?;
                     let second = self.curve(self.pointed(r, 2)?, depth + 1)?;
@@ -427,6 +439,82 @@ impl<'a> Model<'a> {
     }
 
     /// A trimmed (144) or bounded (143) surface.
+    /// A bounded plane (108 forms ±1: A x + B y + C z = D, bounded by the closed curve PTR)
+    /// as a bilinear patch over the box of its boundary in a frame of the plane (u, v along
+    /// two orthonormal directions e₁, e₂ with e₁ × e₂ the plane's normal (A, B, C)), with
+    /// the boundary mapped into those (u, v) — exactly: the map is affine. The parameters
+    /// are knotwork's own (IGES defines none for a plane): loops of a face over it are
+    /// projected from model space. An unbounded plane (form 0) has no extent.
+    fn plane(
+        &self,
+        entry: &DirectoryEntry,
+        r: &Record,
+        depth: usize,
+    ) -> Result<(BSplineSurface, Vec<BSplineCurve>)> {
+        let normal = DVec3::new(r.real(1)?, r.real(2)?, r.real(3)?);
+        let offset = r.real(4)?;
+        let length = normal.length();
+        if entry.form == 0 || r.integer(5)? == 0 {
+            return Err(Error::Unsupported {
+                what: "an unbounded plane (108 form 0): it has no extent to mesh".into(),
+            });
+        }
+        if !(length.is_finite() && length > 0.0 && offset.is_finite()) {
+            return Err(Error::syntax(format!(
+                "the plane's normal ({}, {}, {}) is not a direction",
+                normal.x, normal.y, normal.z
+            ))
+            .at_line(r.line_of(1)));
+        }
+        let n = normal / length;
+        let boundary: Vec<BSplineCurve> = (self.curve_chain(self.pointed(r, 5)?, depth + 1)?)
+            .into_iter()
+            .map(|piece| piece.curve)
+            .collect();
+        let first = boundary
+            .first()
+            .ok_or_else(|| Error::syntax("the plane's boundary has no curve"))?
+            .control_point(0);
+        let origin = first - (n.dot(first) - offset / length) * n;
+        let e1 = n.any_orthonormal_vector();
+        let e2 = n.cross(e1);
+        let in_plane = |p: DVec3| DVec3::new((p - origin).dot(e1), (p - origin).dot(e2), 0.0);
+        let boundary: Vec<BSplineCurve> = boundary.iter().map(|c| c.mapped(in_plane)).collect();
+        let (mut low, mut high) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        for curve in &boundary {
+            let (curve_low, curve_high) = curve.control_box();
+            (low, high) = (low.min(curve_low), high.max(curve_high));
+        }
+        let corner = |u: f64, v: f64| origin + u * e1 + v * e2;
+        let surface = BSplineSurface::try_new(
+            KnotVector::try_new(1, vec![low.x, low.x, high.x, high.x])?,
+            KnotVector::try_new(1, vec![low.y, low.y, high.y, high.y])?,
+            &[
+                corner(low.x, low.y),
+                corner(high.x, low.y),
+                corner(low.x, high.y),
+                corner(high.x, high.y),
+            ],
+            None,
+        )?;
+        Ok((surface, boundary))
+    }
+
+    /// A bounded plane standing alone (108 forms ±1): the face its boundary encloses.
+    fn bounded_plane(&self, entry: &DirectoryEntry) -> Result<TrimmedSurface> {
+        self.within(entry, 0, |r| {
+            let (surface, boundary) = self.plane(entry, r, 0)?;
+            let surface = match self.transform(entry, 0)? {
+                Some(t) => surface.mapped(|p| t.transform_point3(p)),
+                None => surface,
+            };
+            let outer = TrimLoop {
+                curves: oriented(boundary),
+            };
+            TrimmedSurface::try_new(surface, ParamMap::SAME, Some(outer), Vec::new())
+        })
+    }
+
     fn trimmed(&self, entry: &DirectoryEntry) -> Result<TrimmedSurface> {
         self.within(entry, 0, |r| {
             let surface_field = if entry.kind == 144 { 1 } else { 2 };
@@ -473,7 +561,9 @@ impl<'a> Model<'a> {
     }
 
     /// The loop a curve on surface (142) gives: its parameter-space curve, else its
-    /// model-space curve projected onto `base`.
+    /// model-space curve projected onto `base` (always, where the base is a plane: IGES
+    /// gives a plane no parameters, so a file's parameter-space curves on one are not in
+    /// knotwork's).
     fn curve_on_surface(&self, entry: &DirectoryEntry, base: &Surface) -> Result<TrimLoop> {
         if entry.kind != 142 {
             return Err(Error::syntax(format!(
@@ -482,7 +572,8 @@ impl<'a> Model<'a> {
             )));
         }
         self.within(entry, 1, |r| {
-            let curves = if r.integer(3)? != 0 {
+            let on_plane = base.kind == 108 && r.integer(4)? != 0;
+            let curves = if r.integer(3)? != 0 && !on_plane {
                 let chain = self.curve_chain(self.pointed(r, 3)?, 2)?;
                 chain.into_iter().map(|c| c.curve).collect()
             } else if r.integer(4)? != 0 {
