@@ -981,3 +981,51 @@ fn patch_join_continuity() {
     );
     assert_eq!(c1.parametric, Some(1));
 }
+
+/// Degenerate tori (tube wider than its distance from the axis): the apple keeps the tube's
+/// arc outside the axis, every point at the tube radius from the near side of the major
+/// circle; the lemon the arc beyond it, at the tube radius from the far side; both meet the
+/// axis at their poles z = ±√(r² − R²) and their normals point away from the tube centre
+/// they belong to. A tube no wider than R is the ordinary torus.
+#[test]
+fn degenerate_tori_keep_their_apple_or_lemon() {
+    let (centre, major, minor): (DVec3, f64, f64) = (DVec3::new(1.0, -2.0, 0.5), 1.5, 2.5);
+    let pole = (minor * minor - major * major).sqrt();
+    for outer in [true, false] {
+        let surface =
+            shapes::degenerate_torus_section(centre, major, minor, outer, shapes::FULL_TURN)
+                .unwrap();
+        let (ru, rv) = (surface.range_u(), surface.range_v());
+        for (end, z) in [(rv.start, -pole), (rv.end, pole)] {
+            for s in params(6) {
+                let p = surface.point(ru.lerp(s), end) - centre;
+                assert!(
+                    p.truncate().length() < 1e-12 && (p.z - z).abs() < 1e-12,
+                    "{outer}: pole {p}"
+                );
+            }
+        }
+        for s in params(12) {
+            for t in params(12).filter(|&t| t > 0.0 && t < 1.0) {
+                let sample = surface.evaluate(ru.lerp(s), rv.lerp(t));
+                let p = sample.position - centre;
+                let rho = p.truncate().length();
+                // The tube centre this point belongs to: the near or the far side of the major circle.
+                let side = if outer { major } else { -major };
+                let tube_centre = (p.truncate() / rho * side).extend(0.0);
+                let off = ((p - tube_centre).length() - minor).abs();
+                assert!(off < 1e-12 * minor, "{outer}: {p} is {off:e} off its tube");
+                assert!(
+                    sample.normal.dot((p - tube_centre).normalize()) > 1.0 - 1e-9,
+                    "{outer}: normal {} at {p}",
+                    sample.normal
+                );
+            }
+        }
+    }
+    let ordinary = shapes::degenerate_torus_section(centre, 2.5, 1.5, true, shapes::FULL_TURN);
+    assert_eq!(
+        ordinary.unwrap(),
+        shapes::torus_section(centre, 2.5, 1.5, shapes::FULL_TURN, shapes::FULL_TURN).unwrap()
+    );
+}

@@ -7,7 +7,7 @@
 use super::{BSplineCurve, BSplineSurface, Interval, KnotVector, LocalPoints, patches};
 use crate::error::{Error, Result};
 use glam::{DVec3, DVec4};
-use std::f64::consts::{FRAC_PI_2, TAU};
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
 /// cos and sin with the rounding noise of multiples of π/2 removed, so quarter points of
 /// arcs are exact.
@@ -230,6 +230,49 @@ pub fn torus_section(
         .iter()
         .map(|&(a, b, w)| (major + minor * a, minor * b, w))
         .collect();
+    revolve_scaled(knots, &points, around, DVec3::ONE, centre)
+}
+
+/// A degenerate torus about +z at `centre` (STEP's DEGENERATE_TOROIDAL_SURFACE): its tube
+/// (`minor`) wider than its distance from the axis (`major`, ≥ 0), so the tube crosses the
+/// axis, and the part kept is the outer one (`outer`: the "apple", the tube's arc outside
+/// the axis) or the inner one (the "lemon", the arc beyond the axis, revolved as its mirror
+/// image: the circle about −major). Either meets the axis at two poles; u runs around the
+/// axis over `around`, v along the arc from the lower pole; the normal S_u × S_v points away
+/// from the tube's centre on both, as on a torus. A `minor` no larger than `major` is an
+/// ordinary torus.
+pub fn degenerate_torus_section(
+    centre: DVec3,
+    major: f64,
+    minor: f64,
+    outer: bool,
+    around: Interval,
+) -> Result<BSplineSurface> {
+    let minor = positive("minor radius", minor)?;
+    if !(major.is_finite() && major >= 0.0) {
+        return Err(Error::InvalidParameter {
+            name: "major radius",
+            value: major,
+        });
+    }
+    if minor <= major {
+        return torus_section(centre, major, minor, around, FULL_TURN);
+    }
+    // The tube's angle where it meets the axis: R + r·cos φ₀ = 0.
+    let reach = (-major / minor).acos();
+    let (centre_radius, arc) = if outer {
+        (major, Interval::new(-reach, reach))
+    } else {
+        (-major, Interval::new(reach - PI, PI - reach))
+    };
+    let (knots, circle) = unit_arc(arc)?;
+    let mut points: Vec<(f64, f64, f64)> = circle
+        .iter()
+        .map(|&(a, b, w)| (centre_radius + minor * a, minor * b, w))
+        .collect();
+    // The ends are the poles: on the axis exactly, not to rounding.
+    let last = points.len() - 1;
+    (points[0].0, points[last].0) = (0.0, 0.0);
     revolve_scaled(knots, &points, around, DVec3::ONE, centre)
 }
 

@@ -5,7 +5,7 @@
 use super::file::{ExchangeFile, Instance, Record, Value};
 use crate::error::{Error, Result};
 use crate::geom::brep::{Bound, Edge, Face, OrientedEdge, Shell};
-use crate::geom::shapes::{ellipsoid, revolve, torus_section, unit_arc};
+use crate::geom::shapes::{degenerate_torus_section, ellipsoid, revolve, torus_section, unit_arc};
 use crate::geom::{BSplineCurve, BSplineSurface, Interval, KnotVector};
 use crate::scene::{Dropped, Geometry, Item, Scene};
 use glam::{DMat4, DVec3};
@@ -752,6 +752,19 @@ impl<'a> Model<'a> {
                     Interval::new(0.0, TAU),
                 )
                 .map(|s| s.mapped(|p| frame.apply(p)))
+            }
+            "DEGENERATE_TOROIDAL_SURFACE" => {
+                let frame = self.frame(rec.reference(1)?)?;
+                // A major radius of 0 (the tube's centre on the axis: a sphere) is outside
+                // the schema's positive lengths but has one meaning: taken.
+                let major = rec.real(2)? * self.length_scale;
+                if !(major.is_finite() && major >= 0.0) {
+                    return Err(rec.err(format!("has a major radius of {major}")));
+                }
+                let minor = offset_radius(self.length(&rec, 3)?)?;
+                let outer = rec.logical(4)?;
+                degenerate_torus_section(DVec3::ZERO, major, minor, outer, Interval::new(0.0, TAU))
+                    .map(|s| s.mapped(|p| frame.apply(p)))
             }
             "SURFACE_OF_REVOLUTION" => {
                 not_offset("surface of revolution")?;
