@@ -3459,6 +3459,22 @@ fn step_box(a: f64, b: f64, c: f64) -> String {
 /// [`step_box`] with its top face an OFFSET_SURFACE (by `top_offset`) of a plane below it
 /// (a plain plane for 0).
 fn step_box_offset(a: f64, b: f64, c: f64, top_offset: f64) -> String {
+    step_box_with(a, b, c, top_offset, &|w, start, end| {
+        let origin = w.point(start);
+        let direction = w.direction((end - start).normalize());
+        let vector = w.add(format!(
+            "VECTOR('',{direction},{:?})",
+            (end - start).length()
+        ));
+        w.add(format!("LINE('',{origin},{vector})"))
+    })
+}
+
+/// The writer of an edge's curve from one corner to another.
+type EdgeCurve = dyn Fn(&mut StepWriter, DVec3, DVec3) -> String;
+
+/// [`step_box_offset`] with each edge's curve written by `edge_curve`.
+fn step_box_with(a: f64, b: f64, c: f64, top_offset: f64, edge_curve: &EdgeCurve) -> String {
     let mut w = StepWriter::default();
     let corner = |k: usize| {
         DVec3::new(
@@ -3485,16 +3501,9 @@ fn step_box_offset(a: f64, b: f64, c: f64, top_offset: f64) -> String {
             let (p, q) = (corners[k], corners[(k + 1) % 4]);
             let key = (p.min(q), p.max(q));
             let edge = edges.entry(key).or_insert_with(|| {
-                let (start, end) = (corner(key.0), corner(key.1));
-                let origin = w.point(start);
-                let direction = w.direction((end - start).normalize());
-                let vector = w.add(format!(
-                    "VECTOR('',{direction},{:?})",
-                    (end - start).length()
-                ));
-                let line = w.add(format!("LINE('',{origin},{vector})"));
+                let curve = edge_curve(&mut w, corner(key.0), corner(key.1));
                 w.add(format!(
-                    "EDGE_CURVE('',{},{},{line},.T.)",
+                    "EDGE_CURVE('',{},{},{curve},.T.)",
                     vertices[key.0], vertices[key.1]
                 ))
             });
@@ -3905,6 +3914,50 @@ fn step_degenerate_tori_are_the_surfaces_they_describe() {
             "solid {k}: volume {v1} against {v0}"
         );
     }
+}
+
+/// COMPOSITE_CURVE edges are read as one curve: a box whose every edge is a composite of
+/// two polylines — the second written backwards, run with same_sense .F. — meshes closed
+/// with the exact volume; a composite whose segments do not meet leaves its faces out,
+/// naming the joint.
+#[test]
+fn step_composite_curve_edges_are_joined() {
+    let composite = |gap: f64| {
+        move |w: &mut StepWriter, start: DVec3, end: DVec3| {
+            let middle = 0.5 * (start + end);
+            let (p0, p1) = (w.point(start), w.point(middle));
+            let first = w.add(format!("POLYLINE('',({p0},{p1}))"));
+            let (q0, q1) = (w.point(end), w.point(middle + DVec3::splat(gap)));
+            let second = w.add(format!("POLYLINE('',({q0},{q1}))"));
+            let s0 = w.add(format!("COMPOSITE_CURVE_SEGMENT(.CONTINUOUS.,.T.,{first})"));
+            let s1 = w.add(format!(
+                "COMPOSITE_CURVE_SEGMENT(.CONTINUOUS.,.F.,{second})"
+            ));
+            w.add(format!("COMPOSITE_CURVE('',({s0},{s1}),.F.)"))
+        }
+    };
+    let (a, b, c) = (30.0, 20.0, 10.0);
+    let scene = step_scene(&step_box_with(a, b, c, 0.0, &composite(0.0)));
+    assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
+    let mesh = step_mesh(&scene, 1e-3);
+    let parts = parts_of(&mesh, 0);
+    assert_eq!(topology(&mesh, &parts), (0, 0, 0));
+    let (area, volume) = area_and_volume(&mesh, &parts);
+    assert!(
+        (volume - a * b * c).abs() <= 1e-9 * a * b * c,
+        "volume {volume}"
+    );
+    assert!(
+        (area - 2.0 * (a * b + b * c + c * a)).abs() <= 1e-9 * area,
+        "area {area}"
+    );
+    let text = step_box_with(a, b, c, 0.0, &composite(0.01));
+    let scene = knotwork::io::read_step(&text).unwrap_or_else(|e| panic!("{e}"));
+    let reasons: Vec<&str> = scene.dropped.iter().map(|d| d.reason.as_str()).collect();
+    assert!(
+        !reasons.is_empty() && reasons.iter().all(|r| r.contains("joint 1")),
+        "{reasons:?}"
+    );
 }
 
 #[test]

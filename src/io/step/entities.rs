@@ -5,6 +5,7 @@
 use super::file::{ExchangeFile, Instance, Record, Value};
 use crate::error::{Error, Result};
 use crate::geom::brep::{Bound, Edge, Face, OrientedEdge, Shell};
+use crate::geom::curves::join;
 use crate::geom::shapes::{degenerate_torus_section, ellipsoid, revolve, torus_section, unit_arc};
 use crate::geom::{BSplineCurve, BSplineSurface, Interval, KnotVector};
 use crate::scene::{Dropped, Geometry, Item, Scene};
@@ -14,6 +15,10 @@ use std::f64::consts::{FRAC_PI_2, TAU};
 
 /// Deepest chain of references followed from one entity (a cycle is refused at this depth).
 const MAX_DEPTH: usize = 48;
+
+/// How far apart (as a fraction of the curve's size) the ends of two consecutive segments of
+/// a composite curve may lie.
+const COMPOSITE_GAP: f64 = 1e-6;
 
 /// Most control points (or knots) one curve or surface may have.
 const MAX_CONTROL_POINTS: usize = 1 << 22;
@@ -429,9 +434,41 @@ impl<'a> Model<'a> {
             "SURFACE_CURVE" | "SEAM_CURVE" | "INTERSECTION_CURVE" | "BOUNDED_CURVE" => {
                 self.curve(rec.reference(1)?, depth + 1)
             }
-            "COMPOSITE_CURVE" => Err(rec.err("composite curves are not read yet")),
+            "COMPOSITE_CURVE" => self.composite_curve(&rec, depth).map_err(wrap),
             _ => Err(rec.err("is not a curve knotwork reads")),
         }
+    }
+
+    /// COMPOSITE_CURVE: its segments (COMPOSITE_CURVE_SEGMENT: transition, same_sense,
+    /// a bounded parent curve), each run its way, joined end to end into one B-spline —
+    /// exactly, at the highest degree among them. Ends must meet within
+    /// [`COMPOSITE_GAP`] of the curve's size (CAD systems join segments to their modelling
+    /// tolerance); else the joint is named.
+    fn composite_curve(&self, rec: &Rec, depth: usize) -> Result<Curve> {
+        let mut pieces = Vec::new();
+        for (k, segment) in rec.references(1)?.into_iter().enumerate() {
+            let segment = self.expect(
+                segment,
+                &[
+                    "COMPOSITE_CURVE_SEGMENT",
+                    "REPARAMETRISED_COMPOSITE_CURVE_SEGMENT",
+                ],
+            )?;
+            let same_sense = segment.logical(1)?;
+            let Curve::Bounded(curve) = self.curve(segment.reference(2)?, depth + 1)? else {
+                return Err(rec.err(format!("segment {k} is an unbounded curve")));
+            };
+            pieces.push(if same_sense { curve } else { curve.reversed() });
+        }
+        let size = (pieces.iter())
+            .map(|c| {
+                let (low, high) = c.control_box();
+                (high - low).length()
+            })
+            .fold(0.0, f64::max);
+        join(&pieces, COMPOSITE_GAP * size)
+            .map(Curve::Bounded)
+            .map_err(|e| rec.err(e.to_string()))
     }
 
     /// A positive length parameter, in model units.
