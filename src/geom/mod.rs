@@ -18,6 +18,7 @@ mod piecewise;
 pub mod project;
 pub mod shapes;
 mod surface;
+mod tensor;
 mod trim;
 
 pub(crate) use basis::{BasisDers, MAX_ORDER, basis_ders};

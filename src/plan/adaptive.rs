@@ -152,8 +152,18 @@ pub fn surface_cells(surface: &BSplineSurface, limits: SamplingLimits) -> Result
             for (a, &(u0, u1, u)) in along_u[c].iter().enumerate() {
                 let strip = patch.restricted_u(u0, u1);
                 for (b, &(v0, v1, v)) in along_v[r].iter().enumerate() {
-                    let bound = strip.restricted_v(v0, v1).derivative_bound_for(limits);
-                    let segments = segments_of(bound, u, v);
+                    let piece = strip.restricted_v(v0, v1);
+                    // The cheap bound first: a cell it already allows as one grid cell
+                    // cannot be sampled more coarsely, and the quotient bound of a rational
+                    // piece (products of its polynomials) is most of the work.
+                    let cheap = piece.with_normal_rates(piece.magnitude_bound(), limits);
+                    let (bound, segments) = match segments_of(cheap, u, v) {
+                        (1, 1) => (cheap, (1, 1)),
+                        _ => {
+                            let bound = piece.tightened(cheap);
+                            (bound, segments_of(bound, u, v))
+                        }
+                    };
                     if segments.0.max(segments.1) >= MAX_CELL_SEGMENTS {
                         return Err(Error::ToleranceTooFine {
                             tolerance: limits.tolerance,
