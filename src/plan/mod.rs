@@ -12,7 +12,8 @@ mod trim;
 pub mod view;
 
 pub use adaptive::{
-    Cell, CellGrid, MAX_CELL_SEGMENTS, MAX_CELLS_PER_SPAN, SEGMENTS_PER_CELL, Side, surface_cells,
+    BoundEffort, Cell, CellGrid, MAX_CELL_SEGMENTS, MAX_CELLS_PER_SPAN, SEGMENTS_PER_CELL, Side,
+    surface_cells,
 };
 pub use brep::{FacePlan, ShellPlan, plan_shell};
 pub use seams::{Seam, SurfaceSide};
@@ -565,7 +566,7 @@ fn surface_sampling(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Res
             }
             let diagonal = relative_to.unwrap_or(f64::NAN);
             let limits = sampling_limits(o, diagonal, f64::INFINITY).map_err(in_surface)?;
-            surface_cells(surface, limits)
+            surface_cells(surface, limits, BoundEffort::Magnitudes)
                 .map(Sampling::Cells)
                 .map_err(in_surface)
         })

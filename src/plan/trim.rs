@@ -24,7 +24,7 @@
 //! 5. Triangles whose parameter box is too wide for their cell's bound are split at their
 //!    centroids until every one meets the tolerance and the longest edge.
 
-use super::adaptive::{CellGrid, surface_cells};
+use super::adaptive::{BoundEffort, CellGrid, surface_cells};
 use crate::error::{Error, Result};
 use crate::geom::{DerivativeBound, Interval, SamplingLimits, TrimmedSurface};
 use glam::DVec2;
@@ -65,7 +65,7 @@ pub fn plan_trimmed_within(
 ) -> Result<TrimmedPlan> {
     let max_vertices = max_vertices.min(MAX_TRIMMED_VERTICES);
     let surface = face.surface();
-    let grid = surface_cells(surface, limits)?;
+    let grid = surface_cells(surface, limits, BoundEffort::Tightest)?;
     let bounds = CellBounds::new(&grid);
     let lines = CellLines {
         lines: bounds.interior_lines(),
@@ -134,7 +134,7 @@ pub(crate) fn plan_fixed_boundary(
     max_vertices: usize,
 ) -> Result<Triangulated> {
     let max_vertices = max_vertices.min(MAX_TRIMMED_VERTICES);
-    let grid = surface_cells(surface, limits)?;
+    let grid = surface_cells(surface, limits, BoundEffort::Tightest)?;
     let bounds = CellBounds::new(&grid);
     let lines = CellLines {
         lines: bounds.interior_lines(),
