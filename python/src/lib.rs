@@ -327,14 +327,14 @@ fn precision(py: Python<'_>, dtype: &Bound<'_, PyAny>) -> PyResult<Precision> {
 
 /// The options of `tessellate`'s keywords, refused as the CLI refuses them (a grid with a
 /// tolerance, two tolerances).
-fn options(
-    grid: Option<Grid>,
-    tolerance: Option<f64>,
-    tolerance_rel: Option<f64>,
-    max_edge: Option<f64>,
-    max_angle: Option<f64>,
-    max_triangles: Option<u64>,
-) -> PyResult<TessOptions> {
+fn options(grid: Option<Grid>, limits: &Limits) -> PyResult<TessOptions> {
+    let Limits {
+        tolerance,
+        tolerance_rel,
+        max_edge,
+        max_angle,
+        max_triangles,
+    } = *limits;
     if tolerance.is_some() && tolerance_rel.is_some() {
         return Err(PyValueError::new_err(
             "give tolerance (model units) or tolerance_rel (of the diagonal), not both",
@@ -406,20 +406,14 @@ fn tessellate(
     dtype: Option<Bound<'_, PyAny>>,
     max_memory: Option<u64>,
 ) -> PyResult<PyMesh> {
-    let job = JobOptions::new(
-        options(
-            grid,
-            tolerance,
-            tolerance_rel,
-            max_edge,
-            max_angle,
-            max_triangles,
-        )?,
-        samples,
+    let limits = Limits {
+        tolerance,
+        tolerance_rel,
+        max_edge,
+        max_angle,
         max_triangles,
-        max_memory,
-        backend,
-    )?;
+    };
+    let job = JobOptions::new(grid, limits, samples, max_memory, backend)?;
     let precision = match dtype {
         Some(dtype) => precision(py, &dtype)?,
         None => Precision::F64,
@@ -472,14 +466,26 @@ struct JobOptions {
     backend: Backend,
 }
 
+/// The sampling limits a tessellating call takes, as given.
+#[derive(Clone, Copy)]
+struct Limits {
+    tolerance: Option<f64>,
+    tolerance_rel: Option<f64>,
+    max_edge: Option<f64>,
+    max_angle: Option<f64>,
+    max_triangles: Option<u64>,
+}
+
 impl JobOptions {
     fn new(
-        grid: TessOptions,
+        grid: Option<Grid>,
+        limits: Limits,
         samples: u32,
-        max_triangles: Option<u64>,
         max_memory: Option<u64>,
         backend: &str,
     ) -> PyResult<JobOptions> {
+        let max_triangles = limits.max_triangles;
+        let grid = options(grid, &limits)?;
         if samples < 2 {
             return Err(PyValueError::new_err(format!(
                 "samples is {samples}: a polyline needs at least 2"
@@ -563,20 +569,14 @@ fn tessellate_file<'py>(
     backend: &str,
     max_memory: Option<u64>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let job = JobOptions::new(
-        options(
-            grid,
-            tolerance,
-            tolerance_rel,
-            max_edge,
-            max_angle,
-            max_triangles,
-        )?,
-        samples,
+    let limits = Limits {
+        tolerance,
+        tolerance_rel,
+        max_edge,
+        max_angle,
         max_triangles,
-        max_memory,
-        backend,
-    )?;
+    };
+    let job = JobOptions::new(grid, limits, samples, max_memory, backend)?;
     let format = mesh_format(format)?;
     let (written, left_out) = detached(py, || {
         let run = || {
