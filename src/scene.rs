@@ -215,6 +215,15 @@ impl Scene {
             .collect()
     }
 
+    /// Whether every item is a surface on a grid (its own, else `default`): a mesh whose
+    /// plan lays out every vertex before one is evaluated, so it can be streamed or written
+    /// straight into split arrays.
+    pub fn is_surfaces_on_grids(&self, default: TessOptions) -> bool {
+        let surfaces_only =
+            (self.items.iter()).all(|item| matches!(item.geometry, Geometry::Surface(_)));
+        surfaces_only && !(self.surface_grids(default).iter()).any(TessOptions::is_adaptive)
+    }
+
     /// [`Scene::seams`] with surfaces numbered as in [`Scene::surface_list`] (what
     /// [`SurfacePlan::with_seams`] takes). A seam naming an item that is not a surface is
     /// [`Error::InvalidSeam`].
@@ -439,10 +448,7 @@ pub trait Tessellator {
         scene: &Scene,
         defaults: &SceneOptions,
     ) -> Result<SplitMesh32> {
-        let surfaces_only =
-            (scene.items.iter()).all(|item| matches!(item.geometry, Geometry::Surface(_)));
-        let on_grids = !(scene.surface_grids(defaults.grid).iter()).any(TessOptions::is_adaptive);
-        if !(surfaces_only && on_grids) {
+        if !scene.is_surfaces_on_grids(defaults.grid) {
             return Ok(self.tessellate_scene_f32(scene, defaults)?.into());
         }
         let defaults = &fit_triangle_budget(scene, defaults)?;

@@ -95,17 +95,28 @@ fn detached<T: Send>(
     py.detach(|| rayon::scope(|_| job())).map_err(python_error)
 }
 
+/// The format a name or extension (with or without its dot) gives by `parse`, or a
+/// ValueError saying it is not `kind`.
+fn named_format<T>(
+    name: Option<&str>,
+    parse: fn(&str) -> Option<T>,
+    kind: &str,
+) -> PyResult<Option<T>> {
+    name.map(|name| {
+        parse(name.trim_start_matches('.'))
+            .ok_or_else(|| PyValueError::new_err(format!("format {name:?} is not {kind}")))
+    })
+    .transpose()
+}
+
 /// The scene format a name or extension gives (`obj`, `bpt`, `json`, `iges`/`igs`,
 /// `step`/`stp`).
 fn scene_format(name: Option<&str>) -> PyResult<Option<SceneFormat>> {
-    name.map(|name| {
-        SceneFormat::from_extension(name.trim_start_matches('.')).ok_or_else(|| {
-            PyValueError::new_err(format!(
-                "format {name:?} is not a surface format (obj, bpt, json, iges, step)"
-            ))
-        })
-    })
-    .transpose()
+    named_format(
+        name,
+        SceneFormat::from_extension,
+        "a surface format (obj, bpt, json, iges, step)",
+    )
 }
 
 /// A surface file's contents: items in file order, each with a kind and a name.
@@ -447,14 +458,11 @@ fn warn_incomplete(py: Python<'_>, left_out: &[String]) -> PyResult<()> {
 
 /// A mesh format by name ("obj", "ply", "stl", "glb", or with a leading dot).
 fn mesh_format(name: Option<&str>) -> PyResult<Option<MeshFormat>> {
-    name.map(|name| {
-        MeshFormat::from_extension(name.trim_start_matches('.')).ok_or_else(|| {
-            PyValueError::new_err(format!(
-                "format {name:?} is not a mesh format (obj, ply, stl, glb)"
-            ))
-        })
-    })
-    .transpose()
+    named_format(
+        name,
+        MeshFormat::from_extension,
+        "a mesh format (obj, ply, stl, glb)",
+    )
 }
 
 /// What every tessellating call takes besides its source, checked.

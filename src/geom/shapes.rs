@@ -286,7 +286,7 @@ pub fn torus(centre: DVec3, major: f64, minor: f64) -> BSplineSurface {
 /// Bezier: the symmetric arc (cosh h, ∓sinh h), (1/cosh h, 0) with weight cosh h, h = (s1−s0)/2,
 /// boosted by the hyperbolic rotation of s_m = (s0+s1)/2 (a linear map of the hyperbola onto
 /// itself). Returns (x, y, weight).
-fn hyperbola_arc(s0: f64, s1: f64) -> [(f64, f64, f64); 3] {
+pub(crate) fn hyperbola_arc(s0: f64, s1: f64) -> [(f64, f64, f64); 3] {
     let (h, m) = ((s1 - s0) / 2.0, (s0 + s1) / 2.0);
     let boost = |x: f64, y: f64| (x * m.cosh() + y * m.sinh(), x * m.sinh() + y * m.cosh());
     let (x0, y0) = boost(h.cosh(), -h.sinh());
@@ -295,7 +295,18 @@ fn hyperbola_arc(s0: f64, s1: f64) -> [(f64, f64, f64); 3] {
     [(x0, y0, 1.0), (x1, y1, h.cosh()), (x2, y2, 1.0)]
 }
 
-fn quadratic_bezier_knots() -> KnotVector {
+/// The arc of the parabola y = k·x² for x in [x0, x1], as one quadratic Bezier: (x0, k·x0²),
+/// ((x0 + x1)/2, k·x0·x1) — where the end tangents meet —, (x1, k·x1²). Returns (x, y,
+/// weight), weights 1.
+pub(crate) fn parabola_arc(k: f64, x0: f64, x1: f64) -> [(f64, f64, f64); 3] {
+    [
+        (x0, k * x0 * x0, 1.0),
+        ((x0 + x1) / 2.0, k * x0 * x1, 1.0),
+        (x1, k * x1 * x1, 1.0),
+    ]
+}
+
+pub(crate) fn quadratic_bezier_knots() -> KnotVector {
     KnotVector::from_breakpoints(2, &[0.0, 1.0]).expect("valid Bezier knots")
 }
 
@@ -378,8 +389,7 @@ pub fn elliptic_cylinder(
 }
 
 /// The elliptic paraboloid x²/a² + y²/b² = c·z (c ≠ 0) for ρ = √(x²/a² + y²/b²) in `rho`,
-/// θ in `around`: the parabola z = ρ²/c is the quadratic Bezier (ρ0, ρ0²/c), ((ρ0+ρ1)/2,
-/// ρ0ρ1/c), (ρ1, ρ1²/c).
+/// θ in `around`: the parabola z = ρ²/c over `rho` ([`parabola_arc`]) revolved.
 pub fn elliptic_paraboloid(
     centre: DVec3,
     a: f64,
@@ -399,12 +409,7 @@ pub fn elliptic_paraboloid(
             end: f64::INFINITY,
         });
     }
-    let (r0, r1) = (rho.start, rho.end);
-    let parabola = [
-        (r0, r0 * r0 / c, 1.0),
-        ((r0 + r1) / 2.0, r0 * r1 / c, 1.0),
-        (r1, r1 * r1 / c, 1.0),
-    ];
+    let parabola = parabola_arc(1.0 / c, rho.start, rho.end);
     revolve_scaled(quadratic_bezier_knots(), &parabola, around, scale, centre)
 }
 

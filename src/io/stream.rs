@@ -10,10 +10,9 @@ use super::binary_meshes::{PLY_FACE_BYTES, ply_header, push_ply_faces};
 use super::{ItemGroup, MeshFormat, write_atomic_file};
 use crate::error::{Error, Result};
 use crate::geom::BSplineSurface;
-use crate::mesh::TessOptions;
 use crate::mesh::Vertex;
 use crate::plan::{GridLayout, GridRows, SurfacePlan};
-use crate::scene::{Geometry, RunSink, Scene, SceneOptions, Tessellator};
+use crate::scene::{RunSink, Scene, SceneOptions, Tessellator};
 use std::fs::File;
 use std::io::Write;
 use std::path::Path;
@@ -41,13 +40,9 @@ pub fn stream_scene(
     tessellator: &dyn Tessellator,
 ) -> Result<Option<GridLayout>> {
     let format = super::output_format(path, format)?;
-    let surfaces_only =
-        (scene.items.iter()).all(|item| matches!(item.geometry, Geometry::Surface(_)));
-    let on_grids = !(scene.surface_grids(defaults.grid).iter()).any(TessOptions::is_adaptive);
     // A device or a pipe takes its bytes in order: glb's JSON comes last.
     let in_order = super::is_special_file(path);
-    if !surfaces_only
-        || !on_grids
+    if !scene.is_surfaces_on_grids(defaults.grid)
         || in_order
         || !matches!(format, MeshFormat::Ply | MeshFormat::Glb)
     {

@@ -71,8 +71,10 @@ pub fn plan_trimmed_within(
         lines: bounds.interior_lines(),
         snap_width: [surface.range_u(), surface.range_v()].map(|r| 1e-12 * r.width()),
     };
-    let (mut polylines, special_curves) =
-        loop_polylines(face, &bounds, &lines, limits, max_vertices)?;
+    let FacePolylines {
+        loops: mut polylines,
+        specials: special_curves,
+    } = loop_polylines(face, &bounds, &lines, limits, max_vertices)?;
     for polyline in &mut polylines {
         *polyline = with_line_crossings(polyline, &lines);
     }
@@ -503,18 +505,24 @@ impl FaceTriangulation {
     }
 }
 
-/// Every loop of the face as a closed polyline in surface parameters (no repeated end).
-#[allow(clippy::type_complexity)]
+/// A face's loops and special curves sampled, in surface parameters.
+struct FacePolylines {
+    /// Every loop as a closed polyline (no repeated end).
+    loops: Vec<Vec<DVec2>>,
+    /// Every special curve as an open polyline, both ends included.
+    specials: Vec<Vec<DVec2>>,
+}
+
+/// Every loop of the face as a closed polyline and every special curve as an open one.
 fn loop_polylines(
     face: &TrimmedSurface,
     bounds: &CellBounds,
     lines: &CellLines,
     limits: SamplingLimits,
     max_vertices: usize,
-) -> Result<(Vec<Vec<DVec2>>, Vec<Vec<DVec2>>)> {
+) -> Result<FacePolylines> {
     let surface = face.surface();
     let (range_u, range_v) = (surface.range_u(), surface.range_v());
-    let clamp = |p: DVec2| clamp_to_range(surface, p);
     // Whether the parameter box of `points` allows `tolerance` and the longest edge.
     let box_allows = |points: &[DVec2], tolerance: f64| {
         let low = points.iter().fold(points[0], |low, &p| low.min(p));
@@ -572,14 +580,8 @@ fn loop_polylines(
         );
     }
     for (loop_index, trim_loop) in face.loops() {
-        let paths: Vec<Path> = trim_loop
-            .curves
-            .iter()
-            .map(|curve| Path {
-                at: Box::new(move |t: f64| clamp(face.curve_point(curve, t))),
-                breaks: curve.span_breaks(),
-                minimum: if curve.degree() > 1 { 2 } else { 1 },
-            })
+        let paths: Vec<Path> = (trim_loop.curves.iter())
+            .map(|curve| Path::of_curve(face, curve))
             .collect();
         let mut polyline =
             sample_loop(&paths, lines, &accept, &ear_allows, max_vertices).ok_or_else(too_fine)?;
@@ -600,15 +602,15 @@ fn loop_polylines(
     let mut specials = Vec::new();
     for special in face.special_curves() {
         let mut polyline = Vec::new();
-        for curve in &special.curves {
-            let at = |t: f64| lines.snap(clamp(face.curve_point(curve, t)));
-            let minimum = if curve.degree() > 1 { 2 } else { 1 };
+        for (k, curve) in special.curves.iter().enumerate() {
+            let path = Path::of_curve(face, curve);
+            let at = |t: f64| lines.snap((path.at)(t));
             let room = max_vertices.saturating_sub(polyline.len());
             let mut pieces = Vec::new();
             sample_path(
                 &at,
-                &curve.span_breaks(),
-                minimum,
+                &path.breaks,
+                path.minimum,
                 lines,
                 &accept,
                 room,
@@ -616,14 +618,17 @@ fn loop_polylines(
             )
             .ok_or_else(too_fine)?;
             polyline.extend(pieces.into_iter().map(|(_, p)| p));
-        }
-        if let Some(last) = special.curves.last() {
-            polyline.push(lines.snap(clamp(face.curve_point(last, last.range().end))));
+            if k + 1 == special.curves.len() {
+                polyline.push(at(curve.range().end));
+            }
         }
         polyline.dedup();
         specials.push(polyline);
     }
-    Ok((polylines, specials))
+    Ok(FacePolylines {
+        loops: polylines,
+        specials,
+    })
 }
 
 /// One part of a loop: a point function over consecutive `breaks` (where its second
@@ -632,6 +637,20 @@ struct Path<'a> {
     at: Box<dyn Fn(f64) -> DVec2 + 'a>,
     breaks: Vec<f64>,
     minimum: u32,
+}
+
+impl<'a> Path<'a> {
+    /// A curve of a face's loop or special curve: its points in the surface's parameters
+    /// (clamped into the range), cut at its knots, at least two pieces per span where it
+    /// is curved.
+    fn of_curve(face: &'a TrimmedSurface, curve: &'a crate::geom::BSplineCurve) -> Self {
+        let surface = face.surface();
+        Path {
+            at: Box::new(move |t: f64| clamp_to_range(surface, face.curve_point(curve, t))),
+            breaks: curve.span_breaks(),
+            minimum: if curve.degree() > 1 { 2 } else { 1 },
+        }
+    }
 }
 
 /// Whether a piece of a path (the point function, its parameters t0 and t1, its end points)

@@ -4,12 +4,13 @@
 
 use super::file::{DirectoryEntry, Global, Record, Sections, USE_PARAMETRIC};
 use crate::error::{Error, Result};
+use crate::geom::shapes::{hyperbola_arc, parabola_arc, quadratic_bezier_knots};
 use crate::geom::{
     AxisMap, BSplineCurve, BSplineSurface, Interval, KnotVector, LOOP_GAP, ParamMap, TrimLoop,
     TrimmedSurface, curves, patches, project, shapes,
 };
 use crate::scene::{Dropped, Geometry, Item, Scene};
-use glam::{DAffine3, DMat3, DVec3};
+use glam::{DAffine3, DMat3, DVec2, DVec3};
 use std::cell::RefCell;
 use std::collections::{BTreeMap, BTreeSet};
 use std::f64::consts::TAU;
@@ -905,8 +906,8 @@ fn conic_arc(r: &Record, form: i64) -> Result<BSplineCurve> {
     let (a, b, c, d, e, f) = (a?, b?, c?, d?, e?, f?);
     let z = r.real(7)?;
     let (start, end) = (
-        glam::DVec2::new(r.real(8)?, r.real(9)?),
-        glam::DVec2::new(r.real(10)?, r.real(11)?),
+        DVec2::new(r.real(8)?, r.real(9)?),
+        DVec2::new(r.real(10)?, r.real(11)?),
     );
     let scale = [a, b, c, d, e, f]
         .iter()
@@ -917,7 +918,6 @@ fn conic_arc(r: &Record, form: i64) -> Result<BSplineCurve> {
             "conic arc form {form} with coefficients {a}, {b}, {c}, {d}, {e}, {f}: only ellipses, hyperbolas and parabolas in standard position are read"
         ),
     };
-    let at_z = |p: glam::DVec2| p.extend(z);
     let finite = [a, b, c, d, e, f, z, start.x, start.y, end.x, end.y]
         .iter()
         .all(|x| x.is_finite());
@@ -941,12 +941,8 @@ fn conic_arc(r: &Record, form: i64) -> Result<BSplineCurve> {
             (q.sqrt(), (-p).sqrt())
         };
         // In the hyperbola's own axes (major first), each end's branch sign and parameter.
-        let own = |p: glam::DVec2| {
-            if along_x {
-                p
-            } else {
-                glam::DVec2::new(p.y, p.x)
-            }
+        let own = |p: DVec2| {
+            if along_x { p } else { DVec2::new(p.y, p.x) }
         };
         let (s0, s1) = (own(start), own(end));
         let branch = s0.x.signum();
@@ -958,55 +954,42 @@ fn conic_arc(r: &Record, form: i64) -> Result<BSplineCurve> {
                 ),
             });
         }
+        // The unit hyperbola's arc over the ends' hyperbolic angles, scaled to the branch.
         let (t0, t1) = ((s0.y / semi_minor).asinh(), (s1.y / semi_minor).asinh());
-        let (middle, half) = (0.5 * (t0 + t1), 0.5 * (t1 - t0));
-        let point = |t: f64, stretch: f64| {
-            let p = glam::DVec2::new(
-                branch * semi_major * t.cosh() * stretch,
-                semi_minor * t.sinh() * stretch,
-            );
-            at_z(own(p))
-        };
-        let control = [
-            point(t0, 1.0),
-            point(middle, 1.0 / half.cosh()),
-            point(t1, 1.0),
-        ];
-        return BSplineCurve::try_new(
-            KnotVector::clamped_uniform(2, 3)?,
-            &control,
-            Some(&[1.0, half.cosh(), 1.0]),
-        );
+        let arc = hyperbola_arc(t0, t1).map(|(x, y, w)| {
+            let on_branch = DVec2::new(branch * semi_major * x, semi_minor * y);
+            (own(on_branch), w)
+        });
+        return conic_bezier(arc, z);
     }
     // Parabolas: y = k·x² (A x² + E y = 0) or x = k·y² (C y² + D x = 0).
-    let parabola = |k: f64, along: fn(glam::DVec2) -> glam::DVec2| {
-        let (p0, p1) = (along(start).x, along(end).x);
-        let control = [
-            glam::DVec2::new(p0, k * p0 * p0),
-            glam::DVec2::new(0.5 * (p0 + p1), k * p0 * p1),
-            glam::DVec2::new(p1, k * p1 * p1),
-        ]
-        .map(|p| at_z(along(p)));
-        BSplineCurve::try_new(KnotVector::clamped_uniform(2, 3)?, &control, None)
+    let parabola = |k: f64, along: fn(DVec2) -> DVec2| {
+        let arc = parabola_arc(k, along(start).x, along(end).x)
+            .map(|(x, y, w)| (along(DVec2::new(x, y)), w));
+        conic_bezier(arc, z)
     };
     if zero(c) && zero(d) && zero(f) && !zero(a) && !zero(e) {
         return parabola(-a / e, |p| p);
     }
     if zero(a) && zero(e) && zero(f) && !zero(c) && !zero(d) {
-        return parabola(-c / d, |p| glam::DVec2::new(p.y, p.x));
+        return parabola(-c / d, |p| DVec2::new(p.y, p.x));
     }
     Err(refused())
 }
 
+/// A rational quadratic Bezier through the points of the plane z = `z` with their weights.
+fn conic_bezier(arc: [(DVec2, f64); 3], z: f64) -> Result<BSplineCurve> {
+    let points = arc.map(|(p, _)| p.extend(z));
+    BSplineCurve::try_new(
+        quadratic_bezier_knots(),
+        &points,
+        Some(&arc.map(|(_, w)| w)),
+    )
+}
+
 /// An ellipse x²/a² + y²/b² = 1 from `start` to `end` counter-clockwise (a full turn where
 /// they meet), at height `z`.
-fn ellipse_arc(
-    semi_x: f64,
-    semi_y: f64,
-    start: glam::DVec2,
-    end: glam::DVec2,
-    z: f64,
-) -> Result<BSplineCurve> {
+fn ellipse_arc(semi_x: f64, semi_y: f64, start: DVec2, end: DVec2, z: f64) -> Result<BSplineCurve> {
     let angles = sweep(
         (start.y / semi_y).atan2(start.x / semi_x),
         (end.y / semi_y).atan2(end.x / semi_x),

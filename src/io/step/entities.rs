@@ -793,11 +793,9 @@ impl<'a> Model<'a> {
             "DEGENERATE_TOROIDAL_SURFACE" => {
                 let frame = self.frame(rec.reference(1)?)?;
                 // A major radius of 0 (the tube's centre on the axis: a sphere) is outside
-                // the schema's positive lengths but has one meaning: taken.
+                // the schema's positive lengths but has one meaning: taken (the shape checks
+                // it is not negative).
                 let major = rec.real(2)? * self.length_scale;
-                if !(major.is_finite() && major >= 0.0) {
-                    return Err(rec.err(format!("has a major radius of {major}")));
-                }
                 let minor = offset_radius(self.length(&rec, 3)?)?;
                 let outer = rec.logical(4)?;
                 degenerate_torus_section(DVec3::ZERO, major, minor, outer, Interval::new(0.0, TAU))
