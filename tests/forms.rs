@@ -986,7 +986,8 @@ fn patch_join_continuity() {
 /// arc outside the axis, every point at the tube radius from the near side of the major
 /// circle; the lemon the arc beyond it, at the tube radius from the far side; both meet the
 /// axis at their poles z = ±√(r² − R²) and their normals point away from the tube centre
-/// they belong to. A tube no wider than R is the ordinary torus.
+/// they belong to. A tube no wider than R is the ordinary torus; a negative major radius is
+/// refused.
 #[test]
 fn degenerate_tori_keep_their_apple_or_lemon() {
     let (centre, major, minor): (DVec3, f64, f64) = (DVec3::new(1.0, -2.0, 0.5), 1.5, 2.5);
@@ -1022,6 +1023,16 @@ fn degenerate_tori_keep_their_apple_or_lemon() {
                 );
             }
         }
+    }
+    // A negative or non-finite major radius is no torus.
+    for major in [-0.5, f64::NAN, f64::INFINITY] {
+        assert!(matches!(
+            shapes::degenerate_torus_section(centre, major, minor, true, shapes::FULL_TURN),
+            Err(Error::InvalidParameter {
+                name: "major radius",
+                ..
+            })
+        ));
     }
     let ordinary = shapes::degenerate_torus_section(centre, 2.5, 1.5, true, shapes::FULL_TURN);
     assert_eq!(
