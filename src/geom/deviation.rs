@@ -11,7 +11,7 @@
 
 use super::BezierPatch;
 use super::tensor::Bernstein;
-use glam::{DVec3, DVec4};
+use glam::{DVec2, DVec3, DVec4};
 
 /// Upper bounds of |S_u|, |S_v| (model units per parameter unit) and of |S_uu|, |S_uv|,
 /// |S_vv| (per parameter unit squared) over a parameter rectangle, and of the unit normal's
@@ -68,6 +68,55 @@ impl DerivativeBound {
     /// the rectangle: ⅛·(h²·M_uu + 2·h·k·M_uv + k²·M_vv).
     pub fn deviation(&self, h: f64, k: f64) -> f64 {
         0.125 * (h * h * self.uu + 2.0 * h * k * self.uv + k * k * self.vv)
+    }
+
+    /// The deviation bound (model units) of a triangle whose corners lie on S at the
+    /// parameters `corners` (inside the rectangle): ½·r², r the radius of the smallest circle
+    /// around the corners in the coordinates (√a·u, √b·v), where a = M_uu + α·M_uv and
+    /// b = M_vv + M_uv/α (2·|d_u d_v| ≤ α·d_u² + d_v²/α for any α > 0; the least of a few α
+    /// is kept). With the module's rule, |S(x) − L(x)| ≤ ½·Σ λᵢ·|qᵢ − q|² in those
+    /// coordinates, which is R² − |q − c|² for the circumcircle (c, R) and peaks at r² over
+    /// the triangle. For either half of a grid cell of size (h, k) it is
+    /// [`deviation`](Self::deviation)`(h, k)`; a well-shaped triangle of the same area gets
+    /// less.
+    pub fn triangle_deviation(&self, corners: [DVec2; 3]) -> f64 {
+        let low = corners[0].min(corners[1]).min(corners[2]);
+        let extent = corners[0].max(corners[1]).max(corners[2]) - low;
+        let radius_squared = |a: f64, b: f64| {
+            let q = corners.map(|p| DVec2::new(a.sqrt() * (p.x - low.x), b.sqrt() * (p.y - low.y)));
+            smallest_circle_radius_squared(q)
+        };
+        if self.uv == 0.0 {
+            return 0.5 * radius_squared(self.uu, self.vv);
+        }
+        let mut alphas = [extent.y / extent.x, (self.vv / self.uu).sqrt(), 1.0];
+        if !alphas[0].is_finite() || alphas[0] <= 0.0 {
+            alphas[0] = 1.0;
+        }
+        if !alphas[1].is_finite() || alphas[1] <= 0.0 {
+            alphas[1] = 1.0;
+        }
+        alphas
+            .iter()
+            .map(|&alpha| {
+                0.5 * radius_squared(self.uu + alpha * self.uv, self.vv + self.uv / alpha)
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// How far a triangle at the parameters `corners` (inside the rectangle) is from meeting
+    /// `limits`: the largest of its deviation bound over the tolerance and, over its edges,
+    /// [`edge_length`](Self::edge_length) over the longest edge and
+    /// [`normal_turn`](Self::normal_turn) over the angle. At most 1: it meets them.
+    pub fn triangle_excess(&self, corners: [DVec2; 3], limits: SamplingLimits) -> f64 {
+        let mut excess = self.triangle_deviation(corners) / limits.tolerance;
+        for k in 0..3 {
+            let d = (corners[(k + 1) % 3] - corners[k]).abs();
+            excess = excess
+                .max(self.edge_length(d.x, d.y) / limits.max_edge)
+                .max(self.normal_turn(d.x, d.y) / limits.max_angle);
+        }
+        excess
     }
 
     /// The largest angle (radians) between the normals at the ends of an edge of parameter
@@ -497,6 +546,20 @@ pub(crate) fn box_centre_and_radius(points: impl Iterator<Item = DVec3> + Clone)
     (centre, radius_squared.sqrt())
 }
 
+/// The squared radius of the smallest circle around three points: half the longest side
+/// where the triangle is right or obtuse (or flat), else its circumradius.
+fn smallest_circle_radius_squared(q: [DVec2; 3]) -> f64 {
+    let sides = [0, 1, 2].map(|k| q[(k + 1) % 3].distance_squared(q[(k + 2) % 3]));
+    let longest = sides[0].max(sides[1]).max(sides[2]);
+    let area_twice = (q[1] - q[0]).perp_dot(q[2] - q[0]);
+    // Right or obtuse: the longest side's square is at least the other two's sum.
+    if 2.0 * longest >= sides[0] + sides[1] + sides[2] || area_twice == 0.0 {
+        return 0.25 * longest;
+    }
+    // R = abc / (4·area), area = |area_twice| / 2, so R² = a²b²c² / (4·area_twice²).
+    (0.25 * sides[0] * sides[1] * sides[2] / (area_twice * area_twice)).max(0.25 * longest)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -653,5 +716,90 @@ mod tests {
             tight <= 1.15 && loose >= 1.4,
             "small cells: quotient {tight}×, magnitudes {loose}×"
         );
+    }
+
+    /// The largest error of the linear interpolant of `f` over the triangle `corners`,
+    /// sampled on a fine barycentric lattice plus the circumcentre's and the sides' middles.
+    fn interpolation_error(f: &dyn Fn(DVec2) -> f64, corners: [DVec2; 3]) -> f64 {
+        let values = corners.map(|p| f(p));
+        let error = |l: [f64; 3]| {
+            let p = corners[0] * l[0] + corners[1] * l[1] + corners[2] * l[2];
+            (f(p) - (values[0] * l[0] + values[1] * l[1] + values[2] * l[2])).abs()
+        };
+        let n = 60;
+        let mut largest: f64 = 0.0;
+        for i in 0..=n {
+            for j in 0..=n - i {
+                let (a, b) = (i as f64 / n as f64, j as f64 / n as f64);
+                largest = largest.max(error([a, b, 1.0 - a - b]));
+            }
+        }
+        for k in 0..3 {
+            let mut l = [0.5; 3];
+            l[k] = 0.0;
+            largest = largest.max(error(l));
+        }
+        largest
+    }
+
+    /// On z = ½·(A·u² + B·v²) the triangle bound is the exact largest deviation (the
+    /// interpolant's error is ½·(R² − |q − c|²) in (√A·u, √B·v)); with a mixed term it still
+    /// holds; and for the halves of a grid cell it is the cell's bound.
+    #[test]
+    fn the_triangle_bound_holds_and_is_exact_on_paraboloids() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..200 {
+            let corners = [(); 3].map(|_| DVec2::new(4.0 * next() - 2.0, 3.0 * next() - 1.0));
+            let area = (corners[1] - corners[0])
+                .perp_dot(corners[2] - corners[0])
+                .abs();
+            if area < 1e-3 {
+                continue;
+            }
+            let (a, b, c) = (0.1 + 3.0 * next(), 0.1 + 3.0 * next(), 2.0 * next() - 1.0);
+            let bound = |uu: f64, uv: f64, vv: f64| DerivativeBound {
+                uu,
+                uv,
+                vv,
+                ..Default::default()
+            };
+            // Exact without a mixed term (sampling finds the peak within 0.5 %).
+            let paraboloid = |p: DVec2| 0.5 * (a * p.x * p.x + b * p.y * p.y);
+            let exact = bound(a, 0.0, b).triangle_deviation(corners);
+            let measured = interpolation_error(&paraboloid, corners);
+            assert!(
+                measured <= exact * (1.0 + 1e-12) && measured >= 0.995 * exact,
+                "{corners:?}: measured {measured}, bound {exact}"
+            );
+            // With one: |f_uv| = |c| bounds it, and the bound holds.
+            let mixed = |p: DVec2| paraboloid(p) + c * p.x * p.y;
+            let held = bound(a, c.abs(), b).triangle_deviation(corners);
+            assert!(interpolation_error(&mixed, corners) <= held * (1.0 + 1e-12));
+        }
+        // The two halves of a cell of size (h, k): the cell's own bound.
+        let cell = DerivativeBound {
+            uu: 2.0,
+            uv: 0.7,
+            vv: 5.0,
+            ..Default::default()
+        };
+        let (h, k) = (0.3, 0.1);
+        let expected = cell.deviation(h, k);
+        for half in [
+            [DVec2::ZERO, DVec2::new(h, 0.0), DVec2::new(h, k)],
+            [DVec2::ZERO, DVec2::new(h, k), DVec2::new(0.0, k)],
+        ] {
+            let got = cell.triangle_deviation(half);
+            assert!(
+                (got - expected).abs() <= 1e-14 * expected,
+                "{got} vs {expected}"
+            );
+        }
     }
 }
