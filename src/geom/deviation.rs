@@ -89,14 +89,14 @@ impl DerivativeBound {
         if self.uv == 0.0 {
             return 0.5 * radius_squared(self.uu, self.vv);
         }
-        let mut alphas = [extent.y / extent.x, (self.vv / self.uu).sqrt(), 1.0];
-        if !alphas[0].is_finite() || alphas[0] <= 0.0 {
-            alphas[0] = 1.0;
-        }
-        if !alphas[1].is_finite() || alphas[1] <= 0.0 {
-            alphas[1] = 1.0;
-        }
-        alphas
+        [extent.y / extent.x, (self.vv / self.uu).sqrt(), 1.0]
+            .map(|alpha| {
+                if alpha.is_finite() && alpha > 0.0 {
+                    alpha
+                } else {
+                    1.0
+                }
+            })
             .iter()
             .map(|&alpha| {
                 0.5 * radius_squared(self.uu + alpha * self.uv, self.vv + self.uv / alpha)
@@ -801,5 +801,35 @@ mod tests {
                 "{got} vs {expected}"
             );
         }
+    }
+
+    /// A triangle's excess is the worst of its deviation, its longest edge and its widest
+    /// normal turn, each over its limit.
+    #[test]
+    fn the_triangle_excess_is_the_worst_limit() {
+        let bound = DerivativeBound {
+            u: 2.0,
+            v: 3.0,
+            uu: 1.0,
+            vv: 1.0,
+            normal_u: 0.5,
+            normal_v: 0.25,
+            ..Default::default()
+        };
+        let corners = [DVec2::ZERO, DVec2::new(1.0, 0.0), DVec2::new(0.0, 1.0)];
+        // Right isosceles, legs 1: r² = ½, deviation ¼; edges (1, 0), (1, 1), (0, 1).
+        let deviation = bound.triangle_deviation(corners);
+        assert!((deviation - 0.25).abs() < 1e-15, "{deviation}");
+        let limits = |tolerance, max_edge, max_angle| SamplingLimits {
+            tolerance,
+            max_edge,
+            max_angle,
+        };
+        let excess = |l| bound.triangle_excess(corners, l);
+        assert_eq!(excess(limits(0.5, f64::INFINITY, f64::INFINITY)), 0.5);
+        // The longest edge, (1, 1): 2 + 3.
+        assert_eq!(excess(limits(1.0, 2.5, f64::INFINITY)), 2.0);
+        // The widest turn, (1, 1): 0.5 + 0.25.
+        assert_eq!(excess(limits(1.0, f64::INFINITY, 0.25)), 3.0);
     }
 }

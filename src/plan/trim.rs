@@ -209,8 +209,8 @@ fn triangulate(
             vertices.add(p);
         }
     }
-    // The lines (cell lines or kinks) inside the face are constraints wherever they cross
-    // no loop; with cells, so are the grid lines between their samples inside the face:
+    // With cells, the cell lines inside the face are constraints wherever they cross no
+    // loop, and so are the grid lines between the cells' samples inside the face:
     // the interior keeps the cells' own rectangles, whose bounds hold (a Delaunay triangle
     // could join a coarse cell to a fine one).
     let mut line_edges: Vec<[usize; 2]> = Vec::new();
@@ -332,10 +332,10 @@ enum Interior<'a> {
 }
 
 impl<'a> Interior<'a> {
-    /// The sampling for a face of `surface` and the lines its loops are cut at: refinement
-    /// for a `fixed` boundary (a B-rep face's) on a surface with no pole and no kink (a
-    /// boundary no vertex may be added to is not cut at kinks, so they could not be
-    /// constraints), else the cells. (Trimmed faces keep the cells: refinement from their
+    /// The sampling for a face of `surface` and the lines its loops are cut at and the
+    /// interior keeps: refinement, with no lines, for a `fixed` boundary (a B-rep face's) on
+    /// a surface with no pole and no kink (a boundary no vertex may be added to is not cut
+    /// at kinks, so they could not be constraints), else the cells and their lines. (Trimmed faces keep the cells: refinement from their
     /// loops alone took minutes on the property-generated faces of the tests, in debug
     /// builds, where the cells take seconds — not yet looked into.)
     fn of(
@@ -345,16 +345,16 @@ impl<'a> Interior<'a> {
         fixed: bool,
     ) -> (Self, CellLines) {
         let tolerance = super::seams::point_tolerance(surface.control_box_diagonal());
-        let kinks = CellLines::kinks(surface);
-        let has_kinks = kinks.lines.iter().any(|lines| !lines.is_empty());
-        if !fixed || has_kinks || super::seams::pole_sides(surface, tolerance).contains(&true) {
-            let lines = CellLines {
-                lines: bounds.interior_lines(),
-                snap_width: CellLines::snap_widths(surface),
-            };
-            (Interior::Cells(grid), lines)
+        let refined = fixed
+            && !super::seams::pole_sides(surface, tolerance).contains(&true)
+            && !CellLines::has_kink(surface);
+        let snap_width = CellLines::snap_widths(surface);
+        if refined {
+            let lines = [Vec::new(), Vec::new()];
+            (Interior::Refined, CellLines { lines, snap_width })
         } else {
-            (Interior::Refined, kinks)
+            let lines = bounds.interior_lines();
+            (Interior::Cells(grid), CellLines { lines, snap_width })
         }
     }
 }
@@ -928,16 +928,16 @@ struct CellLines {
 }
 
 impl CellLines {
-    /// The surface's kinks: its knots strictly inside the range that are at least as
-    /// multiple as its degree (C⁰ there at best) where the first derivative across them
-    /// jumps — sampled at 9 points along the line, a jump past 1e-6 of the derivative's
-    /// size (or of the control box over the range) counting. Across the others (arcs joined
-    /// with double knots, as every circle of [`crate::geom::shapes`]) the surface is C¹ and
-    /// a triangle's bound may take both sides' cells.
-    fn kinks(surface: &crate::geom::BSplineSurface) -> Self {
+    /// Whether the surface has a kink: a knot strictly inside the range at least as
+    /// multiple as its degree (C⁰ there at best) where the first derivative across it jumps
+    /// — sampled at 9 points along the line, a jump past 1e-6 of the derivative's size (or
+    /// of the control box over the range) counting. Across the others (arcs joined with
+    /// double knots, as every circle of [`crate::geom::shapes`]) the surface is C¹ and a
+    /// triangle's bound may take both sides' cells.
+    fn has_kink(surface: &crate::geom::BSplineSurface) -> bool {
         let ranges = [surface.range_u(), surface.range_v()];
         let size = surface.control_box_diagonal();
-        let lines = |axis: usize| {
+        (0..2).any(|axis| {
             let knots = if axis == 0 {
                 surface.knots_u()
             } else {
@@ -945,39 +945,29 @@ impl CellLines {
             };
             let (range, along) = (ranges[axis], ranges[1 - axis]);
             let step = 1e-9 * range.width();
-            let mut kinks: Vec<f64> = Vec::new();
-            for run in knots.knots().chunk_by(|a, b| a == b) {
+            knots.knots().chunk_by(|a, b| a == b).any(|run| {
                 let at = run[0];
-                if run.len() < knots.degree() || at <= range.start || at >= range.end {
-                    continue;
-                }
-                let jumps = (0..9).any(|k| {
-                    let t = along.lerp(f64::from(k) / 8.0);
-                    let across = |x: f64| {
-                        let sample = if axis == 0 {
-                            surface.evaluate(x, t)
-                        } else {
-                            surface.evaluate(t, x)
+                run.len() >= knots.degree()
+                    && at > range.start
+                    && at < range.end
+                    && (0..9).any(|k| {
+                        let t = along.lerp(f64::from(k) / 8.0);
+                        let across = |x: f64| {
+                            if axis == 0 {
+                                surface.evaluate(x, t).du
+                            } else {
+                                surface.evaluate(t, x).dv
+                            }
                         };
-                        if axis == 0 { sample.du } else { sample.dv }
-                    };
-                    let (before, after) = (across(at - step), across(at + step));
-                    let scale = before
-                        .length()
-                        .max(after.length())
-                        .max(size / range.width());
-                    before.distance(after) > 1e-6 * scale
-                });
-                if jumps {
-                    kinks.push(at);
-                }
-            }
-            kinks
-        };
-        CellLines {
-            lines: [lines(0), lines(1)],
-            snap_width: Self::snap_widths(surface),
-        }
+                        let (before, after) = (across(at - step), across(at + step));
+                        let scale = before
+                            .length()
+                            .max(after.length())
+                            .max(size / range.width());
+                        before.distance(after) > 1e-6 * scale
+                    })
+            })
+        })
     }
 
     /// How near a point counts as on a line of each axis of `surface`: rounding.
@@ -1222,10 +1212,9 @@ struct CellBounds {
     coarser: Vec<BoundLevel>,
 }
 
-/// One level of [`CellBounds::coarser`]: `columns` × `rows` blocks, row after row.
+/// One level of [`CellBounds::coarser`]: blocks row after row, `columns` to a row.
 struct BoundLevel {
     columns: usize,
-    rows: usize,
     bounds: Vec<DerivativeBound>,
 }
 
@@ -1264,7 +1253,6 @@ impl CellBounds {
             }
             coarser.push(BoundLevel {
                 columns: next_width,
-                rows: next_height,
                 bounds: level,
             });
             (width, height) = (next_width, next_height);
@@ -1325,7 +1313,6 @@ impl CellBounds {
             0 => (self.columns.len(), &self.bounds),
             _ => {
                 let coarser = &self.coarser[level - 1];
-                debug_assert!(coarser.rows > (rows.end - 1) >> level);
                 (coarser.columns, &coarser.bounds)
             }
         };
