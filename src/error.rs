@@ -165,6 +165,8 @@ pub enum Error {
         kind: String,
         source: Box<Error>,
     },
+    #[error("scene node {node} {problem}")]
+    InvalidSceneNode { node: usize, problem: String },
     #[error("invalid B-rep: {what}")]
     InvalidBrep { what: String },
     #[error("item {index} ({name}): {source}")]

@@ -79,4 +79,4 @@ pub use gpu::{BatchDescriptor, GpuBatch, GpuContext, GpuMesh, GpuTessellator};
 pub use mesh::{
     AnyMesh, Mesh, Mesh32, MeshPart, Polyline, SplitMesh32, TessOptions, Tolerance, Vertex,
 };
-pub use scene::{Dropped, Geometry, Item, ItemGroup, Scene, SceneOptions, Tessellator};
+pub use scene::{Dropped, Geometry, Item, ItemGroup, Scene, SceneNode, SceneOptions, Tessellator};

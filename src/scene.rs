@@ -84,6 +84,29 @@ pub struct Scene {
     /// surfaces sampled to a tolerance share their vertices there whatever their control
     /// points. Here [`SurfaceSide::surface`] is the index of a surface item in `items`.
     pub seams: Vec<Seam>,
+    /// The file's placement tree (a STEP assembly: products and their instances), each node
+    /// after its parent; empty where the file has none. `items` already hold every placed
+    /// copy, so outputs that flatten the model (OBJ, PLY, STL, the in-memory meshes) need
+    /// nothing from it; glTF writes it as its node hierarchy, each solid's mesh once.
+    pub nodes: Vec<SceneNode>,
+}
+
+/// A node of a scene's placement tree ([`Scene::nodes`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneNode {
+    /// The instance's name (STEP: its assembly usage's, else its product's).
+    pub name: String,
+    /// Index in [`Scene::nodes`] of the node this one is placed in; `None` at a root.
+    pub parent: Option<usize>,
+    /// From this node's coordinates to its parent's (the scene's at a root): a rigid motion,
+    /// in the scene's length unit.
+    pub transform: glam::DMat4,
+    /// The items this node shows (empty: none), each placed in the scene by this node's
+    /// placement ([`Scene::node_placements`]).
+    pub items: std::ops::Range<usize>,
+    /// An earlier node showing the same geometry (item for item, placed by its own
+    /// placement): a writer that keeps instances meshes that node's items alone.
+    pub copy_of: Option<usize>,
 }
 
 /// A part of a file a reader could not turn into an item, and why.
@@ -136,6 +159,42 @@ impl Default for SceneOptions {
 }
 
 impl Scene {
+    /// Each node's placement: the product of the transforms from its root down to it, which
+    /// maps the node's coordinates to the scene's. Fails on a tree that breaks the contract
+    /// of [`SceneNode`] (a parent or a copy not before its node, items outside the scene, a
+    /// copy showing a different number of items).
+    pub fn node_placements(&self) -> Result<Vec<glam::DMat4>> {
+        let mut placements: Vec<glam::DMat4> = Vec::with_capacity(self.nodes.len());
+        for (k, node) in self.nodes.iter().enumerate() {
+            let invalid = |problem: String| Error::InvalidSceneNode { node: k, problem };
+            if node.items.end > self.items.len() || node.items.start > node.items.end {
+                return Err(invalid(format!(
+                    "shows items {:?} of a scene of {}",
+                    node.items,
+                    self.items.len()
+                )));
+            }
+            if let Some(copy) = node.copy_of
+                && (copy >= k || self.nodes[copy].items.len() != node.items.len())
+            {
+                return Err(invalid(format!(
+                    "is a copy of node {copy}, which is not an earlier node with as many items"
+                )));
+            }
+            let parent = match node.parent {
+                None => glam::DMat4::IDENTITY,
+                Some(p) if p < k => placements[p],
+                Some(p) => {
+                    return Err(invalid(format!(
+                        "is placed in node {p}, which is not before it"
+                    )));
+                }
+            };
+            placements.push(parent * node.transform);
+        }
+        Ok(placements)
+    }
+
     /// The surfaces, in item order.
     pub fn surfaces(&self) -> impl Iterator<Item = &BSplineSurface> {
         self.items.iter().filter_map(|item| match &item.geometry {

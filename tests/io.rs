@@ -3371,7 +3371,7 @@ fn step_parts_mesh_into_closed_solids_within_the_tolerance() {
     let sphere = scene
         .items
         .iter()
-        .position(|i| i.name.as_deref() == Some("sphere"))
+        .position(|i| i.name.as_deref() == Some("Document/sphere"))
         .unwrap();
     let (area, volume) = area_and_volume(&mesh, &parts_of(&mesh, sphere));
     let exact = 4.0 / 3.0 * std::f64::consts::PI * 125.0;
@@ -3744,6 +3744,9 @@ fn step_assemblies_place_each_instance() {
     // The box's shape representation is its last instance, its context the one before.
     let (shape, context) = (n, n - 1);
     let r = |k: usize| format!("#{}", n + k);
+    // As CAD systems write a part: a product's SHAPE_REPRESENTATION (11), one with the B-rep's
+    // by a relationship without a transformation (12), is what the assembly places — once by
+    // a transformed relationship (14), once by a mapped item (16).
     let assembly = with_instances(
         &part,
         &[
@@ -3760,20 +3763,22 @@ fn step_assemblies_place_each_instance() {
                 "SHAPE_REPRESENTATION('assembly',({},{},{}),#{context})",
                 r(4),
                 r(7),
-                r(9)
+                r(16)
             ), // 10
-            format!("ITEM_DEFINED_TRANSFORMATION('','',{},{})", r(4), r(7)), // 11
-            format!("ITEM_DEFINED_TRANSFORMATION('','',{},{})", r(4), r(9)), // 12
+            format!("SHAPE_REPRESENTATION('part',({}),#{context})", r(4)), // 11
             format!(
-                "(REPRESENTATION_RELATIONSHIP('','',#{shape},{}) REPRESENTATION_RELATIONSHIP_WITH_TRANSFORMATION({}) SHAPE_REPRESENTATION_RELATIONSHIP())",
-                r(10),
+                "SHAPE_REPRESENTATION_RELATIONSHIP('','',{},#{shape})",
                 r(11)
-            ),
+            ), // 12
+            format!("ITEM_DEFINED_TRANSFORMATION('','',{},{})", r(4), r(7)), // 13
             format!(
-                "(REPRESENTATION_RELATIONSHIP('','',#{shape},{}) REPRESENTATION_RELATIONSHIP_WITH_TRANSFORMATION({}) SHAPE_REPRESENTATION_RELATIONSHIP())",
+                "(REPRESENTATION_RELATIONSHIP('','',{},{}) REPRESENTATION_RELATIONSHIP_WITH_TRANSFORMATION({}) SHAPE_REPRESENTATION_RELATIONSHIP())",
+                r(11),
                 r(10),
-                r(12)
-            ),
+                r(13)
+            ), // 14
+            format!("REPRESENTATION_MAP({},{})", r(4), r(11)), // 15
+            format!("MAPPED_ITEM('lifted',{},{})", r(15), r(9)), // 16
         ],
     );
     let scene = step_scene(&assembly);
@@ -3782,7 +3787,26 @@ fn step_assemblies_place_each_instance() {
         .iter()
         .filter_map(|i| i.name.as_deref())
         .collect();
-    assert_eq!(names, ["box [1]", "box [2]"]);
+    assert_eq!(names, ["assembly/part", "assembly/lifted"]);
+    // The tree: the assembly, its two instances of one solid (the second a copy of the first).
+    let tree: Vec<_> = (scene.nodes.iter())
+        .map(|node| {
+            (
+                node.name.as_str(),
+                node.parent,
+                node.items.clone(),
+                node.copy_of,
+            )
+        })
+        .collect();
+    assert_eq!(
+        tree,
+        [
+            ("assembly", None, 0..0, None),
+            ("part", Some(0), 0..1, None),
+            ("lifted", Some(0), 1..2, Some(1)),
+        ]
+    );
     let boxes: Vec<(DVec3, DVec3)> = scene
         .items
         .iter()
@@ -3808,6 +3832,16 @@ fn step_assemblies_place_each_instance() {
             && close(boxes[1].1, DVec3::new(a, b, 50.0 + c)),
         "{boxes:?}"
     );
+    // Each node's placement takes the part's corners onto its copy's.
+    let placements = scene.node_placements().unwrap();
+    for (k, bounds) in [(1, boxes[0]), (2, boxes[1])] {
+        let corners = [DVec3::ZERO, DVec3::new(a, b, c)].map(|p| placements[k].transform_point3(p));
+        let (lo, hi) = (corners[0].min(corners[1]), corners[0].max(corners[1]));
+        assert!(
+            close(lo, bounds.0) && close(hi, bounds.1),
+            "node {k}: {lo} {hi} vs {bounds:?}"
+        );
+    }
     // Each instance is still a closed solid.
     let mesh = step_mesh(&scene, 1e-3);
     for k in 0..2 {
@@ -3816,6 +3850,154 @@ fn step_assemblies_place_each_instance() {
         assert!(
             (volume - a * b * c).abs() < 1e-9 * a * b * c,
             "volume {volume}"
+        );
+    }
+}
+
+/// An assembly as Open CASCADE's writer exports one (data/fixture_assembly.step, from
+/// tools/make_fixture_assembly.py): a plate, and a pair of bolts (cylinders of radius 4,
+/// height 30) placed at (30, 15, 10) and, turned 90° about z, at (70, 45, 10), the right
+/// bolt 20 along the pair's x. Read: each instance a placed copy named by its path. glb:
+/// the tree of product instances with their names and transforms, each solid's mesh once,
+/// which each node's placement takes onto the flattened mesh's copy.
+#[test]
+fn step_assembly_glb_keeps_its_instances() {
+    let scene = knotwork::io::read_scene(Path::new("data/fixture_assembly.step")).unwrap();
+    let names: Vec<&str> = scene
+        .items
+        .iter()
+        .filter_map(|i| i.name.as_deref())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "fixture/base plate",
+            "fixture/front pair/bolt left",
+            "fixture/front pair/bolt right",
+            "fixture/back pair/bolt left",
+            "fixture/back pair/bolt right",
+        ]
+    );
+    let tolerance_rel = 1e-3;
+    let flat = step_mesh(&scene, tolerance_rel);
+    // Each bolt's axis where the placements put it: its box is centred there in x and y.
+    let box_of_item = |mesh: &knotwork::Mesh, item: usize| {
+        parts_of(mesh, item)
+            .iter()
+            .flat_map(|p| {
+                mesh.positions[p.first_vertex as usize..][..p.vertex_count as usize].iter()
+            })
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), &p| {
+                (l.min(p), h.max(p))
+            })
+    };
+    let diagonal = flat.bounding_box_diagonal();
+    let tolerance = tolerance_rel * diagonal;
+    for (item, axis) in [
+        (1, (30.0, 15.0)),
+        (2, (50.0, 15.0)),
+        (3, (70.0, 45.0)),
+        (4, (70.0, 65.0)),
+    ] {
+        let (lo, hi) = box_of_item(&flat, item);
+        let centre = 0.5 * (lo + hi);
+        assert!(
+            (centre.x - axis.0).abs() < tolerance && (centre.y - axis.1).abs() < tolerance,
+            "bolt {item}: {lo} {hi}"
+        );
+        assert!(
+            (lo.z - 10.0).abs() < 1e-9 && (hi.z - 40.0).abs() < 1e-9,
+            "bolt {item}: {lo} {hi}"
+        );
+    }
+
+    let dir = scratch_dir("step-assembly");
+    let out = dir.join("fixture.glb");
+    let args = ["--tolerance-rel", "1e-3", "--backend", "cpu"];
+    let run = succeeds(
+        &[
+            &[
+                "tessellate",
+                "data/fixture_assembly.step",
+                "-o",
+                out.to_str().unwrap(),
+            ][..],
+            &args,
+        ]
+        .concat(),
+    );
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    validate_with_khronos(&out);
+    let gltf = gltf::Gltf::from_slice(&std::fs::read(&out).unwrap()).unwrap();
+    let blob = gltf.blob.as_deref().unwrap();
+    // Each solid once: the plate's and one bolt's vertices.
+    let meshes: Vec<&str> = gltf.meshes().filter_map(|m| m.name()).collect();
+    assert_eq!(meshes.len(), 2, "{meshes:?}");
+    let stored: usize = (0..2)
+        .flat_map(|item| parts_of(&flat, item))
+        .map(|p| p.vertex_count as usize)
+        .sum();
+    assert!(
+        stdout.contains(&format!(" {stored} vertices")),
+        "{stdout} (expected {stored} vertices)"
+    );
+    let nodes: Vec<(&str, Vec<usize>)> = gltf
+        .nodes()
+        .map(|n| (n.name().unwrap(), n.children().map(|c| c.index()).collect()))
+        .collect();
+    assert_eq!(
+        nodes,
+        [
+            ("fixture", vec![1, 2, 5]),
+            ("base plate", vec![]),
+            ("front pair", vec![3, 4]),
+            ("bolt left", vec![]),
+            ("bolt right", vec![]),
+            ("back pair", vec![6, 7]),
+            ("bolt left", vec![]),
+            ("bolt right", vec![]),
+        ]
+    );
+    let roots: Vec<usize> = gltf
+        .default_scene()
+        .unwrap()
+        .nodes()
+        .map(|n| n.index())
+        .collect();
+    assert_eq!(roots, [0]);
+    // World transforms down the tree; each mesh node's vertices placed by it bound the
+    // flattened copy of its item (item k is the k-th node with a mesh).
+    let mut world = vec![glam::Mat4::IDENTITY; 8];
+    for node in gltf.nodes() {
+        for child in node.children() {
+            world[child.index()] =
+                world[node.index()] * glam::Mat4::from_cols_array_2d(&child.transform().matrix());
+        }
+    }
+    let mesh_nodes: Vec<_> = gltf.nodes().filter(|n| n.mesh().is_some()).collect();
+    assert_eq!(mesh_nodes.len(), 5);
+    for (item, node) in mesh_nodes.iter().enumerate() {
+        let primitive = node.mesh().unwrap().primitives().next().unwrap();
+        let reader = primitive.reader(|_| Some(blob));
+        let positions: Vec<[f32; 3]> = reader.read_positions().unwrap().collect();
+        let (lo, hi) = reader
+            .read_indices()
+            .unwrap()
+            .into_u32()
+            .map(|i| {
+                world[node.index()]
+                    .transform_point3(glam::Vec3::from(positions[i as usize]))
+                    .as_dvec3()
+            })
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), p| {
+                (l.min(p), h.max(p))
+            });
+        let (flat_lo, flat_hi) = box_of_item(&flat, item);
+        assert!(
+            (lo - flat_lo).abs().max_element() < tolerance
+                && (hi - flat_hi).abs().max_element() < tolerance,
+            "{}: {lo} {hi} vs the flattened {flat_lo} {flat_hi}",
+            node.name().unwrap()
         );
     }
 }

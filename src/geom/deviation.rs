@@ -721,7 +721,7 @@ mod tests {
     /// The largest error of the linear interpolant of `f` over the triangle `corners`,
     /// sampled on a fine barycentric lattice plus the circumcentre's and the sides' middles.
     fn interpolation_error(f: &dyn Fn(DVec2) -> f64, corners: [DVec2; 3]) -> f64 {
-        let values = corners.map(|p| f(p));
+        let values = corners.map(f);
         let error = |l: [f64; 3]| {
             let p = corners[0] * l[0] + corners[1] * l[1] + corners[2] * l[2];
             (f(p) - (values[0] * l[0] + values[1] * l[1] + values[2] * l[2])).abs()

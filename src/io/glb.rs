@@ -32,7 +32,17 @@ pub fn write_glb<'a>(
     groups: &[ItemGroup],
     w: &mut dyn Write,
 ) -> Result<()> {
-    let mesh: AnyMesh = mesh.into();
+    write_glb_nodes(mesh.into(), groups, &[], w)
+}
+
+/// [`write_glb`] with the node hierarchy `nodes` (none: one node per group): each node
+/// showing its group's mesh, groups no node shows getting root nodes of their own.
+pub(crate) fn write_glb_nodes(
+    mesh: AnyMesh,
+    groups: &[ItemGroup],
+    nodes: &[GlbNode],
+    w: &mut dyn Write,
+) -> Result<()> {
     let n = mesh.vertex_count();
     let (indices, polylines) = (mesh.indices(), mesh.polylines());
     if indices.is_empty() && polylines.is_empty() {
@@ -97,6 +107,7 @@ pub fn write_glb<'a>(
         curve_points: &curve_points,
         groups,
         frames,
+        nodes,
     };
     let json = document(&contents, &|range| {
         if range == (0..n) {
@@ -111,7 +122,8 @@ pub fn write_glb<'a>(
 /// What the binary chunk of a .glb holds, in order — `vertex_count` interleaved vertices
 /// (a [`Vertex`] each), `index_count` u32 indices, then the curves' points and their
 /// tangents (f32 vec3 each, `curve_points` holding the points) — and how it is grouped:
-/// `groups` as [`cover_groups`] gives them, with their frames.
+/// `groups` as [`cover_groups`] gives them, with their frames, and the node hierarchy over
+/// them (empty: one node per group).
 pub(crate) struct GlbContents<'a> {
     pub vertex_count: usize,
     pub index_count: usize,
@@ -119,6 +131,17 @@ pub(crate) struct GlbContents<'a> {
     pub curve_points: &'a [[f32; 3]],
     pub groups: Vec<ItemGroup>,
     pub frames: Vec<GroupFrame>,
+    pub nodes: &'a [GlbNode],
+}
+
+/// A node of a glb's hierarchy: its name, the node it is placed in (an earlier one; `None`
+/// at a root), the transform from its coordinates to its parent's, and the group whose mesh
+/// it shows (an index into [`GlbContents::groups`]).
+pub(crate) struct GlbNode {
+    pub name: String,
+    pub parent: Option<usize>,
+    pub transform: glam::DMat4,
+    pub group: Option<usize>,
 }
 
 /// The glTF JSON of `contents`: one buffer, its views and accessors, a mesh and node per
@@ -135,6 +158,7 @@ pub(crate) fn document(
         curve_points,
         ref groups,
         ref frames,
+        nodes: tree,
     } = contents;
     let group_of = |item: u32| {
         groups
@@ -319,9 +343,20 @@ pub(crate) fn document(
             }
         }
     }
+    // A node of its own for every group with something to draw that no tree node shows.
+    let mut shown = vec![false; groups.len()];
+    for node in tree {
+        if let Some(g) = node.group {
+            shown[g] = true;
+        }
+    }
+    let mut meshes = Vec::with_capacity(groups.len());
     let mut nodes = Vec::new();
-    for ((group, primitives), frame) in groups.iter().zip(primitives).zip(frames) {
+    for (((group, primitives), frame), shown) in
+        groups.iter().zip(primitives).zip(frames).zip(shown)
+    {
         if primitives.is_empty() {
+            meshes.push(None);
             continue;
         }
         let mesh_index = root.push(json::Mesh {
@@ -331,6 +366,10 @@ pub(crate) fn document(
             primitives,
             weights: None,
         });
+        meshes.push(Some(mesh_index));
+        if shown {
+            continue;
+        }
         let t = frame.translation;
         nodes.push(root.push(json::Node {
             mesh: Some(mesh_index),
@@ -338,6 +377,26 @@ pub(crate) fn document(
             translation: (t != DVec3::ZERO).then(|| t.as_vec3().to_array()),
             ..Default::default()
         }));
+    }
+    // The tree: a node's mesh is stored relative to its group's translation, which its
+    // transform then applies first.
+    let first = root.nodes.len();
+    for node in tree {
+        let translation = node.group.map_or(DVec3::ZERO, |g| frames[g].translation);
+        let matrix = node.transform * glam::DMat4::from_translation(translation);
+        root.push(json::Node {
+            mesh: node.group.and_then(|g| meshes[g]),
+            name: Some(node.name.clone()),
+            matrix: (matrix != glam::DMat4::IDENTITY).then(|| matrix.as_mat4().to_cols_array()),
+            ..Default::default()
+        });
+    }
+    for (k, node) in tree.iter().enumerate() {
+        let index = json::Index::new((first + k) as u32);
+        match node.parent {
+            Some(p) => (root.nodes[first + p].children.get_or_insert_with(Vec::new)).push(index),
+            None => nodes.push(index),
+        }
     }
     let scene = root.push(json::Scene {
         extensions: None,
@@ -414,25 +473,27 @@ pub(crate) struct GroupFrame {
 /// indices (parts are in item order, so a group's are contiguous; after welding they may
 /// reach back into earlier groups' vertices).
 pub(crate) fn group_spans(parts: &[MeshPart], groups: &[ItemGroup]) -> Vec<GroupFrame> {
-    let span = |ranges: &mut dyn Iterator<Item = (u32, u32)>| {
-        ranges
-            .filter(|&(_, count)| count > 0)
-            .map(|(first, count)| first as usize..(first + count) as usize)
-            .reduce(|a, b| a.start.min(b.start)..a.end.max(b.end))
-            .unwrap_or(0..0)
-    };
     groups
         .iter()
         .map(|group| {
             let inside = |p: &&MeshPart| group.items.contains(&(p.item as usize));
             let parts: Vec<&MeshPart> = parts.iter().filter(inside).collect();
             GroupFrame {
-                vertices: span(&mut parts.iter().map(|p| (p.first_vertex, p.vertex_count))),
-                indices: span(&mut parts.iter().map(|p| (p.first_index, p.index_count))),
+                vertices: covering(parts.iter().map(|p| (p.first_vertex, p.vertex_count))),
+                indices: covering(parts.iter().map(|p| (p.first_index, p.index_count))),
                 translation: DVec3::ZERO,
             }
         })
         .collect()
+}
+
+/// The range covering the non-empty (first, count) spans given (`0..0` for none).
+pub(crate) fn covering(spans: impl Iterator<Item = (u32, u32)>) -> std::ops::Range<usize> {
+    spans
+        .filter(|&(_, count)| count > 0)
+        .map(|(first, count)| first as usize..(first + count) as usize)
+        .reduce(|a, b| a.start.min(b.start)..a.end.max(b.end))
+        .unwrap_or(0..0)
 }
 
 /// The frame of each group ([`group_spans`]) with its translation ([`place_frames`]), from

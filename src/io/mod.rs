@@ -8,6 +8,8 @@ mod bpt;
 #[cfg(feature = "gltf")]
 mod glb;
 mod iges;
+#[cfg(feature = "gltf")]
+mod instances;
 #[cfg(feature = "json")]
 mod json;
 mod obj_freeform;
@@ -252,7 +254,9 @@ pub struct WrittenMesh {
 /// ([`stream_scene`]); any other is made whole: in f64 for OBJ, for welding (`weld`: vertices
 /// within [`crate::mesh::WELD_REL_TOLERANCE`] of the diagonal merged) and for a glb far from
 /// the origin (stored relative to node translations, see [`is_far_from_origin`]), in f32 —
-/// straight from the executor — for the other binary formats.
+/// straight from the executor — for the other binary formats. A glb of a scene with a
+/// placement tree ([`Scene::nodes`]) keeps it: each solid meshed once in its own coordinates
+/// and shown by a node per instance (a scene with seams as well is written flattened).
 pub fn tessellate_to_file(
     path: &Path,
     format: Option<MeshFormat>,
@@ -262,6 +266,10 @@ pub fn tessellate_to_file(
     weld: bool,
 ) -> Result<WrittenMesh> {
     let chosen = output_format(path, format)?;
+    #[cfg(feature = "gltf")]
+    if chosen == MeshFormat::Glb && !scene.nodes.is_empty() && scene.seams.is_empty() {
+        return instances::tessellate_instanced_glb(path, scene, defaults, tessellator, weld);
+    }
     #[cfg(feature = "gltf")]
     let far_glb = chosen == MeshFormat::Glb
         && (scene.items.iter()).any(|item| is_far_from_origin(item.geometry.control_box()));

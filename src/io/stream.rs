@@ -218,6 +218,7 @@ fn stream_glb(
         curve_points: &[],
         frames: glb::group_spans(&layout.parts, &groups),
         groups,
+        nodes: &[],
     };
     // The JSON with every bound at zero, and room for each of the six numbers of the one
     // POSITION accessor to grow to the longest an f32 prints as (16 characters).

@@ -8,10 +8,12 @@ use crate::geom::brep::{Bound, Edge, Face, OrientedEdge, Shell};
 use crate::geom::curves::join;
 use crate::geom::shapes::{degenerate_torus_section, ellipsoid, revolve, torus_section, unit_arc};
 use crate::geom::{BSplineCurve, BSplineSurface, Interval, KnotVector};
-use crate::scene::{Dropped, Geometry, Item, Scene};
+use crate::scene::Dropped;
 use glam::{DMat4, DVec3};
-use std::collections::{BTreeSet, HashMap};
+use std::collections::HashMap;
 use std::f64::consts::{FRAC_PI_2, TAU};
+
+mod assembly;
 
 /// Deepest chain of references followed from one entity (a cycle is refused at this depth).
 const MAX_DEPTH: usize = 48;
@@ -1079,177 +1081,6 @@ impl<'a> Model<'a> {
             builder.rollback(mark);
         }
         result
-    }
-
-    // ---- the model ---------------------------------------------------------------------
-
-    /// The scene: every solid and surface model (each shell one item, named after its
-    /// solid), placed by the assembly structure.
-    pub fn scene(&self) -> Result<Scene> {
-        let mut scene = Scene::default();
-        let mut ids: Vec<u64> = self.file.instances.keys().copied().collect();
-        ids.sort_unstable();
-        let placements = self.placements()?;
-        let mut used_shells = BTreeSet::new();
-        let mut roots: Vec<(u64, Vec<u64>, String)> = Vec::new();
-        for &id in &ids {
-            let instance = &self.file.instances[&id];
-            let record = &instance.records[0];
-            let rec = Rec { id, record };
-            let name = match record.params.first() {
-                Some(Value::Text(t)) if !t.trim().is_empty() => t.clone(),
-                _ => format!("{} #{id}", record.name),
-            };
-            let shells = match record.name.as_str() {
-                "MANIFOLD_SOLID_BREP" => vec![rec.reference(1)?],
-                "BREP_WITH_VOIDS" => {
-                    let mut s = vec![rec.reference(1)?];
-                    s.extend(rec.references(2)?);
-                    s
-                }
-                "SHELL_BASED_SURFACE_MODEL" => rec.references(1)?,
-                _ => continue,
-            };
-            used_shells.extend(shells.iter().copied());
-            roots.push((id, shells, name));
-        }
-        for &id in &ids {
-            let record = &self.file.instances[&id].records[0];
-            if matches!(record.name.as_str(), "CLOSED_SHELL" | "OPEN_SHELL")
-                && !used_shells.contains(&id)
-            {
-                roots.push((id, vec![id], format!("{} #{id}", record.name)));
-            }
-        }
-        let mut notes = BTreeSet::new();
-        for (id, shells, name) in roots {
-            let mut read = Vec::new();
-            for shell in shells {
-                match self.shell(shell, &mut scene.dropped) {
-                    Ok(s) => read.push(s),
-                    Err(error) => scene.dropped.push(Dropped {
-                        what: format!("{name} (#{id})"),
-                        reason: error.to_string(),
-                    }),
-                }
-            }
-            let instances = placements
-                .get(&id)
-                .cloned()
-                .unwrap_or_else(|| vec![DMat4::IDENTITY]);
-            if instances.len() > 1 {
-                notes.insert(format!(
-                    "{name} is placed {} times in the assembly",
-                    instances.len()
-                ));
-            }
-            for (k, placement) in instances.iter().enumerate() {
-                for shell in &read {
-                    let placed = if *placement == DMat4::IDENTITY {
-                        shell.clone()
-                    } else {
-                        shell.mapped(|p| placement.transform_point3(p))
-                    };
-                    let mut item = Item::new(Geometry::Shell(Box::new(placed)));
-                    item.name = Some(if instances.len() > 1 {
-                        format!("{name} [{}]", k + 1)
-                    } else {
-                        name.clone()
-                    });
-                    scene.items.push(item);
-                }
-            }
-        }
-        if self.length_scale != 1.0 {
-            notes.insert(format!(
-                "lengths converted to millimetres (× {})",
-                self.length_scale
-            ));
-        }
-        scene.notes.extend(notes);
-        if scene.items.is_empty() && scene.dropped.is_empty() {
-            // As IGES files with no surface: an empty mesh would pass for a meshed part.
-            return Err(Error::syntax(format!(
-                "no B-rep in the file (knotwork meshes MANIFOLD_SOLID_BREP, BREP_WITH_VOIDS, SHELL_BASED_SURFACE_MODEL and free CLOSED_SHELL/OPEN_SHELL; it holds {} instances of other kinds)",
-                self.file.instances.len()
-            )));
-        }
-        Ok(scene)
-    }
-
-    /// Where each solid appears: the product of the transformations of every chain of
-    /// representation relationships from the representation holding it up to a root
-    /// (a representation no relationship places in another). Solids outside any
-    /// relationship are not listed (identity).
-    fn placements(&self) -> Result<HashMap<u64, Vec<DMat4>>> {
-        // child representation → (parent representation, child-to-parent transform)
-        let mut parents: HashMap<u64, Vec<(u64, DMat4)>> = HashMap::new();
-        let mut item_reps: HashMap<u64, Vec<u64>> = HashMap::new();
-        let mut ids: Vec<u64> = self.file.instances.keys().copied().collect();
-        ids.sort_unstable();
-        for &id in &ids {
-            let instance = &self.file.instances[&id];
-            if let Some(r) = instance.record("REPRESENTATION_RELATIONSHIP") {
-                let rec = Rec { id, record: r };
-                let (rep1, rep2) = (rec.reference(2)?, rec.reference(3)?);
-                let transform = match instance
-                    .record("REPRESENTATION_RELATIONSHIP_WITH_TRANSFORMATION")
-                {
-                    Some(t) => {
-                        let t = Rec { id, record: t };
-                        let idt = self.expect(t.reference(0)?, &["ITEM_DEFINED_TRANSFORMATION"])?;
-                        let from = self.frame(idt.reference(2)?)?;
-                        let to = self.frame(idt.reference(3)?)?;
-                        to.matrix() * from.matrix().inverse()
-                    }
-                    None => DMat4::IDENTITY,
-                };
-                // rep1 is placed in rep2.
-                parents.entry(rep1).or_default().push((rep2, transform));
-            }
-            let record = &instance.records[0];
-            if record.name.ends_with("SHAPE_REPRESENTATION") && record.params.len() >= 2 {
-                let rec = Rec { id, record };
-                if let Ok(items) = rec.references(1) {
-                    for item in items {
-                        item_reps.entry(item).or_default().push(id);
-                    }
-                }
-            }
-        }
-        if parents.is_empty() {
-            return Ok(HashMap::new());
-        }
-        let mut placements = HashMap::new();
-        for (item, reps) in item_reps {
-            let mut found = Vec::new();
-            for rep in reps {
-                let mut stack = vec![(rep, DMat4::IDENTITY, 0usize)];
-                while let Some((at, transform, depth)) = stack.pop() {
-                    if depth > MAX_DEPTH {
-                        return Err(problem(
-                            at,
-                            "REPRESENTATION_RELATIONSHIP",
-                            "assemblies nest too deeply (a cycle?)",
-                        ));
-                    }
-                    match parents.get(&at) {
-                        None => found.push(transform),
-                        Some(list) => {
-                            // Reversed onto the stack: placements come out in file order.
-                            for &(parent, t) in list.iter().rev() {
-                                stack.push((parent, t * transform, depth + 1));
-                            }
-                        }
-                    }
-                    if found.len() > 1 << 16 {
-                        return Err(problem(item, "assembly", "is placed more than 65536 times"));
-                    }
-                }
-            }
-            placements.insert(item, found);
-        }
-        Ok(placements)
     }
 }
 
