@@ -51,7 +51,8 @@ pub enum Command {
         /// Input files or directories (their .obj, .bpt, .json, .igs, .iges, .stp and .step files).
         #[arg(required = true)]
         inputs: Vec<PathBuf>,
-        /// Output file, or directory for several inputs.
+        /// Output file, a directory for several inputs, or `-` for standard output (with
+        /// `--format`).
         #[arg(short, long)]
         output: PathBuf,
         /// Vertices per surface, NUxNV (u along the first number); a JSON surface's own `grid` wins.

@@ -3854,6 +3854,62 @@ fn step_assemblies_place_each_instance() {
     }
 }
 
+/// `-o -` writes one input's mesh to standard output in `--format` (the summary to standard
+/// error); without `--format`, or with several inputs, it is refused and no file named "-"
+/// appears.
+#[test]
+fn cli_writes_standard_output_with_a_format() {
+    // Run from a scratch folder, where a file named "-" would show.
+    const TEAPOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/teapot.bpt");
+    let dir = scratch_dir("stdout");
+    let run = Command::new(env!("CARGO_BIN_EXE_knotwork"))
+        .current_dir(&dir)
+        .args([
+            "tessellate",
+            TEAPOT,
+            "-o",
+            "-",
+            "--format",
+            "obj",
+            "--grid",
+            "5x5",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let text = String::from_utf8(run.stdout).unwrap();
+    let vertices = text.lines().filter(|l| l.starts_with("v ")).count();
+    let faces = text.lines().filter(|l| l.starts_with("f ")).count();
+    assert_eq!(
+        (vertices, faces),
+        (32 * 25, 32 * 32),
+        "32 patches of 5x5 vertices"
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("800 vertices") && stderr.contains("standard output"),
+        "{stderr}"
+    );
+    for args in [
+        &["tessellate", TEAPOT, "-o", "-"][..],
+        &["tessellate", TEAPOT, TEAPOT, "-o", "-", "--format", "obj"],
+    ] {
+        let run = Command::new(env!("CARGO_BIN_EXE_knotwork"))
+            .current_dir(&dir)
+            .args(args)
+            .output()
+            .unwrap();
+        assert_eq!(run.status.code(), Some(1));
+        assert!(run.stdout.is_empty());
+        assert!(String::from_utf8_lossy(&run.stderr).contains("standard output"));
+        assert!(!dir.join("-").exists());
+    }
+}
+
 /// An assembly as Open CASCADE's writer exports one (data/fixture_assembly.step, from
 /// tools/make_fixture_assembly.py): a plate, and a pair of bolts (cylinders of radius 4,
 /// height 30) placed at (30, 15, 10) and, turned 90° about z, at (70, 45, 10), the right

@@ -359,6 +359,70 @@ struct Inputs {
     skipped: Vec<PathBuf>,
 }
 
+/// `-o -`: one input's mesh to standard output, in `--format` (there is no extension to
+/// name one), the summary to standard error. The mesh goes through a temporary file — the
+/// writers stream into files they seek in — copied out when complete, so a failed job
+/// writes nothing. Binary formats are refused on a terminal.
+fn tessellate_to_stdout(
+    inputs: &[PathBuf],
+    batch: bool,
+    backend: Backend,
+    job: &Job,
+) -> knotwork::Result<bool> {
+    let refuse = |what: &str| Err(knotwork::Error::Unsupported { what: what.into() });
+    if batch {
+        return refuse(
+            "several inputs or a folder to standard output (-o -): give an output folder",
+        );
+    }
+    let Some(format) = job.format else {
+        return refuse(
+            "-o - (standard output) without --format: name the format (obj, ply, stl or glb)",
+        );
+    };
+    let mut stdout = std::io::stdout().lock();
+    if format != knotwork::io::MeshFormat::Obj && stdout.is_terminal() {
+        return refuse(
+            "binary mesh output to a terminal: redirect standard output to a file or a pipe",
+        );
+    }
+    let start = Instant::now();
+    let tessellator = tessellator(backend)?;
+    let temporary = std::env::temp_dir().join(format!(
+        "knotwork-stdout-{}.{}",
+        std::process::id(),
+        format.extension()
+    ));
+    let input = &inputs[0];
+    let result = process(input, &temporary, tessellator.as_ref(), job).and_then(|tally| {
+        let copied = std::fs::File::open(&temporary)
+            .and_then(|mut file| std::io::copy(&mut file, &mut stdout))
+            .and_then(|_| std::io::Write::flush(&mut stdout))
+            // A reader that stops early (`| head`) is not an error of the job.
+            .or_else(|e| match e.kind() {
+                std::io::ErrorKind::BrokenPipe => Ok(()),
+                _ => Err(e),
+            });
+        copied
+            .map(|()| tally)
+            .map_err(|source| knotwork::Error::Io {
+                path: "standard output".into(),
+                source,
+            })
+    });
+    // Gone whether or not the job succeeded (it may not exist).
+    let _ = std::fs::remove_file(&temporary);
+    let tally = result.map_err(|error| error.naming_file(input))?;
+    eprintln!(
+        "{}: {} in {:.3} s ({}) -> standard output",
+        input.display(),
+        tally.summary(),
+        start.elapsed().as_secs_f64(),
+        tessellator.name(),
+    );
+    Ok(tally.dropped == 0)
+}
+
 /// Tessellates every input; returns whether all succeeded.
 fn tessellate(
     inputs: &[PathBuf],
@@ -368,6 +432,9 @@ fn tessellate(
 ) -> knotwork::Result<bool> {
     let start = Instant::now();
     let batch = inputs.len() > 1 || inputs.iter().any(|p| p.is_dir()) || output.is_dir();
+    if output == Path::new("-") {
+        return tessellate_to_stdout(inputs, batch, backend, job);
+    }
     let tessellator = tessellator(backend)?;
     if !batch {
         let tally = process(&inputs[0], output, tessellator.as_ref(), job)
