@@ -55,9 +55,11 @@ pub enum Command {
         /// `--format`).
         #[arg(short, long)]
         output: PathBuf,
-        /// Vertices per surface, NUxNV (u along the first number); a JSON surface's own `grid` wins.
-        #[arg(long, default_value = "33x33", value_parser = parse_grid)]
-        grid: (u32, u32),
+        /// Vertices per surface, NUxNV (u along the first number; default 33x33); a JSON
+        /// surface's own `grid` wins. Trimmed faces and solids are meshed to a tolerance
+        /// whatever the grid.
+        #[arg(long, value_parser = parse_grid)]
+        grid: Option<(u32, u32)>,
         /// Instead of a grid, sample every surface so that the mesh stays within this
         /// distance of it (model units): rates from a proven bound, per knot span and within it.
         #[arg(long, value_parser = parse_tolerance, allow_hyphen_values = true, conflicts_with_all = ["grid", "tolerance_rel"])]
@@ -242,12 +244,15 @@ pub struct Job {
     pub memory_budget: u64,
     /// Triangles one file's mesh may have (`--max-triangles`).
     pub max_triangles: Option<u64>,
+    /// Whether `--grid` was given: trimmed faces and solids, which it does not apply to,
+    /// are then pointed out.
+    pub grid_given: bool,
 }
 
 /// The options of `--grid`, `--tolerance`, `--tolerance-rel`, `--max-edge` and
 /// `--max-angle` (at most one tolerance, and none with `--grid`: clap refuses those).
 pub fn tess_options(
-    grid: (u32, u32),
+    grid: Option<(u32, u32)>,
     tolerance: Option<f64>,
     tolerance_rel: Option<f64>,
     max_edge: Option<f64>,
@@ -257,8 +262,10 @@ pub fn tess_options(
         (Some(t), _) => Some(Tolerance::Absolute(t)),
         (None, r) => r.map(Tolerance::Relative),
     };
+    let (grid_u, grid_v) =
+        grid.unwrap_or((TessOptions::DEFAULT.grid_u, TessOptions::DEFAULT.grid_v));
     TessOptions::DEFAULT
-        .with_grid(grid.0, grid.1)
+        .with_grid(grid_u, grid_v)
         .with_limits(tolerance, max_edge, max_angle)
 }
 
@@ -332,7 +339,13 @@ impl Job {
             samples,
             memory_budget,
             max_triangles: None,
+            grid_given: false,
         }
+    }
+
+    /// The job with whether `--grid` was given.
+    pub fn with_grid_given(self, grid_given: bool) -> Self {
+        Job { grid_given, ..self }
     }
 
     /// The job with `--max-triangles`.

@@ -3910,6 +3910,34 @@ fn cli_writes_standard_output_with_a_format() {
     }
 }
 
+/// `--grid` does not apply to solids and trimmed faces (meshed to a tolerance): given, the
+/// CLI says so for a file that has them, and only then.
+#[test]
+fn cli_says_where_the_grid_does_not_apply() {
+    let dir = scratch_dir("grid-warning");
+    let out = dir.join("out.obj");
+    let warning = |input: &str, grid: bool| {
+        let mut args = vec!["tessellate", input, "-o", out.to_str().unwrap()];
+        if grid {
+            args.extend(["--grid", "9x9"]);
+        }
+        let stderr = String::from_utf8_lossy(&succeeds(&args).stderr).into_owned();
+        stderr
+            .lines()
+            .find(|l| l.contains("--grid does not apply"))
+            .map(str::to_owned)
+    };
+    let solids = warning("data/abc-0000.step", true).expect("a warning for solids");
+    assert!(
+        solids.contains("6 solids (25 faces)") && solids.contains("0.001"),
+        "{solids}"
+    );
+    let trimmed = warning("data/special_curves.obj", true).expect("a warning for trimmed faces");
+    assert!(trimmed.contains("1 trimmed face"), "{trimmed}");
+    assert_eq!(warning("data/abc-0000.step", false), None);
+    assert_eq!(warning("data/teapot.bpt", true), None);
+}
+
 /// An assembly as Open CASCADE's writer exports one (data/fixture_assembly.step, from
 /// tools/make_fixture_assembly.py): a plate, and a pair of bolts (cylinders of radius 4,
 /// height 30) placed at (30, 15, 10) and, turned 90° about z, at (70, 45, 10), the right

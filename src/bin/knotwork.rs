@@ -99,6 +99,7 @@ fn main() -> ExitCode {
             samples,
             max_memory,
         } => {
+            let grid_given = grid.is_some();
             let job = Job::new(
                 knotwork::cli::tess_options(grid, tolerance, tolerance_rel, max_edge, max_angle),
                 format,
@@ -107,7 +108,8 @@ fn main() -> ExitCode {
                 samples,
                 max_memory.unwrap_or_else(knotwork::scene::default_memory_budget),
             )
-            .with_max_triangles(max_triangles);
+            .with_max_triangles(max_triangles)
+            .with_grid_given(grid_given);
             tessellate(&inputs, &output, backend, &job)
         }
         Command::Render {
@@ -276,6 +278,20 @@ fn process(
 ) -> knotwork::Result<Tally> {
     let scene = knotwork::io::read_scene_as(input, job.input_format)?;
     let dropped = report_reading(input, &scene);
+    let (_, solids, faces) = scene_counts(&scene);
+    let trimmed = scene
+        .items
+        .iter()
+        .filter(|i| matches!(i.geometry, knotwork::Geometry::Trimmed(_)))
+        .count();
+    if job.grid_given && solids + trimmed > 0 {
+        eprintln!(
+            "warning: {}: --grid does not apply to its {}: they are meshed to {} of the diagonal (--tolerance or --tolerance-rel sets it)",
+            input.display(),
+            items_summary(trimmed, solids, faces).replace("surface", "trimmed face"),
+            knotwork::cpu::TRIMMED_DEFAULT_TOLERANCE_REL
+        );
+    }
     let budget = if job.weld {
         job.memory_budget / 2
     } else {
@@ -303,7 +319,7 @@ fn process(
         job.weld,
     )?;
     let skipped = report_skipped(input, &scene, &defaults, written.part_items.into_iter());
-    let (surfaces, solids, faces) = scene_counts(&scene);
+    let (surfaces, _, _) = scene_counts(&scene);
     Ok(Tally {
         surfaces,
         solids,
