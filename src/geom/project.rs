@@ -5,6 +5,9 @@ use super::{BSplineCurve, BSplineSurface, KnotVector, ParamMap};
 use crate::error::{Error, Result};
 use glam::{DVec2, DVec3};
 
+/// A Newton step shorter than this fraction of the range (each way) ends the inversion: a
+/// few ulps of the parameter, where the steps only cycle through rounding.
+const SETTLED: f64 = 1e-14;
 /// Newton steps per inversion.
 const NEWTON_STEPS: usize = 32;
 /// Deepest bisection of a piece of the curve (2¹⁶ pieces per knot span).
@@ -17,6 +20,7 @@ pub fn invert(surface: &BSplineSurface, target: DVec3, start: DVec2) -> (DVec2, 
     let (ru, rv) = (surface.range_u(), surface.range_v());
     let clamp = |p: DVec2| DVec2::new(p.x.clamp(ru.start, ru.end), p.y.clamp(rv.start, rv.end));
     let mut p = clamp(start);
+    let settle = SETTLED * DVec2::new(ru.width(), rv.width());
     for _ in 0..NEWTON_STEPS {
         let s = surface.evaluate(p.x, p.y);
         let r = s.position - target;
@@ -41,34 +45,92 @@ pub fn invert(surface: &BSplineSurface, target: DVec3, start: DVec2) -> (DVec2, 
             )
         };
         let next = clamp(p - step);
-        if next == p {
+        // Converged: the step moves the parameters by rounding only (it may cycle there).
+        let settled = (next - p).abs().cmple(settle).all();
+        p = next;
+        if settled {
             break;
         }
-        p = next;
     }
     (p, surface.point(p.x, p.y).distance(target))
 }
 
-/// The parameters nearest `target` over a grid of the surface (8 per knot span each way, at
-/// most 64), refined by [`invert`].
-pub(crate) fn invert_from_grid(surface: &BSplineSurface, target: DVec3) -> (DVec2, f64) {
-    let (ru, rv) = (surface.range_u(), surface.range_v());
-    let count = |spans: usize| (8 * spans).clamp(8, 64);
-    let (nu, nv) = (
-        count(surface.count_u() - surface.degree_u()),
-        count(surface.count_v() - surface.degree_v()),
-    );
-    let mut best = (DVec2::new(ru.start, rv.start), f64::INFINITY);
-    for j in 0..=nv {
-        for i in 0..=nu {
-            let p = DVec2::new(ru.lerp(i as f64 / nu as f64), rv.lerp(j as f64 / nv as f64));
-            let d = surface.point(p.x, p.y).distance(target);
-            if d < best.1 {
-                best = (p, d);
-            }
+/// Where inversions with no guess start on one surface: its points on a coarse grid of its
+/// range (2 per knot span each way, 4 to 16), and on a fine one (8 per span, at most 64),
+/// made the first time a point needs it and kept for the next.
+pub(crate) struct SurfaceSamples {
+    coarse: SampleGrid,
+    fine: std::sync::OnceLock<SampleGrid>,
+}
+
+/// A surface's points on a uniform grid of its range.
+struct SampleGrid {
+    params: Vec<DVec2>,
+    points: Vec<DVec3>,
+}
+
+impl SurfaceSamples {
+    /// The samples of `surface` (the coarse grid now, the fine one when first needed).
+    pub(crate) fn new(surface: &BSplineSurface) -> Self {
+        SurfaceSamples {
+            coarse: SampleGrid::new(surface, 2, 4, 16),
+            fine: std::sync::OnceLock::new(),
         }
     }
-    invert(surface, target, best.0)
+}
+
+impl SampleGrid {
+    /// `per_span` samples per knot span each way, clamped to `min..=max`.
+    fn new(surface: &BSplineSurface, per_span: usize, min: usize, max: usize) -> Self {
+        let (ru, rv) = (surface.range_u(), surface.range_v());
+        let count = |spans: usize| (per_span * spans).clamp(min, max);
+        let (nu, nv) = (
+            count(surface.count_u() - surface.degree_u()),
+            count(surface.count_v() - surface.degree_v()),
+        );
+        let params: Vec<DVec2> = (0..=nv)
+            .flat_map(|j| {
+                (0..=nu).map(move |i| {
+                    DVec2::new(ru.lerp(i as f64 / nu as f64), rv.lerp(j as f64 / nv as f64))
+                })
+            })
+            .collect();
+        let points = params.iter().map(|p| surface.point(p.x, p.y)).collect();
+        SampleGrid { params, points }
+    }
+
+    /// The parameters of the sample nearest `target`.
+    fn nearest(&self, target: DVec3) -> DVec2 {
+        let distances = self.points.iter().map(|p| p.distance_squared(target));
+        let (k, _) =
+            distances.enumerate().fold(
+                (0, f64::INFINITY),
+                |best, (k, d)| if d < best.1 { (k, d) } else { best },
+            );
+        self.params[k]
+    }
+}
+
+/// The parameters nearest `target` on `surface` (`samples` are its own): [`invert`] from
+/// the nearest coarse sample, and where that ends farther than `on_surface` (model units)
+/// from the target, from the nearest fine sample too, the nearer of the two. A point within
+/// `on_surface` of the surface — what a CAD file puts on its surfaces, to its modelling
+/// precision — is taken where Newton's basin from the coarse grid leads it.
+pub(crate) fn invert_from_grid(
+    surface: &BSplineSurface,
+    samples: &SurfaceSamples,
+    target: DVec3,
+    on_surface: f64,
+) -> (DVec2, f64) {
+    let coarse = invert(surface, target, samples.coarse.nearest(target));
+    if coarse.1 <= on_surface {
+        return coarse;
+    }
+    let fine = samples
+        .fine
+        .get_or_init(|| SampleGrid::new(surface, 8, 8, 64));
+    let fine = invert(surface, target, fine.nearest(target));
+    if fine.1 < coarse.1 { fine } else { coarse }
 }
 
 /// `curve` (model space) as a polyline in a file's parameters of the surface (degree 1,
@@ -137,7 +199,11 @@ fn project_points(
     };
     let breaks = curve.span_breaks();
     let start = breaks[0];
-    let mut points = vec![check(start, invert_from_grid(surface, curve.point(start)))?];
+    let samples = SurfaceSamples::new(surface);
+    let mut points = vec![check(
+        start,
+        invert_from_grid(surface, &samples, curve.point(start), tolerance),
+    )?];
     let mut params = vec![start];
     for span in breaks.windows(2) {
         // Depth-first, left first: (t0, p0, t1, p1, depth).
@@ -149,7 +215,10 @@ fn project_points(
         for k in 1..=pieces {
             let t = at(k);
             let p = unwrap(
-                check(t, nearest(surface, curve.point(t), previous, tolerance))?,
+                check(
+                    t,
+                    nearest(surface, &samples, curve.point(t), previous, tolerance),
+                )?,
                 previous,
             );
             ends.push((t, p));
@@ -174,7 +243,10 @@ fn project_points(
             let target = curve.point(tm);
             let chord = map.apply(0.5 * (map.inverse(p0) + map.inverse(p1)));
             if depth < MAX_DEPTH && on_surface(map.inverse(chord)).distance(target) > tolerance {
-                let pm = unwrap(check(tm, nearest(surface, target, chord, tolerance))?, p0);
+                let pm = unwrap(
+                    check(tm, nearest(surface, &samples, target, chord, tolerance))?,
+                    p0,
+                );
                 stack.push((tm, pm, t1, p1, depth + 1));
                 stack.push((t0, p0, tm, pm, depth + 1));
                 continue;
@@ -245,9 +317,10 @@ pub fn project_chain(
 }
 
 /// [`invert`] from `guess`; where that lands farther than `tolerance` from the target, the
-/// grid search too, and the nearer of the two.
+/// grid search ([`invert_from_grid`] over `samples`, the surface's own) too, and the nearer of the two.
 pub(crate) fn nearest(
     surface: &BSplineSurface,
+    samples: &SurfaceSamples,
     target: DVec3,
     guess: DVec2,
     tolerance: f64,
@@ -256,6 +329,6 @@ pub(crate) fn nearest(
     if local.1 <= tolerance {
         return local;
     }
-    let global = invert_from_grid(surface, target);
+    let global = invert_from_grid(surface, samples, target, tolerance);
     if global.1 < local.1 { global } else { local }
 }

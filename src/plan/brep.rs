@@ -20,7 +20,7 @@
 use super::trim::plan_fixed_boundary;
 use crate::error::{Error, Result};
 use crate::geom::brep::{Bound, Shell};
-use crate::geom::project::{invert_from_grid, nearest};
+use crate::geom::project::{SurfaceSamples, invert, invert_from_grid, nearest};
 use crate::geom::{BSplineSurface, Interval, SamplingLimits};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
@@ -159,6 +159,8 @@ struct FaceView<'a> {
     /// Whether the side u = start, u = end, v = start, v = end collapses to a point.
     collapsed: [bool; 4],
     size: f64,
+    /// Where inversions with no seed start.
+    samples: SurfaceSamples,
 }
 
 impl<'a> FaceView<'a> {
@@ -197,6 +199,7 @@ impl<'a> FaceView<'a> {
             closed,
             collapsed,
             size,
+            samples: SurfaceSamples::new(surface),
         }
     }
 
@@ -227,20 +230,20 @@ impl<'a> FaceView<'a> {
         // From a seed, the grid search is the fallback only for a point Newton leaves off
         // the face altogether (the seeds are a few samples away at most).
         let (mut uv, mut distance) = match seed.or(near) {
-            Some(start) => nearest(self.surface, p, start, OFF_FACE * self.size),
-            None => invert_from_grid(self.surface, p),
+            Some(start) => nearest(self.surface, &self.samples, p, start, OFF_FACE * self.size),
+            None => invert_from_grid(self.surface, &self.samples, p, ON_SURFACE * self.size),
         };
         // Newton stopped on the range's boundary (clamped, or at a pole) short of the point:
         // the grid search too, and the nearer.
         let on_boundary = (0..2).any(|axis| self.on_side(axis, uv[axis]).is_some());
         if seed.or(near).is_some() && on_boundary && distance > ON_SURFACE * self.size {
-            let global = invert_from_grid(self.surface, p);
+            let global = invert_from_grid(self.surface, &self.samples, p, ON_SURFACE * self.size);
             if global.1 < distance {
                 (uv, distance) = global;
             }
         }
         // At a pole Newton cannot turn (the derivative along it vanishes): start again from
-        // just off it, at a few places round it.
+        // just off it, at a few places round it (Newton alone: the grid has had its turn).
         for axis in 0..2 {
             let other = 1 - axis;
             let Some(end) = self.on_side(other, uv[other]) else {
@@ -254,13 +257,14 @@ impl<'a> FaceView<'a> {
                 let mut seed = uv;
                 seed[axis] = along.lerp(f64::from(k) / 8.0);
                 seed[other] = across.lerp(if end { 1.0 - 1e-3 } else { 1e-3 });
-                let again = nearest(self.surface, p, seed, ON_SURFACE * self.size);
+                let again = invert(self.surface, p, seed);
                 if again.1 < distance {
                     (uv, distance) = again;
                 }
             }
         }
-        // Newton steps stop at the range's ends: across a seam, start again from the twin.
+        // Newton steps stop at the range's ends: across a seam, start again from the twin
+        // (Newton alone, as at poles).
         for axis in 0..2 {
             if distance > ON_SURFACE * self.size
                 && self.closed[axis]
@@ -269,7 +273,7 @@ impl<'a> FaceView<'a> {
                 let range = self.ranges[axis];
                 let mut twin = uv;
                 twin[axis] = if end { range.start } else { range.end };
-                let again = nearest(self.surface, p, twin, ON_SURFACE * self.size);
+                let again = invert(self.surface, p, twin);
                 if again.1 < distance {
                     (uv, distance) = again;
                 }
