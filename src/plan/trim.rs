@@ -390,6 +390,33 @@ struct FaceTriangulation {
     loop_segments: Vec<[usize; 2]>,
 }
 
+/// A triangle of the face outside its limits, by how far ([`DerivativeBound::triangle_excess`]):
+/// ordered by that, so a max-heap gives the worst first.
+struct Failing {
+    excess: f64,
+    ids: [usize; 3],
+}
+
+impl PartialEq for Failing {
+    fn eq(&self, other: &Self) -> bool {
+        self.cmp(other) == std::cmp::Ordering::Equal
+    }
+}
+
+impl Eq for Failing {}
+
+impl PartialOrd for Failing {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Failing {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        (self.excess.total_cmp(&other.excess)).then_with(|| self.ids.cmp(&other.ids))
+    }
+}
+
 /// Most edges a loop segment is found split into (by vertices lying exactly on it).
 const MAX_SPLIT_WALK: usize = 1 << 16;
 
@@ -491,13 +518,17 @@ impl FaceTriangulation {
 
     /// Inserts points into the face until every triangle meets `limits` by the triangle
     /// bound ([`DerivativeBound::triangle_excess`]) of the cells its parameter box overlaps;
-    /// returns the face's final triangles. Each round takes the triangles that fail, worst
-    /// first, and inserts into each one still there: its circumcentre (in the
-    /// triangulation's coordinates) where that lies inside it, else the middle of its
-    /// longest edge where that edge constrains nothing (the triangle beyond is the face's
-    /// too), else its centroid — Delaunay refinement, so triangles come out well shaped.
-    /// Points `keep_off` refuses (within rounding of a boundary that must stay as it is)
-    /// fall back to the centroid, and are left out if that is refused too.
+    /// returns the face's final triangles. The failing triangles wait in a queue, worst
+    /// first; each one still there gets its circumcentre (in the triangulation's
+    /// coordinates) where that lies inside it, else the middle of its longest edge where
+    /// that edge constrains nothing (the triangle beyond is the face's too), else its
+    /// centroid — Delaunay refinement, so triangles come out well shaped — and the new
+    /// triangles round the point join the queue (every triangle an insertion makes has the
+    /// new point as a corner). A point that lands on a constraint (a loop, where the
+    /// triangles beyond are not the face's) leaves its triangles to the next round, which
+    /// finds the face's triangles again by the loops' parity. Points `keep_off` refuses
+    /// (within rounding of a boundary that must stay as it is) fall back to the centroid,
+    /// and are left out if that is refused too.
     fn refine(
         &mut self,
         bounds: &CellBounds,
@@ -505,33 +536,46 @@ impl FaceTriangulation {
         max_vertices: usize,
         keep_off: &dyn Fn(DVec2) -> bool,
     ) -> Result<Vec<([usize; 3], [DVec2; 3])>> {
+        let excess = |corners: [DVec2; 3]| {
+            let low = corners[0].min(corners[1]).min(corners[2]);
+            let high = corners[0].max(corners[1]).max(corners[2]);
+            bounds.over(low, high).triangle_excess(corners, limits)
+        };
+        // Triangles found within the limits, by their sorted corners: one that is still
+        // there later still is (its bound depends on its corners alone).
+        let mut passed: HashSet<[usize; 3]> = HashSet::new();
+        let sorted = |mut ids: [usize; 3]| {
+            ids.sort_unstable();
+            ids
+        };
         loop {
             let triangles = self.triangles();
-            let mut failing: Vec<(f64, usize)> = triangles
-                .iter()
-                .enumerate()
-                .filter_map(|(k, &(_, corners))| {
-                    let low = corners[0].min(corners[1]).min(corners[2]);
-                    let high = corners[0].max(corners[1]).max(corners[2]);
-                    let excess = bounds.over(low, high).triangle_excess(corners, limits);
-                    (excess > 1.0).then_some((excess, k))
-                })
-                .collect();
-            if self.params.len() + failing.len() > max_vertices {
-                return Err(Error::TrimmedTooFine {
-                    vertices: max_vertices,
-                    tolerance: limits.tolerance,
-                });
+            let mut queue = std::collections::BinaryHeap::new();
+            for &(ids, corners) in &triangles {
+                if passed.contains(&sorted(ids)) {
+                    continue;
+                }
+                match excess(corners) {
+                    e if e > 1.0 => queue.push(Failing { excess: e, ids }),
+                    _ => {
+                        passed.insert(sorted(ids));
+                    }
+                }
             }
-            failing.sort_by(|x, y| y.0.total_cmp(&x.0));
             // A sliver whose points round onto its corners cannot be split further at f64
             // resolution: refinement stops when a round adds nothing.
             let before = self.params.len();
-            for (_, k) in failing {
-                let (ids, corners) = triangles[k];
+            while let Some(Failing { ids, .. }) = queue.pop() {
+                let corners = ids.map(|k| self.params[k]);
                 let Some(p) = self.split_point(ids, corners, keep_off) else {
                     continue;
                 };
+                if self.params.len() >= max_vertices {
+                    return Err(Error::TrimmedTooFine {
+                        vertices: max_vertices,
+                        tolerance: limits.tolerance,
+                    });
+                }
                 // Located from the triangle's own corner: a walk of a step or two.
                 let hint = FixedVertexHandle::from_index(ids[0]);
                 let handle = (self.cdt)
@@ -540,8 +584,25 @@ impl FaceTriangulation {
                         loop_index: 0,
                         problem: format!("cannot be triangulated: {error}"),
                     })?;
-                if handle.index() == self.params.len() {
-                    self.params.push(p);
+                if handle.index() != self.params.len() {
+                    continue;
+                }
+                self.params.push(p);
+                let vertex = self.cdt.vertex(handle);
+                let on_constraint = vertex
+                    .out_edges()
+                    .any(|edge| self.cdt.is_constraint_edge(edge.as_undirected().fix()));
+                if on_constraint {
+                    continue;
+                }
+                for face in vertex.out_edges().filter_map(|edge| edge.face().as_inner()) {
+                    let ids = face.vertices().map(|v| v.fix().index());
+                    match excess(ids.map(|k| self.params[k])) {
+                        e if e > 1.0 => queue.push(Failing { excess: e, ids }),
+                        _ => {
+                            passed.insert(sorted(ids));
+                        }
+                    }
                 }
             }
             if self.params.len() == before {
