@@ -68,7 +68,7 @@ pub fn plan_trimmed_within(
     let surface = face.surface();
     let grid = surface_cells(surface, limits, BoundEffort::Tightest)?;
     let bounds = CellBounds::new(&grid);
-    let (interior, lines) = Interior::of(surface, &grid, &bounds, false);
+    let (interior, lines) = Interior::of(surface, &grid, &bounds);
     let FacePolylines {
         loops: mut polylines,
         specials: special_curves,
@@ -136,7 +136,7 @@ pub(crate) fn plan_fixed_boundary(
     let max_vertices = max_vertices.min(MAX_TRIMMED_VERTICES);
     let grid = surface_cells(surface, limits, BoundEffort::Tightest)?;
     let bounds = CellBounds::new(&grid);
-    let (interior, lines) = Interior::of(surface, &grid, &bounds, true);
+    let (interior, lines) = Interior::of(surface, &grid, &bounds);
     triangulate(
         surface,
         interior,
@@ -325,28 +325,25 @@ enum Interior<'a> {
     Cells(&'a CellGrid),
     /// Points inserted from the boundary alone by the triangle bound
     /// ([`FaceTriangulation::refine`]): well-shaped triangles across cells, fewer of them
-    /// where the metric keeps its shape (measured on the STEP parts at 1e-3: 13–27 % fewer
-    /// triangles than the cells' grid), more where it does not (twice as many on sphere
-    /// faces with a pole).
+    /// where the metric keeps its shape (measured at 1e-3: 13–27 % fewer triangles than
+    /// the cells' grid on the STEP parts, 8 % on the Beetle lid's trimmed faces), more
+    /// where it does not (twice as many on sphere faces with a pole).
     Refined,
 }
 
 impl<'a> Interior<'a> {
     /// The sampling for a face of `surface` and the lines its loops are cut at and the
-    /// interior keeps: refinement, with no lines, for a `fixed` boundary (a B-rep face's) on
-    /// a surface with no pole and no kink (a boundary no vertex may be added to is not cut
-    /// at kinks, so they could not be constraints), else the cells and their lines. (Trimmed faces keep the cells: refinement from their
-    /// loops alone took minutes on the property-generated faces of the tests, in debug
-    /// builds, where the cells take seconds — not yet looked into.)
+    /// interior keeps: refinement, with no lines, on a surface with no pole and no kink
+    /// (where the first derivative jumps across a knot line, the cells' lines keep
+    /// triangles from straddling it: a B-rep face's boundary, which no vertex may be added
+    /// to, could not be cut there), else the cells and their lines.
     fn of(
         surface: &crate::geom::BSplineSurface,
         grid: &'a CellGrid,
         bounds: &CellBounds,
-        fixed: bool,
     ) -> (Self, CellLines) {
         let tolerance = super::seams::point_tolerance(surface.control_box_diagonal());
-        let refined = fixed
-            && !super::seams::pole_sides(surface, tolerance).contains(&true)
+        let refined = !super::seams::pole_sides(surface, tolerance).contains(&true)
             && !CellLines::has_kink(surface);
         let snap_width = CellLines::snap_widths(surface);
         if refined {
