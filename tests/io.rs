@@ -3736,6 +3736,35 @@ fn with_instances(text: &str, instances: &[String]) -> String {
     text.replace("ENDSEC;\nEND-ISO", &format!("{added}ENDSEC;\nEND-ISO"))
 }
 
+/// A solid two unrelated shape representations both list (as some exporters write a
+/// product's shape beside its B-rep's) is one solid in one place: one item, not two.
+#[test]
+fn step_solid_listed_by_two_representations_is_one_item() {
+    let part = step_box(30.0, 20.0, 10.0);
+    let n = part.lines().filter(|l| l.starts_with('#')).count();
+    let context = n - 1;
+    let solid = part
+        .lines()
+        .find(|l| l.contains("MANIFOLD_SOLID_BREP"))
+        .and_then(|l| l.split_whitespace().next())
+        .unwrap()
+        .to_string();
+    let listed_twice = with_instances(
+        &part,
+        &[format!(
+            "SHAPE_REPRESENTATION('again',({solid}),#{context})"
+        )],
+    );
+    let scene = step_scene(&listed_twice);
+    assert_eq!(
+        scene.items.len(),
+        1,
+        "{:?}",
+        scene.items.iter().map(|i| &i.name).collect::<Vec<_>>()
+    );
+    assert!(scene.nodes.is_empty());
+}
+
 #[test]
 fn step_assemblies_place_each_instance() {
     let (a, b, c) = (30.0, 20.0, 10.0);

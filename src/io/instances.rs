@@ -107,16 +107,26 @@ pub(crate) fn tessellate_instanced_glb(
     super::write_atomic(path, |w| {
         write_glb_nodes((&mesh).into(), &groups, &nodes, w)
     })?;
-    // Every item showing a part: its meshed item, and the same item of each copy.
+    // Every item showing a part: its meshed item, and the same item of each node showing
+    // that node's mesh.
+    let mut showing: Vec<Vec<usize>> = vec![Vec::new(); runs.len()];
+    for (k, run) in run_of_node.iter().enumerate() {
+        if let Some(run) = *run {
+            showing[run].push(k);
+        }
+    }
     let mut part_items = Vec::with_capacity(mesh.parts.len());
     for part in &mesh.parts {
         let item = source_item[part.item as usize];
-        part_items.push(item as u32);
-        if let Some(k) = node_of_item[item] {
-            let offset = item - scene.nodes[k].items.start;
-            for copy in scene.nodes.iter().filter(|n| n.copy_of == Some(k)) {
-                part_items.push((copy.items.start + offset) as u32);
+        match node_of_item[item].and_then(|k| Some((k, run_of_node[k]?))) {
+            Some((k, run)) => {
+                let offset = item - scene.nodes[k].items.start;
+                let items = showing[run]
+                    .iter()
+                    .map(|&n| scene.nodes[n].items.start + offset);
+                part_items.extend(items.map(|i| i as u32));
             }
+            None => part_items.push(item as u32),
         }
     }
     Ok(WrittenMesh {

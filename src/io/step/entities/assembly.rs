@@ -400,10 +400,20 @@ impl Model<'_> {
         let children: BTreeSet<u64> = (assembly.parts.values().flatten())
             .map(|p| p.child)
             .collect();
-        let roots: BTreeSet<u64> = (assembly.solids.keys().chain(assembly.parts.keys()))
+        let mut roots: BTreeSet<u64> = (assembly.solids.keys().chain(assembly.parts.keys()))
             .copied()
             .filter(|class| !children.contains(class))
             .collect();
+        // A representation that only lists solids an earlier root holds too (unlinked to
+        // it by any relationship) shows them again in the same place: not a second copy.
+        let mut held = BTreeSet::new();
+        roots.retain(|class| {
+            let solids = assembly.solids.get(class).map_or(&[][..], Vec::as_slice);
+            let again = assembly.parts.get(class).is_none_or(Vec::is_empty)
+                && solids.iter().all(|s| held.contains(s));
+            held.extend(solids.iter().copied());
+            !again
+        });
         let mut tree: Vec<Expanded> = Vec::new();
         // (class, name, transform, parent node, depth)
         let mut stack: Vec<(u64, String, DMat4, Option<usize>, usize)> = roots
