@@ -107,6 +107,10 @@ pub struct SceneNode {
     /// An earlier node showing the same geometry (item for item, placed by its own
     /// placement): a writer that keeps instances meshes that node's items alone.
     pub copy_of: Option<usize>,
+    /// The name of what the node shows, shared by its copies (STEP: the product's, where
+    /// the node is an instance of one): a writer that keeps instances names the mesh so.
+    /// `None`: the node's own name.
+    pub shape: Option<String>,
 }
 
 /// A part of a file a reader could not turn into an item, and why.

@@ -4045,7 +4045,11 @@ fn step_assembly_glb_keeps_its_instances() {
     let blob = gltf.blob.as_deref().unwrap();
     // Each solid once: the plate's and one bolt's vertices.
     let meshes: Vec<&str> = gltf.meshes().filter_map(|m| m.name()).collect();
-    assert_eq!(meshes.len(), 2, "{meshes:?}");
+    assert_eq!(
+        meshes,
+        ["plate", "bolt"],
+        "meshes named after their products"
+    );
     let stored: usize = (0..2)
         .flat_map(|item| parts_of(&flat, item))
         .map(|p| p.vertex_count as usize)

@@ -10,8 +10,9 @@ use glam::{DMat3, DMat4};
 use std::ops::Range;
 use std::path::Path;
 
-/// A run of the scene's items meshed as one glTF mesh: a node's (undone by its placement,
-/// so the mesh is in the node's coordinates) or items no node shows.
+/// A run of the scene's items meshed as one glTF mesh, with the mesh's name: a node's
+/// (undone by its placement, so the mesh is in the node's coordinates; named after what it
+/// shows) or items no node shows.
 struct Meshed {
     name: String,
     items: Range<usize>,
@@ -48,7 +49,7 @@ pub(crate) fn tessellate_instanced_glb(
             None => {
                 run_of_node[k] = Some(runs.len());
                 runs.push(Meshed {
-                    name: node.name.clone(),
+                    name: node.shape.clone().unwrap_or_else(|| node.name.clone()),
                     items: node.items.clone(),
                     placement: placements[k],
                 });
