@@ -21,9 +21,21 @@ class Item:
     kind: Literal["surface", "coons", "curve", "trimmed", "shell"]
     name: Optional[str]
 
+class Node:
+    index: int
+    name: str
+    parent: Optional[int]
+    transform: List[List[float]]
+    placement: List[List[float]]
+    items: Tuple[int, int]
+    copy_of: Optional[int]
+    shape: Optional[str]
+
 class Scene:
     @property
     def items(self) -> list[Item]: ...
+    @property
+    def nodes(self) -> list[Node]: ...
     @property
     def path(self) -> Optional[str]: ...
     @property

@@ -148,6 +148,43 @@ impl PyItem {
     }
 }
 
+/// One node of a scene's placement tree (a STEP assembly's products and instances).
+#[pyclass(frozen, get_all, name = "Node", module = "knotwork")]
+struct PyNode {
+    /// Position in `Scene.nodes`.
+    index: usize,
+    /// The instance's name (its assembly usage's, else its product's).
+    name: String,
+    /// The node it is placed in (an earlier one), `None` at a root.
+    parent: Option<usize>,
+    /// From its coordinates to its parent's: 4 rows of 4 (a rigid motion, the scene's units).
+    transform: [[f64; 4]; 4],
+    /// From its coordinates to the scene's (the transforms from its root down): 4 rows of 4.
+    placement: [[f64; 4]; 4],
+    /// The items it shows, already placed in the scene: `range(start, stop)` of
+    /// `Scene.items` (empty: none).
+    items: (usize, usize),
+    /// An earlier node showing the same geometry, placed otherwise.
+    copy_of: Option<usize>,
+    /// The name of what it shows (its product), if not its own.
+    shape: Option<String>,
+}
+
+#[pymethods]
+impl PyNode {
+    fn __repr__(&self) -> String {
+        format!(
+            "Node({}, {:?}, parent={:?}, items={:?})",
+            self.index, self.name, self.parent, self.items
+        )
+    }
+}
+
+/// Rows of a 4 × 4 matrix (glam stores columns).
+fn rows(matrix: knotwork::glam::DMat4) -> [[f64; 4]; 4] {
+    matrix.transpose().to_cols_array_2d()
+}
+
 fn kind(geometry: &Geometry) -> &'static str {
     match geometry {
         Geometry::Surface(_) => "surface",
@@ -170,6 +207,25 @@ impl PyScene {
                 name: item.name.clone(),
             })
             .collect()
+    }
+
+    /// The placement tree of an assembly (STEP), each node after its parent; empty where the
+    /// file has none. `items` already hold every placed copy.
+    #[getter]
+    fn nodes(&self) -> PyResult<Vec<PyNode>> {
+        let placements = self.scene.node_placements().map_err(python_error)?;
+        Ok((self.scene.nodes.iter().zip(placements).enumerate())
+            .map(|(index, (node, placement))| PyNode {
+                index,
+                name: node.name.clone(),
+                parent: node.parent,
+                transform: rows(node.transform),
+                placement: rows(placement),
+                items: (node.items.start, node.items.end),
+                copy_of: node.copy_of,
+                shape: node.shape.clone(),
+            })
+            .collect())
     }
 
     /// The file it was read from.
@@ -1028,6 +1084,7 @@ fn _knotwork(module: &Bound<'_, PyModule>) -> PyResult<()> {
     module.add_function(wrap_pyfunction!(is_surface_file, module)?)?;
     module.add_class::<PyScene>()?;
     module.add_class::<PyItem>()?;
+    module.add_class::<PyNode>()?;
     module.add_class::<PyMesh>()?;
     module.add_class::<MeshMemory>()?;
     module.add("Error", module.py().get_type::<Error>())?;

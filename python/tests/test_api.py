@@ -42,6 +42,28 @@ def test_read_gives_items_with_kinds_and_names():
     assert {item.kind for item in step.items} == {"shell"}
 
 
+def test_a_step_assembly_reads_with_its_tree():
+    # data/fixture_assembly.step (Open CASCADE's writer): a plate and a pair of bolts placed
+    # twice, the second pair turned 90° about z at (70, 45, 10), its right bolt 20 along x.
+    scene = knotwork.read(DATA / "fixture_assembly.step")
+    names = [node.name for node in scene.nodes]
+    assert names == ["fixture", "base plate", "front pair", "bolt left", "bolt right",
+                     "back pair", "bolt left", "bolt right"]
+    assert [node.parent for node in scene.nodes] == [None, 0, 0, 2, 2, 0, 5, 5]
+    back_right = scene.nodes[7]
+    assert back_right.copy_of == 3 and back_right.shape == "bolt"
+    assert scene.items[back_right.items[0]].name == "fixture/back pair/bolt right"
+    # Its placement takes the bolt's axis origin to (70, 45, 10) + R_90°·(20, 0, 0).
+    placement = np.array(back_right.placement)
+    assert np.allclose(placement @ [0.0, 0.0, 0.0, 1.0], [70.0, 65.0, 10.0, 1.0], atol=1e-9)
+    assert np.allclose(placement[:3, :3] @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], atol=1e-12)
+    # The transforms compose to the placements, parent first.
+    for node in scene.nodes:
+        parent = np.eye(4) if node.parent is None else np.array(scene.nodes[node.parent].placement)
+        assert np.allclose(parent @ np.array(node.transform), node.placement, atol=1e-9)
+    assert knotwork.read(TEAPOT).nodes == []
+
+
 def test_grid_mesh_layout_matches_the_conventions():
     mesh = knotwork.tessellate(TEAPOT, grid=(5, 7), backend="cpu")
     assert mesh.vertex_count == 32 * 5 * 7
