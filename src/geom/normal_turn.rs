@@ -187,18 +187,19 @@ fn without_vanishing_sides(mut m: Bernstein<DVec3>) -> Bernstein<DVec3> {
     }
     loop {
         let (du, dv) = (m.du, m.dv);
+        // A side vanishes only where m has degree ≥ 1 across it: of degree 0, the side is
+        // all of m, whose largest coefficient is not below VANISHING_SIDE of itself.
         let side_vanishes = |along_v: bool, at_end: bool| {
             let (degree, count) = if along_v { (dv, du + 1) } else { (du, dv + 1) };
             let index = if at_end { degree } else { 0 };
-            degree > 0
-                && (0..count).all(|k| {
-                    let c = if along_v {
-                        m.at(k, index)
-                    } else {
-                        m.at(index, k)
-                    };
-                    c.length() <= VANISHING_SIDE * largest
-                })
+            (0..count).all(|k| {
+                let c = if along_v {
+                    m.at(k, index)
+                } else {
+                    m.at(index, k)
+                };
+                c.length() <= VANISHING_SIDE * largest
+            })
         };
         let Some((along_v, at_end)) = [(false, false), (false, true), (true, false), (true, true)]
             .into_iter()
@@ -255,6 +256,65 @@ mod tests {
     /// The bound holds: |N_u| and |N_v| by finite differences of the f64 normal at points
     /// of a torus's and a sphere's patches (away from the poles) stay below it, and it is
     /// within 3× of the largest measured (1.35–2.0× here: not loose by orders).
+    /// Each side's linear factor comes out exactly: u·q, (1 − u)·q, v·q and (1 − v)·q (formed
+    /// as Bernstein products) give q back to rounding, also with the side's coefficients
+    /// rounding-small instead of zero on a polynomial of size 1000; a side with one
+    /// coefficient off zero is not divided.
+    #[test]
+    fn vanishing_sides_are_divided_out_exactly() {
+        let coefficients = (0..12)
+            .map(|k| {
+                let k = k as f64;
+                1000.0 * DVec3::new(1.0 + k, 2.0 - 0.5 * k, 3.0 + 0.25 * k)
+            })
+            .collect();
+        let q = Bernstein::new(2, 3, coefficients);
+        let size = 1000.0 * 16.0;
+        // (degree along u, along v, coefficients) of u, 1 − u, v, 1 − v.
+        let factors = [
+            (1, 0, [0.0, 1.0]),
+            (1, 0, [1.0, 0.0]),
+            (0, 1, [0.0, 1.0]),
+            (0, 1, [1.0, 0.0]),
+        ];
+        for (side, (du, dv, factor)) in factors.into_iter().enumerate() {
+            let linear = Bernstein::new(du, dv, factor.to_vec());
+            let m = linear.product(&q, |x: f64, v: DVec3| v * x);
+            let mut nudged = m.clone();
+            let on_side: Vec<usize> = (0..nudged.coefficients.len())
+                .filter(|&k| {
+                    let (i, j) = (k % (nudged.du + 1), k / (nudged.du + 1));
+                    match side {
+                        0 => i == 0,
+                        1 => i == nudged.du,
+                        2 => j == 0,
+                        _ => j == nudged.dv,
+                    }
+                })
+                .collect();
+            for &k in &on_side {
+                nudged.coefficients[k] = DVec3::splat(1e-13 * size);
+            }
+            for m in [m, nudged] {
+                let back = without_vanishing_sides(m);
+                assert_eq!((back.du, back.dv), (2, 3), "side {side}");
+                for (a, b) in back.coefficients.iter().zip(&q.coefficients) {
+                    assert!((*a - *b).length() <= 1e-9 * size, "side {side}: {a} vs {b}");
+                }
+            }
+            let mut kept = linear.product(&q, |x: f64, v: DVec3| v * x);
+            let last = *on_side.last().expect("a side has coefficients");
+            kept.coefficients[last] = DVec3::ONE;
+            let (du, dv) = (kept.du, kept.dv);
+            let back = without_vanishing_sides(kept);
+            assert_eq!(
+                (back.du, back.dv),
+                (du, dv),
+                "side {side}: not a vanishing side"
+            );
+        }
+    }
+
     /// At a pole the normal's rates stay bounded (S_u × S_v vanishes along the pole side,
     /// a factor divided out): on the sphere's patches that reach a pole, the rates bound
     /// the turn measured by finite differences up to 1e-3 of the patch from the pole, and
