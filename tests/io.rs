@@ -4058,6 +4058,10 @@ fn step_assembly_glb_keeps_its_instances() {
         stdout.contains(&format!(" {stored} vertices")),
         "{stdout} (expected {stored} vertices)"
     );
+    assert!(
+        stdout.contains("(2 meshes shown by 5 instances)"),
+        "{stdout}"
+    );
     let nodes: Vec<(&str, Vec<usize>)> = gltf
         .nodes()
         .map(|n| (n.name().unwrap(), n.children().map(|c| c.index()).collect()))

@@ -180,12 +180,21 @@ struct Tally {
     dropped: usize,
     /// The tolerance `--max-triangles` chose (model units), if it chose one.
     chosen_tolerance: Option<f64>,
+    /// (meshes, instances) of a glb that keeps an assembly's instances.
+    instanced: Option<(usize, usize)>,
 }
 
 impl Tally {
-    /// "N surfaces, N curves, N vertices, N triangles[, N vertices merged][, tolerance T
-    /// for the triangle budget]".
+    /// "N surfaces, N curves, N vertices, N triangles[ (M meshes shown by K instances)][, N
+    /// vertices merged][, tolerance T for the triangle budget]".
     fn summary(&self) -> String {
+        let instanced = self.instanced.map_or(String::new(), |(meshes, instances)| {
+            format!(
+                " ({} shown by {})",
+                count(meshes, "mesh"),
+                count(instances, "instance")
+            )
+        });
         let merged = self.merged.map_or(String::new(), |m| {
             format!(", {} merged", count(m, "vertex"))
         });
@@ -193,7 +202,7 @@ impl Tally {
             format!(", tolerance {t:.3e} for the triangle budget")
         });
         format!(
-            "{}, {}, {}, {}{merged}{chosen}",
+            "{}, {}, {}, {}{instanced}{merged}{chosen}",
             items_summary(self.surfaces, self.solids, self.faces),
             count(self.curves, "curve"),
             count(self.vertices, "vertex"),
@@ -266,6 +275,7 @@ fn count(n: usize, noun: &str) -> String {
     match (n, noun) {
         (1, _) => format!("1 {noun}"),
         (_, "vertex") => format!("{n} vertices"),
+        (_, "mesh") => format!("{n} meshes"),
         _ => format!("{n} {noun}s"),
     }
 }
@@ -330,6 +340,7 @@ fn process(
         merged: written.merged_vertices,
         dropped: dropped + skipped,
         chosen_tolerance: chosen,
+        instanced: written.instanced,
     })
 }
 

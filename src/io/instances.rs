@@ -130,11 +130,13 @@ pub(crate) fn tessellate_instanced_glb(
             None => part_items.push(item as u32),
         }
     }
+    let shown = showing.iter().filter(|nodes| !nodes.is_empty());
     Ok(WrittenMesh {
         vertices: mesh.vertex_count(),
         triangles: mesh.triangle_count(),
         merged_vertices,
         part_items,
+        instanced: Some((shown.clone().count(), shown.map(Vec::len).sum())),
     })
 }
 

@@ -246,6 +246,9 @@ pub struct WrittenMesh {
     /// The scene item of every part written, in order (a trimmed or shell face left out has
     /// none: see [`crate::scene::left_out_faces`]).
     pub part_items: Vec<u32>,
+    /// For a glb that keeps a scene's instances: (meshes written, nodes showing them) —
+    /// `vertices` and `triangles` count each mesh once.
+    pub instanced: Option<(usize, usize)>,
 }
 
 /// Tessellates `scene` with `tessellator` under `defaults` into `path` (in `format`, or the
@@ -285,6 +288,7 @@ pub fn tessellate_to_file(
             triangles: layout.index_count as usize / 3,
             merged_vertices: None,
             part_items: layout.parts.iter().map(|part| part.item).collect(),
+            instanced: None,
         });
     }
     let groups = scene.groups();
@@ -303,6 +307,7 @@ pub fn tessellate_to_file(
             triangles: mesh.triangle_count(),
             merged_vertices,
             part_items: part_items(&mesh.parts),
+            instanced: None,
         })
     } else {
         let mesh = tessellator.tessellate_scene_f32(scene, defaults)?;
@@ -312,6 +317,7 @@ pub fn tessellate_to_file(
             triangles: mesh.triangle_count(),
             merged_vertices: None,
             part_items: part_items(&mesh.parts),
+            instanced: None,
         })
     }
 }
