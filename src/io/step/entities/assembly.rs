@@ -71,9 +71,6 @@ struct Expanded {
     path: String,
 }
 
-/// A solid's shells, read once however often the solid is placed.
-type ReadSolid = std::result::Result<Vec<Shell>, ()>;
-
 impl Model<'_> {
     /// The scene: every solid and surface model (each shell one item), placed by the
     /// assembly structure — one placed copy per instance, and the placement tree in
@@ -83,8 +80,8 @@ impl Model<'_> {
         let mut scene = Scene::default();
         let mut ids: Vec<u64> = self.file.instances.keys().copied().collect();
         ids.sort_unstable();
-        let mut solids = BTreeSet::new();
-        let mut used_shells = BTreeSet::new();
+        // Every solid, surface model and free shell, with its shells.
+        let mut solids: BTreeMap<u64, Vec<u64>> = BTreeMap::new();
         for &id in &ids {
             let record = &self.file.instances[&id].records[0];
             let rec = Rec { id, record };
@@ -98,66 +95,61 @@ impl Model<'_> {
                 "SHELL_BASED_SURFACE_MODEL" => rec.references(1)?,
                 _ => continue,
             };
-            used_shells.extend(shells);
-            solids.insert(id);
+            solids.insert(id, shells);
         }
+        let used_shells: BTreeSet<u64> = solids.values().flatten().copied().collect();
         for &id in &ids {
             let record = &self.file.instances[&id].records[0];
             if matches!(record.name.as_str(), "CLOSED_SHELL" | "OPEN_SHELL")
                 && !used_shells.contains(&id)
             {
-                solids.insert(id);
+                solids.insert(id, vec![id]);
             }
         }
-        let assembly = self.assembly(&ids, &solids)?;
+        let solid_ids: BTreeSet<u64> = solids.keys().copied().collect();
+        let assembly = self.assembly(&ids, &solid_ids)?;
         let tree = self.expand(&assembly)?;
         let has_parts = assembly.parts.values().any(|parts| !parts.is_empty());
-        let mut read: HashMap<u64, ReadSolid> = HashMap::new();
+        scene.nodes = tree.iter().map(|e| e.node.clone()).collect();
+        let placements = scene.node_placements()?;
+        let mut read: HashMap<u64, Vec<Shell>> = HashMap::new();
         let mut shown_by: HashMap<u64, usize> = HashMap::new();
         let mut placed = BTreeSet::new();
-        let placements: Vec<DMat4> = {
-            let mut world: Vec<DMat4> = Vec::with_capacity(tree.len());
-            for e in &tree {
-                let parent = e.node.parent.map_or(DMat4::IDENTITY, |p| world[p]);
-                world.push(parent * e.node.transform);
+        for (k, e) in tree.iter().enumerate() {
+            let Some(solid) = e.solid else { continue };
+            placed.insert(solid);
+            let shells = read.entry(solid).or_insert_with(|| {
+                self.solid_shells(solid, &solids[&solid], &e.path, &mut scene.dropped)
+            });
+            let first = scene.items.len();
+            for shell in shells.iter() {
+                let placement = placements[k];
+                let shell = if placement == DMat4::IDENTITY {
+                    shell.clone()
+                } else {
+                    shell.mapped(|p| placement.transform_point3(p))
+                };
+                let mut item = Item::new(Geometry::Shell(Box::new(shell)));
+                item.name = Some(e.path.clone());
+                scene.items.push(item);
             }
-            world
-        };
-        for (k, mut e) in tree.into_iter().enumerate() {
-            if let Some(solid) = e.solid {
-                placed.insert(solid);
-                let shells = read
-                    .entry(solid)
-                    .or_insert_with(|| self.solid_shells(solid, &e.path, &mut scene.dropped));
-                let first = scene.items.len();
-                for shell in shells.iter().flatten() {
-                    let placement = placements[k];
-                    let shell = if placement == DMat4::IDENTITY {
-                        shell.clone()
-                    } else {
-                        shell.mapped(|p| placement.transform_point3(p))
-                    };
-                    let mut item = Item::new(Geometry::Shell(Box::new(shell)));
-                    item.name = Some(e.path.clone());
-                    scene.items.push(item);
-                }
-                e.node.items = first..scene.items.len();
-                if !e.node.items.is_empty() {
-                    e.node.copy_of = shown_by.get(&solid).copied();
-                    shown_by.entry(solid).or_insert(k);
-                }
+            let node = &mut scene.nodes[k];
+            node.items = first..scene.items.len();
+            if !node.items.is_empty() {
+                node.copy_of = shown_by.get(&solid).copied();
+                shown_by.entry(solid).or_insert(k);
             }
-            scene.nodes.push(e.node);
         }
         // Solids in no representation: at the origin, under their own names.
-        for &solid in solids.difference(&placed) {
+        for (&solid, shells) in &solids {
+            if placed.contains(&solid) {
+                continue;
+            }
             let name = self.own_name(solid);
-            if let Ok(shells) = self.solid_shells(solid, &name, &mut scene.dropped) {
-                for shell in shells {
-                    let mut item = Item::new(Geometry::Shell(Box::new(shell)));
-                    item.name = Some(name.clone());
-                    scene.items.push(item);
-                }
+            for shell in self.solid_shells(solid, shells, &name, &mut scene.dropped) {
+                let mut item = Item::new(Geometry::Shell(Box::new(shell)));
+                item.name = Some(name.clone());
+                scene.items.push(item);
             }
         }
         if !has_parts {
@@ -180,32 +172,26 @@ impl Model<'_> {
         Ok(scene)
     }
 
-    /// The shells of `solid` (a solid, surface model or free shell), or `Err(())` after
-    /// listing in `dropped`, under `name`, what kept one from being read.
-    fn solid_shells(&self, solid: u64, name: &str, dropped: &mut Vec<Dropped>) -> ReadSolid {
-        let record = &self.file.instances[&solid].records[0];
-        let rec = Rec { id: solid, record };
-        let ids = match record.name.as_str() {
-            "MANIFOLD_SOLID_BREP" => rec.reference(1).map(|s| vec![s]),
-            "BREP_WITH_VOIDS" => rec.reference(1).and_then(|outer| {
-                let mut s = vec![outer];
-                s.extend(rec.references(2)?);
-                Ok(s)
-            }),
-            "SHELL_BASED_SURFACE_MODEL" => rec.references(1),
-            _ => Ok(vec![solid]),
-        };
-        let mut shells = Vec::new();
-        for shell in ids.map_err(|_| ())? {
+    /// The `shells` of `solid` (a solid, surface model or free shell) that can be read; the
+    /// others listed in `dropped` under `name`, with why.
+    fn solid_shells(
+        &self,
+        solid: u64,
+        shells: &[u64],
+        name: &str,
+        dropped: &mut Vec<Dropped>,
+    ) -> Vec<Shell> {
+        let mut read = Vec::new();
+        for &shell in shells {
             match self.shell(shell, dropped) {
-                Ok(s) => shells.push(s),
+                Ok(s) => read.push(s),
                 Err(error) => dropped.push(Dropped {
                     what: format!("{name} (#{solid})"),
                     reason: error.to_string(),
                 }),
             }
         }
-        Ok(shells)
+        read
     }
 
     /// A solid's name: its own (the first parameter), else its entity's kind and id.
