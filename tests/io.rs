@@ -3736,6 +3736,41 @@ fn with_instances(text: &str, instances: &[String]) -> String {
     text.replace("ENDSEC;\nEND-ISO", &format!("{added}ENDSEC;\nEND-ISO"))
 }
 
+/// A placement tree is checked against `SceneNode`'s contract, naming the node at fault:
+/// a parent or a copy not before it, items outside the scene, a copy with another number of
+/// items; a sound one composes its transforms parent first.
+#[test]
+fn scene_node_trees_are_checked() {
+    let mut scene = knotwork::io::read_scene(Path::new("data/teapot.bpt")).unwrap();
+    let node = |parent, items, copy_of| knotwork::SceneNode {
+        name: "n".into(),
+        parent,
+        transform: glam::DMat4::from_translation(DVec3::X),
+        items,
+        copy_of,
+        shape: None,
+    };
+    scene.nodes = vec![node(None, 0..1, None), node(Some(0), 1..2, Some(0))];
+    let placements = scene.node_placements().unwrap();
+    assert_eq!(
+        placements[1].transform_point3(DVec3::ZERO),
+        DVec3::new(2.0, 0.0, 0.0)
+    );
+    let cases = [
+        (vec![node(Some(1), 0..1, None), node(None, 1..2, None)], 0),
+        (vec![node(None, 0..1, Some(1)), node(None, 1..2, None)], 0),
+        (vec![node(None, 0..1, None), node(None, 1..3, Some(0))], 1),
+        (vec![node(None, 0..1, None), node(None, 31..33, None)], 1),
+    ];
+    for (nodes, at_fault) in cases {
+        scene.nodes = nodes;
+        match scene.node_placements() {
+            Err(Error::InvalidSceneNode { node, .. }) => assert_eq!(node, at_fault),
+            other => panic!("{other:?}"),
+        }
+    }
+}
+
 /// A solid two unrelated shape representations both list (as some exporters write a
 /// product's shape beside its B-rep's) is one solid in one place: one item, not two.
 #[test]

@@ -185,6 +185,15 @@ struct Tally {
 }
 
 impl Tally {
+    /// The one line a single file's job prints: "INPUT: SUMMARY in S s (BACKEND) -> TARGET".
+    fn line(&self, input: &Path, seconds: f64, backend: &str, target: &str) -> String {
+        format!(
+            "{}: {} in {seconds:.3} s ({backend}) -> {target}",
+            input.display(),
+            self.summary()
+        )
+    }
+
     /// "N surfaces, N curves, N vertices, N triangles[ (M meshes shown by K instances)][, N
     /// vertices merged][, tolerance T for the triangle budget]".
     fn summary(&self) -> String {
@@ -288,7 +297,7 @@ fn process(
 ) -> knotwork::Result<Tally> {
     let scene = knotwork::io::read_scene_as(input, job.input_format)?;
     let dropped = report_reading(input, &scene);
-    let (_, solids, faces) = scene_counts(&scene);
+    let (surfaces, solids, faces) = scene_counts(&scene);
     let trimmed = scene
         .items
         .iter()
@@ -329,7 +338,6 @@ fn process(
         job.weld,
     )?;
     let skipped = report_skipped(input, &scene, &defaults, written.part_items.into_iter());
-    let (surfaces, _, _) = scene_counts(&scene);
     Ok(Tally {
         surfaces,
         solids,
@@ -440,12 +448,10 @@ fn tessellate_to_stdout(
     // Gone whether or not the job succeeded (it may not exist).
     let _ = std::fs::remove_file(&temporary);
     let tally = result.map_err(|error| error.naming_file(input))?;
+    let seconds = start.elapsed().as_secs_f64();
     eprintln!(
-        "{}: {} in {:.3} s ({}) -> standard output",
-        input.display(),
-        tally.summary(),
-        start.elapsed().as_secs_f64(),
-        tessellator.name(),
+        "{}",
+        tally.line(input, seconds, &tessellator.name(), "standard output")
     );
     Ok(tally.dropped == 0)
 }
@@ -466,13 +472,11 @@ fn tessellate(
     if !batch {
         let tally = process(&inputs[0], output, tessellator.as_ref(), job)
             .map_err(|error| error.naming_file(&inputs[0]))?;
+        let seconds = start.elapsed().as_secs_f64();
+        let target = output.display().to_string();
         println!(
-            "{}: {} in {:.3} s ({}) -> {}",
-            inputs[0].display(),
-            tally.summary(),
-            start.elapsed().as_secs_f64(),
-            tessellator.name(),
-            output.display()
+            "{}",
+            tally.line(&inputs[0], seconds, &tessellator.name(), &target)
         );
         return Ok(tally.dropped == 0);
     }

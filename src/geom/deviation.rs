@@ -90,17 +90,9 @@ impl DerivativeBound {
             return 0.5 * radius_squared(self.uu, self.vv);
         }
         [extent.y / extent.x, (self.vv / self.uu).sqrt(), 1.0]
-            .map(|alpha| {
-                if alpha.is_finite() && alpha > 0.0 {
-                    alpha
-                } else {
-                    1.0
-                }
-            })
-            .iter()
-            .map(|&alpha| {
-                0.5 * radius_squared(self.uu + alpha * self.uv, self.vv + self.uv / alpha)
-            })
+            .into_iter()
+            .filter(|alpha| alpha.is_finite() && *alpha > 0.0)
+            .map(|alpha| 0.5 * radius_squared(self.uu + alpha * self.uv, self.vv + self.uv / alpha))
             .fold(f64::INFINITY, f64::min)
     }
 

@@ -85,7 +85,7 @@ pub(crate) fn tessellate_instanced_glb(
     }
     let whole = tessellator.tessellate_scene(&meshed_scene, defaults)?;
     let mut mesh = Mesh::default();
-    let mut merged_vertices = weld.then_some(0);
+    let mut merged = 0;
     for (run, group) in runs.iter().zip(&groups) {
         let mut piece = items_mesh(&whole, &group.items);
         unplace(&mut piece, run.placement);
@@ -93,7 +93,7 @@ pub(crate) fn tessellate_instanced_glb(
             let tolerance = crate::mesh::WELD_REL_TOLERANCE * piece.bounding_box_diagonal();
             let (welded, report) = piece.weld(tolerance);
             piece = welded;
-            *merged_vertices.get_or_insert(0) += report.merged_vertices;
+            merged += report.merged_vertices;
         }
         mesh.append(piece)?;
     }
@@ -134,7 +134,7 @@ pub(crate) fn tessellate_instanced_glb(
     Ok(WrittenMesh {
         vertices: mesh.vertex_count(),
         triangles: mesh.triangle_count(),
-        merged_vertices,
+        merged_vertices: weld.then_some(merged),
         part_items,
         instanced: Some((shown.clone().count(), shown.map(Vec::len).sum())),
     })

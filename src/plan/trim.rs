@@ -533,31 +533,33 @@ impl FaceTriangulation {
         max_vertices: usize,
         keep_off: &dyn Fn(DVec2) -> bool,
     ) -> Result<Vec<([usize; 3], [DVec2; 3])>> {
-        let excess = |corners: [DVec2; 3]| {
-            let low = corners[0].min(corners[1]).min(corners[2]);
-            let high = corners[0].max(corners[1]).max(corners[2]);
-            bounds.over(low, high).triangle_excess(corners, limits)
-        };
         // Triangles found within the limits, by their sorted corners: one that is still
         // there later still is (its bound depends on its corners alone).
         let mut passed: HashSet<[usize; 3]> = HashSet::new();
-        let sorted = |mut ids: [usize; 3]| {
-            ids.sort_unstable();
-            ids
+        // Queues the triangle `ids` at `corners` if it fails the limits, else remembers it.
+        let judge = |ids: [usize; 3],
+                     corners: [DVec2; 3],
+                     queue: &mut std::collections::BinaryHeap<Failing>,
+                     passed: &mut HashSet<[usize; 3]>| {
+            let mut key = ids;
+            key.sort_unstable();
+            if passed.contains(&key) {
+                return;
+            }
+            let low = corners[0].min(corners[1]).min(corners[2]);
+            let high = corners[0].max(corners[1]).max(corners[2]);
+            match bounds.over(low, high).triangle_excess(corners, limits) {
+                excess if excess > 1.0 => queue.push(Failing { excess, ids }),
+                _ => {
+                    passed.insert(key);
+                }
+            }
         };
         loop {
             let triangles = self.triangles();
             let mut queue = std::collections::BinaryHeap::new();
             for &(ids, corners) in &triangles {
-                if passed.contains(&sorted(ids)) {
-                    continue;
-                }
-                match excess(corners) {
-                    e if e > 1.0 => queue.push(Failing { excess: e, ids }),
-                    _ => {
-                        passed.insert(sorted(ids));
-                    }
-                }
+                judge(ids, corners, &mut queue, &mut passed);
             }
             // A sliver whose points round onto its corners cannot be split further at f64
             // resolution: refinement stops when a round adds nothing.
@@ -594,12 +596,7 @@ impl FaceTriangulation {
                 }
                 for face in vertex.out_edges().filter_map(|edge| edge.face().as_inner()) {
                     let ids = face.vertices().map(|v| v.fix().index());
-                    match excess(ids.map(|k| self.params[k])) {
-                        e if e > 1.0 => queue.push(Failing { excess: e, ids }),
-                        _ => {
-                            passed.insert(sorted(ids));
-                        }
-                    }
+                    judge(ids, ids.map(|k| self.params[k]), &mut queue, &mut passed);
                 }
             }
             if self.params.len() == before {
@@ -1264,13 +1261,12 @@ impl Vertices {
 struct CellBounds {
     columns: Vec<Interval>,
     rows: Vec<Interval>,
-    bounds: Vec<DerivativeBound>,
-    /// Coarser levels, each block the largest of the 2 × 2 blocks below it (the cells are
-    /// level 0): a box over many cells is bounded in a few look-ups.
-    coarser: Vec<BoundLevel>,
+    /// The cells' bounds (level 0), then coarser levels, each block the largest of the 2 × 2
+    /// blocks below it: a box over many cells is bounded in a few look-ups.
+    levels: Vec<BoundLevel>,
 }
 
-/// One level of [`CellBounds::coarser`]: blocks row after row, `columns` to a row.
+/// One level of [`CellBounds::levels`]: blocks row after row, `columns` to a row.
 struct BoundLevel {
     columns: usize,
     bounds: Vec<DerivativeBound>,
@@ -1291,11 +1287,13 @@ impl CellBounds {
             .step_by(grid.columns)
             .map(|c| c.range_v)
             .collect();
-        let bounds: Vec<DerivativeBound> = grid.cells.iter().map(|c| c.bound).collect();
-        let mut coarser: Vec<BoundLevel> = Vec::new();
+        let mut levels = vec![BoundLevel {
+            columns: columns.len(),
+            bounds: grid.cells.iter().map(|c| c.bound).collect(),
+        }];
         let (mut width, mut height) = (columns.len(), rows.len());
         while width > 1 || height > 1 {
-            let below = coarser.last().map_or(&bounds, |level| &level.bounds);
+            let below = &levels.last().expect("level 0 is there").bounds;
             let (next_width, next_height) = (width.div_ceil(2), height.div_ceil(2));
             let mut level = Vec::with_capacity(next_width * next_height);
             for b in 0..next_height {
@@ -1309,7 +1307,7 @@ impl CellBounds {
                     level.push(bound);
                 }
             }
-            coarser.push(BoundLevel {
+            levels.push(BoundLevel {
                 columns: next_width,
                 bounds: level,
             });
@@ -1318,8 +1316,7 @@ impl CellBounds {
         CellBounds {
             columns,
             rows,
-            bounds,
-            coarser,
+            levels,
         }
     }
 
@@ -1335,7 +1332,12 @@ impl CellBounds {
     /// with none (flat along it) at 1 / its range width.
     fn typical_scale(&self, width_u: f64, width_v: f64) -> DVec2 {
         let median = |of: fn(&DerivativeBound) -> f64, width: f64| {
-            let mut values: Vec<f64> = self.bounds.iter().map(of).filter(|&m| m > 0.0).collect();
+            let mut values: Vec<f64> = self.levels[0]
+                .bounds
+                .iter()
+                .map(of)
+                .filter(|&m| m > 0.0)
+                .collect();
             if values.is_empty() {
                 return 1.0 / width;
             }
@@ -1361,23 +1363,18 @@ impl CellBounds {
         );
         // The finest level at which the box's cells lie in a few blocks per axis (the
         // blocks may hold more cells than the box: still a bound over it).
-        let level = (0..=self.coarser.len())
+        let coarsest = self.levels.len() - 1;
+        let level = (0..coarsest)
             .find(|&level| {
                 (columns.end - 1) >> level < (columns.start >> level) + BLOCKS_PER_LOOKUP
                     && (rows.end - 1) >> level < (rows.start >> level) + BLOCKS_PER_LOOKUP
             })
-            .unwrap_or(self.coarser.len());
-        let (width, bounds) = match level {
-            0 => (self.columns.len(), &self.bounds),
-            _ => {
-                let coarser = &self.coarser[level - 1];
-                (coarser.columns, &coarser.bounds)
-            }
-        };
+            .unwrap_or(coarsest);
+        let blocks = &self.levels[level];
         let mut bound = DerivativeBound::default();
         for b in (rows.start >> level)..=((rows.end - 1) >> level) {
             for a in (columns.start >> level)..=((columns.end - 1) >> level) {
-                bound = bound.max(bounds[b * width + a]);
+                bound = bound.max(blocks.bounds[b * blocks.columns + a]);
             }
         }
         bound

@@ -214,28 +214,26 @@ impl Model<'_> {
     /// PRODUCT_DEFINITION_SHAPE) describes: the product's name, else its id; `None` where
     /// the chain PRODUCT_DEFINITION → formation → PRODUCT is broken (names are optional).
     fn product_name(&self, definition_shape: u64) -> Option<String> {
-        let reference =
-            |id: u64, k: usize| match self.file.instances.get(&id)?.records[0].params.get(k) {
-                Some(Value::Ref(r)) => Some(*r),
-                _ => None,
-            };
-        let definition = reference(definition_shape, 2)?;
-        let formation = reference(definition, 2)?;
-        let product = reference(formation, 2)?;
+        let definition = self.reference_at(definition_shape, 2)?;
+        let formation = self.reference_at(definition, 2)?;
+        let product = self.reference_at(formation, 2)?;
         self.text(product, 1).or_else(|| self.text(product, 0))
+    }
+
+    /// The reference in parameter `k` of `id`'s first record, if it is one (for names,
+    /// which are optional: nothing there is an error).
+    fn reference_at(&self, id: u64, k: usize) -> Option<u64> {
+        match self.file.instances.get(&id)?.records.first()?.params.get(k) {
+            Some(Value::Ref(r)) => Some(*r),
+            _ => None,
+        }
     }
 
     /// The name of the instance a CONTEXT_DEPENDENT_SHAPE_REPRESENTATION's
     /// PRODUCT_DEFINITION_SHAPE (`definition_shape`) stands for: the assembly usage's name,
     /// else its id.
     fn usage_name(&self, definition_shape: u64) -> Option<String> {
-        let usage = match self.file.instances.get(&definition_shape)?.records[0]
-            .params
-            .get(2)
-        {
-            Some(Value::Ref(r)) => *r,
-            _ => return None,
-        };
+        let usage = self.reference_at(definition_shape, 2)?;
         self.text(usage, 1).or_else(|| self.text(usage, 0))
     }
 
