@@ -3750,13 +3750,20 @@ fn scene_node_trees_are_checked() {
         copy_of,
         shape: None,
     };
-    scene.nodes = vec![node(None, 0..1, None), node(Some(0), 1..2, Some(0))];
+    // A root showing nothing, a part at the scene's last item, its copy turned 90° about z
+    // inside it.
+    let mut turned = node(Some(1), 30..31, Some(1));
+    turned.transform = glam::DMat4::from_rotation_z(std::f64::consts::FRAC_PI_2);
+    scene.nodes = vec![node(None, 0..0, None), node(Some(0), 31..32, None), turned];
     let placements = scene.node_placements().unwrap();
-    assert_eq!(
-        placements[1].transform_point3(DVec3::ZERO),
-        DVec3::new(2.0, 0.0, 0.0)
+    let moved = placements[2].transform_point3(DVec3::X);
+    assert!(
+        (moved - DVec3::new(2.0, 1.0, 0.0)).length() < 1e-15,
+        "{moved}"
     );
     let cases = [
+        (vec![node(Some(0), 0..1, None)], 0),
+        (vec![node(None, 2..1, None)], 0),
         (vec![node(Some(1), 0..1, None), node(None, 1..2, None)], 0),
         (vec![node(None, 0..1, Some(1)), node(None, 1..2, None)], 0),
         (vec![node(None, 0..1, None), node(None, 1..3, Some(0))], 1),
