@@ -3,6 +3,7 @@
 //! and uses those samples in every face that runs along it, so faces meet without cracks
 //! ([`crate::plan::plan_shell`]).
 
+use super::analytic::Analytic;
 use super::{BSplineCurve, BSplineSurface};
 use crate::error::{Error, Result};
 use glam::DVec3;
@@ -51,6 +52,9 @@ pub struct Face {
     pub bounds: Vec<Bound>,
     /// What the file calls the face (e.g. "ADVANCED_FACE #42"), for errors.
     pub name: String,
+    /// The exact shape `surface` converts, where the file names one the mesher has a
+    /// closed-form deviation for (see [`Analytic`]).
+    pub shape: Option<Analytic>,
 }
 
 impl Shell {
@@ -160,6 +164,7 @@ impl Shell {
                 .iter()
                 .map(|face| Face {
                     surface: face.surface.mapped(f),
+                    shape: face.shape.and_then(|shape| shape.mapped(f)),
                     ..face.clone()
                 })
                 .collect(),

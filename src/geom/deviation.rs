@@ -538,18 +538,25 @@ pub(crate) fn box_centre_and_radius(points: impl Iterator<Item = DVec3> + Clone)
     (centre, radius_squared.sqrt())
 }
 
-/// The squared radius of the smallest circle around three points: half the longest side
-/// where the triangle is right or obtuse (or flat), else its circumradius.
+/// The squared radius of the smallest circle around three points of the plane.
 fn smallest_circle_radius_squared(q: [DVec2; 3]) -> f64 {
     let sides = [0, 1, 2].map(|k| q[(k + 1) % 3].distance_squared(q[(k + 2) % 3]));
-    let longest = sides[0].max(sides[1]).max(sides[2]);
     let area_twice = (q[1] - q[0]).perp_dot(q[2] - q[0]);
+    enclosing_radius_squared(sides, area_twice * area_twice)
+}
+
+/// The squared radius of the smallest circle around a triangle (in the plane or in space)
+/// from its squared side lengths and its doubled area squared: half the longest side where
+/// the triangle is right or obtuse (or flat), else its circumradius.
+pub(crate) fn enclosing_radius_squared(sides: [f64; 3], doubled_area_squared: f64) -> f64 {
+    let longest = sides[0].max(sides[1]).max(sides[2]);
     // Right or obtuse: the longest side's square is at least the other two's sum.
-    if 2.0 * longest >= sides[0] + sides[1] + sides[2] || area_twice == 0.0 {
+    if 2.0 * longest >= sides[0] + sides[1] + sides[2] || doubled_area_squared == 0.0 {
         return 0.25 * longest;
     }
-    // R = abc / (4·area), area = |area_twice| / 2, so R² = a²b²c² / (4·area_twice²).
-    (0.25 * sides[0] * sides[1] * sides[2] / (area_twice * area_twice)).max(0.25 * longest)
+    // R = abc / (4·area), area = √doubled_area_squared / 2, so
+    // R² = a²b²c² / (4·doubled_area_squared).
+    (0.25 * sides[0] * sides[1] * sides[2] / doubled_area_squared).max(0.25 * longest)
 }
 
 #[cfg(test)]

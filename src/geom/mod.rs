@@ -4,6 +4,7 @@
 //! homogeneous coordinates (x·w, y·w, z·w, w) — so one evaluator serves every kind. The
 //! classic forms ([`curves`], [`patches`], [`shapes`]) convert to it exactly.
 
+pub mod analytic;
 mod basis;
 mod bezier;
 pub mod brep;

@@ -668,7 +668,8 @@ fn plan_face(
             what: "the face's loops enclose nothing".into(),
         });
     }
-    let triangulated = plan_fixed_boundary(view.surface, &polylines, limits, max_vertices)?;
+    let triangulated =
+        plan_fixed_boundary(view.surface, face.shape, &polylines, limits, max_vertices)?;
     let shared: Vec<Option<u32>> = triangulated
         .boundary_point
         .iter()

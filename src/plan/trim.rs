@@ -15,20 +15,23 @@
 //!    segments constraint edges that cut nothing away.
 //! 3. The interior ([`Interior`]): for a trimmed face, or on a surface with a pole or a
 //!    kink, the cells' grid points inside the face, every cell line a constraint, so each
-//!    cell keeps its own rates along u and v; for a B-rep face elsewhere nothing, the
-//!    interior left to step 5.
+//!    cell keeps its own rates along u and v; for a B-rep face elsewhere, or on a surface
+//!    whose exact shape the file names (a sphere, a cylinder), nothing, the interior left
+//!    to step 5.
 //! 4. A constrained Delaunay triangulation (spade) in scaled parameters keeps every
 //!    constraint; a triangle is part of the face when an odd number of loop edges separate
 //!    it from outside the hull (parity spread from face to face).
 //! 5. Delaunay refinement: points are inserted into the triangles that the triangle bound
 //!    ([`crate::geom::DerivativeBound::triangle_excess`]) over the cells their parameter
-//!    box overlaps does not allow, until every one meets the tolerance, the longest edge
-//!    and the angle.
+//!    box overlaps does not allow — on an exact shape, its closed form from the triangle's
+//!    model-space corners ([`crate::geom::analytic::Analytic::triangle_excess`]) —, until
+//!    every one meets the tolerance, the longest edge and the angle.
 
 use super::adaptive::{BoundEffort, CellGrid, surface_cells};
 use crate::error::{Error, Result};
+use crate::geom::analytic::Analytic;
 use crate::geom::{DerivativeBound, Interval, SamplingLimits, TrimmedSurface};
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 use spade::handles::FixedVertexHandle;
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 use std::collections::{HashMap, HashSet};
@@ -68,7 +71,7 @@ pub fn plan_trimmed_within(
     let surface = face.surface();
     let grid = surface_cells(surface, limits, BoundEffort::Tightest)?;
     let bounds = CellBounds::new(&grid);
-    let (interior, lines) = Interior::of(surface, &grid, &bounds);
+    let (interior, lines) = Interior::of(surface, None, &grid, &bounds);
     let FacePolylines {
         loops: mut polylines,
         specials: special_curves,
@@ -85,6 +88,7 @@ pub fn plan_trimmed_within(
     };
     let triangulation = triangulate(
         surface,
+        None,
         interior,
         &bounds,
         &lines,
@@ -126,9 +130,11 @@ fn clamp_to_range(surface: &crate::geom::BSplineSurface, p: DVec2) -> DVec2 {
 /// surface's parameters (no repeated end) that no vertex is added to — so a neighbour that
 /// uses the same points meets the face without a crack. Interior samples come from the
 /// adaptive cells (those within rounding of a polyline left out), triangles are refined as
-/// in [`plan_trimmed`]. Errors as there.
+/// in [`plan_trimmed`] — on a surface whose exact `shape` is given, by the shape's
+/// closed-form deviation of each triangle. Errors as there.
 pub(crate) fn plan_fixed_boundary(
     surface: &crate::geom::BSplineSurface,
+    shape: Option<Analytic>,
     polylines: &[Vec<DVec2>],
     limits: SamplingLimits,
     max_vertices: usize,
@@ -136,9 +142,10 @@ pub(crate) fn plan_fixed_boundary(
     let max_vertices = max_vertices.min(MAX_TRIMMED_VERTICES);
     let grid = surface_cells(surface, limits, BoundEffort::Tightest)?;
     let bounds = CellBounds::new(&grid);
-    let (interior, lines) = Interior::of(surface, &grid, &bounds);
+    let (interior, lines) = Interior::of(surface, shape, &grid, &bounds);
     triangulate(
         surface,
+        shape,
         interior,
         &bounds,
         &lines,
@@ -152,10 +159,12 @@ pub(crate) fn plan_fixed_boundary(
 
 /// Steps 3–5 of the module's plan over loops already sampled. `fixed`: the polylines are
 /// kept as given (see [`plan_fixed_boundary`]): grid points within rounding of them are
-/// left out and cell lines only constrain where they cross no polyline.
+/// left out and cell lines only constrain where they cross no polyline. `shape`: the
+/// surface's exact shape, whose closed form then judges the triangles.
 #[allow(clippy::too_many_arguments)]
 fn triangulate(
     surface: &crate::geom::BSplineSurface,
+    shape: Option<Analytic>,
     interior: Interior,
     bounds: &CellBounds,
     lines: &CellLines,
@@ -287,11 +296,13 @@ fn triangulate(
             ),
         });
     }
+    let exact = shape.map(|shape| ExactShape::new(shape, surface, &vertices.positions));
     let mut mesh = FaceTriangulation {
         cdt,
         params: vertices.positions,
         scale,
         loop_segments,
+        exact,
     };
     for [a, b] in line_edges {
         mesh.cdt.try_add_constraint(
@@ -333,18 +344,21 @@ enum Interior<'a> {
 
 impl<'a> Interior<'a> {
     /// The sampling for a face of `surface` and the lines its loops are cut at and the
-    /// interior keeps: refinement, with no lines, on a surface with no pole and no kink
-    /// (where the first derivative jumps across a knot line, the cells' lines keep
-    /// triangles from straddling it: a B-rep face's boundary, which no vertex may be added
-    /// to, could not be cut there), else the cells and their lines.
+    /// interior keeps: refinement, with no lines, on a surface of a known exact `shape`
+    /// (whose triangles are judged in model space, where a pole is a point like any other)
+    /// or with no pole and no kink (where the first derivative jumps across a knot line,
+    /// the cells' lines keep triangles from straddling it: a B-rep face's boundary, which
+    /// no vertex may be added to, could not be cut there), else the cells and their lines.
     fn of(
         surface: &crate::geom::BSplineSurface,
+        shape: Option<Analytic>,
         grid: &'a CellGrid,
         bounds: &CellBounds,
     ) -> (Self, CellLines) {
         let tolerance = super::seams::point_tolerance(surface.control_box_diagonal());
-        let refined = !super::seams::pole_sides(surface, tolerance).contains(&true)
-            && !CellLines::has_kink(surface);
+        let refined = shape.is_some()
+            || !super::seams::pole_sides(surface, tolerance).contains(&true)
+                && !CellLines::has_kink(surface);
         let snap_width = CellLines::snap_widths(surface);
         if refined {
             let lines = [Vec::new(), Vec::new()];
@@ -379,12 +393,71 @@ fn circumcentre(q: [DVec2; 3]) -> Option<DVec2> {
 /// The triangulation of a face: spade's, in scaled coordinates, with the exact parameters
 /// of every vertex by its index (what the plan keeps; the scaled points only decide
 /// topology).
-struct FaceTriangulation {
+struct FaceTriangulation<'a> {
     cdt: ConstrainedDelaunayTriangulation<Point2<f64>>,
     params: Vec<DVec2>,
     scale: DVec2,
     /// The loops' segments by vertex index.
     loop_segments: Vec<[usize; 2]>,
+    /// The surface's exact shape, where triangles are judged by it.
+    exact: Option<ExactShape<'a>>,
+}
+
+/// A surface's exact shape and the model-space point of every vertex (by index), which its
+/// closed-form deviation judges triangles from.
+struct ExactShape<'a> {
+    shape: Analytic,
+    surface: &'a crate::geom::BSplineSurface,
+    points: Vec<DVec3>,
+    /// The surface's collapsed sides: (axis, parameter) of each line that is one point.
+    poles: Vec<(usize, f64)>,
+}
+
+impl<'a> ExactShape<'a> {
+    fn new(shape: Analytic, surface: &'a crate::geom::BSplineSurface, params: &[DVec2]) -> Self {
+        let tolerance = super::seams::point_tolerance(surface.control_box_diagonal());
+        let (ru, rv) = (surface.range_u(), surface.range_v());
+        // Sides in the order of pole_sides: bottom, right, top, left.
+        let lines = [(1, rv.start), (0, ru.end), (1, rv.end), (0, ru.start)];
+        let poles = (super::seams::pole_sides(surface, tolerance).into_iter())
+            .zip(lines)
+            .filter_map(|(collapsed, line)| collapsed.then_some(line))
+            .collect();
+        ExactShape {
+            shape,
+            surface,
+            points: params.iter().map(|p| surface.point(p.x, p.y)).collect(),
+            poles,
+        }
+    }
+
+    /// How far the triangle `ids` at the parameters `corners` (counter-clockwise) is from
+    /// meeting `limits` by the shape's closed form
+    /// ([`Analytic::triangle_excess`]), which holds for a mesh that covers the face once:
+    /// so a triangle must also face the way the surface does (its model-space normal, in
+    /// the order of its parameters, within 90° of the surface's at its parameters'
+    /// centroid), else it fails without measure — one that spans the face from one side of
+    /// a seam to the other is flat or turned over. Exempt: a triangle with two corners on
+    /// one pole, flat by construction, which the plan leaves out.
+    fn triangle_excess(&self, ids: [usize; 3], corners: [DVec2; 3], limits: SamplingLimits) -> f64 {
+        let points = ids.map(|k| self.points[k]);
+        let on_pole = |a: DVec2, b: DVec2| {
+            (self.poles.iter()).any(|&(axis, at)| a[axis] == at && b[axis] == at)
+        };
+        let pole_pair = (0..3).any(|k| on_pole(corners[k], corners[(k + 1) % 3]));
+        if !pole_pair {
+            let centroid = (corners[0] + corners[1] + corners[2]) / 3.0;
+            let normal = self.surface.evaluate(centroid.x, centroid.y).normal;
+            let facing = (points[1] - points[0])
+                .cross(points[2] - points[0])
+                .dot(normal);
+            // Flat, turned over, or not a number: fails.
+            if facing.is_nan() || facing <= 0.0 {
+                return f64::INFINITY;
+            }
+        }
+        self.shape.triangle_excess(points, limits)
+    }
 }
 
 /// A triangle of the face outside its limits, by how far ([`DerivativeBound::triangle_excess`]):
@@ -422,7 +495,7 @@ fn edge_key(a: usize, b: usize) -> [usize; 2] {
     [a.min(b), a.max(b)]
 }
 
-impl FaceTriangulation {
+impl FaceTriangulation<'_> {
     /// The edges of the triangulation along the loops: each loop segment, or the chain of
     /// constraint edges spade split it into where vertices lie exactly on it.
     fn loop_edges(&self) -> HashSet<[usize; 2]> {
@@ -513,8 +586,7 @@ impl FaceTriangulation {
             .collect()
     }
 
-    /// Inserts points into the face until every triangle meets `limits` by the triangle
-    /// bound ([`DerivativeBound::triangle_excess`]) of the cells its parameter box overlaps;
+    /// Inserts points into the face until every triangle meets `limits` ([`Self::excess`]);
     /// returns the face's final triangles. The failing triangles wait in a queue, worst
     /// first; each one still there gets its circumcentre (in the triangulation's
     /// coordinates) where that lies inside it, else the middle of its longest edge where
@@ -537,7 +609,8 @@ impl FaceTriangulation {
         // there later still is (its bound depends on its corners alone).
         let mut passed: HashSet<[usize; 3]> = HashSet::new();
         // Queues the triangle `ids` at `corners` if it fails the limits, else remembers it.
-        let judge = |ids: [usize; 3],
+        let judge = |this: &Self,
+                     ids: [usize; 3],
                      corners: [DVec2; 3],
                      queue: &mut std::collections::BinaryHeap<Failing>,
                      passed: &mut HashSet<[usize; 3]>| {
@@ -546,9 +619,7 @@ impl FaceTriangulation {
             if passed.contains(&key) {
                 return;
             }
-            let low = corners[0].min(corners[1]).min(corners[2]);
-            let high = corners[0].max(corners[1]).max(corners[2]);
-            match bounds.over(low, high).triangle_excess(corners, limits) {
+            match this.excess(ids, corners, bounds, limits) {
                 excess if excess > 1.0 => queue.push(Failing { excess, ids }),
                 _ => {
                     passed.insert(key);
@@ -559,7 +630,7 @@ impl FaceTriangulation {
             let triangles = self.triangles();
             let mut queue = std::collections::BinaryHeap::new();
             for &(ids, corners) in &triangles {
-                judge(ids, corners, &mut queue, &mut passed);
+                judge(self, ids, corners, &mut queue, &mut passed);
             }
             // A sliver whose points round onto its corners cannot be split further at f64
             // resolution: refinement stops when a round adds nothing.
@@ -587,6 +658,9 @@ impl FaceTriangulation {
                     continue;
                 }
                 self.params.push(p);
+                if let Some(exact) = &mut self.exact {
+                    exact.points.push(exact.surface.point(p.x, p.y));
+                }
                 let vertex = self.cdt.vertex(handle);
                 let on_constraint = vertex
                     .out_edges()
@@ -594,15 +668,43 @@ impl FaceTriangulation {
                 if on_constraint {
                     continue;
                 }
-                for face in vertex.out_edges().filter_map(|edge| edge.face().as_inner()) {
-                    let ids = face.vertices().map(|v| v.fix().index());
-                    judge(ids, ids.map(|k| self.params[k]), &mut queue, &mut passed);
+                let around: Vec<[usize; 3]> = (vertex.out_edges())
+                    .filter_map(|edge| edge.face().as_inner())
+                    .map(|face| face.vertices().map(|v| v.fix().index()))
+                    .collect();
+                for ids in around {
+                    judge(
+                        self,
+                        ids,
+                        ids.map(|k| self.params[k]),
+                        &mut queue,
+                        &mut passed,
+                    );
                 }
             }
             if self.params.len() == before {
                 return Ok(triangles);
             }
         }
+    }
+
+    /// How far the triangle `ids` at the parameters `corners` is from meeting `limits` (at
+    /// most 1: it meets them): by the surface's exact shape from the triangle's model-space
+    /// corners where it has one, else by the triangle bound of the cells its parameter box
+    /// overlaps.
+    fn excess(
+        &self,
+        ids: [usize; 3],
+        corners: [DVec2; 3],
+        bounds: &CellBounds,
+        limits: SamplingLimits,
+    ) -> f64 {
+        if let Some(exact) = &self.exact {
+            return exact.triangle_excess(ids, corners, limits);
+        }
+        let low = corners[0].min(corners[1]).min(corners[2]);
+        let high = corners[0].max(corners[1]).max(corners[2]);
+        bounds.over(low, high).triangle_excess(corners, limits)
     }
 
     /// Where to split the triangle `ids` (at the parameters `corners`, counter-clockwise) if

@@ -4,6 +4,7 @@
 
 use super::file::{ExchangeFile, Instance, Record, Value};
 use crate::error::{Error, Result};
+use crate::geom::analytic::Analytic;
 use crate::geom::brep::{Bound, Edge, Face, OrientedEdge, Shell};
 use crate::geom::curves::join;
 use crate::geom::shapes::{degenerate_torus_section, ellipsoid, revolve, torus_section, unit_arc};
@@ -670,8 +671,14 @@ impl<'a> Model<'a> {
     // ---- surfaces ----------------------------------------------------------------------
 
     /// The surface `id` in B-spline form, reaching past every point of `extent` (the face's
-    /// edges) where the surface is unbounded.
-    fn surface(&self, id: u64, extent: &[DVec3], depth: usize) -> Result<BSplineSurface> {
+    /// edges) where the surface is unbounded, with its exact shape where the mesher has a
+    /// closed form for it (a sphere, a circular cylinder).
+    fn surface(
+        &self,
+        id: u64,
+        extent: &[DVec3],
+        depth: usize,
+    ) -> Result<(BSplineSurface, Option<Analytic>)> {
         self.offset_surface(id, extent, depth, 0.0)
     }
 
@@ -685,7 +692,7 @@ impl<'a> Model<'a> {
         extent: &[DVec3],
         depth: usize,
         offset: f64,
-    ) -> Result<BSplineSurface> {
+    ) -> Result<(BSplineSurface, Option<Analytic>)> {
         self.depth_check(id, depth)?;
         let instance = self.instance(id)?;
         let wrap = |e: Error| in_entity(id, instance, e);
@@ -699,7 +706,10 @@ impl<'a> Model<'a> {
                     "an offset of a B-spline surface is not read yet",
                 ));
             }
-            return self.bspline_surface(id, instance).map_err(wrap);
+            return self
+                .bspline_surface(id, instance)
+                .map(|s| (s, None))
+                .map_err(wrap);
         }
         let record = &instance.records[0];
         let rec = Rec { id, record };
@@ -718,6 +728,9 @@ impl<'a> Model<'a> {
                 Err(rec.err(format!("an offset of a {kind} is not read yet")))
             }
         };
+        // The exact shape of a sphere or circular cylinder, for the mesher's closed-form
+        // deviation.
+        let mut shape = None;
         let result = match record.name.as_str() {
             "PLANE" => {
                 let mut frame = self.frame(rec.reference(1)?)?;
@@ -753,6 +766,13 @@ impl<'a> Model<'a> {
                 if radius <= 0.0 {
                     return Err(rec.err(format!("offset by {offset} has no radius left")));
                 }
+                if tan == 0.0 {
+                    shape = Some(Analytic::Cylinder {
+                        axis_point: frame.origin,
+                        axis: frame.z,
+                        radius,
+                    });
+                }
                 let heights: Vec<f64> = extent.iter().map(|&p| frame.local(p).z).collect();
                 let (mut h0, mut h1) = padded_range(&heights);
                 // Stop at the apex: the surface does not go on through it.
@@ -772,6 +792,10 @@ impl<'a> Model<'a> {
             "SPHERICAL_SURFACE" => {
                 let frame = self.frame(rec.reference(1)?)?;
                 let radius = offset_radius(self.length(&rec, 2)?)?;
+                shape = Some(Analytic::Sphere {
+                    centre: frame.origin,
+                    radius,
+                });
                 ellipsoid(
                     DVec3::ZERO,
                     DVec3::splat(radius),
@@ -800,6 +824,12 @@ impl<'a> Model<'a> {
                 let major = rec.real(2)? * self.length_scale;
                 let minor = offset_radius(self.length(&rec, 3)?)?;
                 let outer = rec.logical(4)?;
+                if major == 0.0 {
+                    shape = Some(Analytic::Sphere {
+                        centre: frame.origin,
+                        radius: minor,
+                    });
+                }
                 degenerate_torus_section(DVec3::ZERO, major, minor, outer, Interval::new(0.0, TAU))
                     .map(|s| s.mapped(|p| frame.apply(p)))
             }
@@ -825,19 +855,26 @@ impl<'a> Model<'a> {
                 let profile = self.profile(&curve, extent)?;
                 extrude(&profile, along, extent)
             }
-            "RECTANGULAR_TRIMMED_SURFACE" => {
-                self.offset_surface(rec.reference(1)?, extent, depth + 1, offset)
-            }
+            "RECTANGULAR_TRIMMED_SURFACE" => self
+                .offset_surface(rec.reference(1)?, extent, depth + 1, offset)
+                .map(|(surface, inner)| {
+                    shape = inner;
+                    surface
+                }),
             "OFFSET_SURFACE" => {
                 let distance = rec.real(2)? * self.length_scale;
                 if !distance.is_finite() {
                     return Err(rec.err("has no finite distance"));
                 }
                 self.offset_surface(rec.reference(1)?, extent, depth + 1, offset + distance)
+                    .map(|(surface, inner)| {
+                        shape = inner;
+                        surface
+                    })
             }
             _ => Err(rec.err("is not a surface knotwork reads")),
         };
-        result.map_err(wrap)
+        result.map(|surface| (surface, shape)).map_err(wrap)
     }
 
     /// A bounded form of a swept profile: a line cut to the span of `extent`'s projections
@@ -1068,13 +1105,14 @@ impl<'a> Model<'a> {
                 }
             }
             let extent = builder.extent(&bounds);
-            let surface = self.surface(rec.reference(2)?, &extent, 0)?;
+            let (surface, shape) = self.surface(rec.reference(2)?, &extent, 0)?;
             let same_sense = rec.logical(3)?;
             Ok(Face {
                 surface,
                 same_sense,
                 bounds,
                 name: format!("{} #{id}", rec.record.name),
+                shape,
             })
         })();
         if result.is_err() {

@@ -1,0 +1,275 @@
+//! The exact shape behind a B-spline surface where a file names one (a STEP sphere or
+//! circular cylinder, converted exactly by [`super::shapes`]): there the distance between a
+//! flat triangle and the surface has a closed form in the triangle's corners, tighter than
+//! any bound from the rational parametrisation (whose speed varies along each arc, so its
+//! second derivatives carry a tangential part that is no distance from the surface).
+
+use super::SamplingLimits;
+use super::deviation::enclosing_radius_squared;
+use glam::DVec3;
+
+/// A surface's exact shape (model units).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Analytic {
+    /// The sphere of `radius` (> 0) about `centre`.
+    Sphere { centre: DVec3, radius: f64 },
+    /// The circular cylinder of `radius` (> 0) about the line through `axis_point` along
+    /// the unit vector `axis`.
+    Cylinder {
+        axis_point: DVec3,
+        axis: DVec3,
+        radius: f64,
+    },
+}
+
+/// Farthest (relative) a mapped shape's radius may differ along three directions for the
+/// map to count as a similarity that keeps it.
+const SIMILARITY_REL: f64 = 1e-9;
+
+impl Analytic {
+    /// The shape moved by `f`, where `f` is a similarity (a rigid motion with a uniform
+    /// scale: it maps the shape onto the shape of the mapped surface); `None` where it is not
+    /// (checked on three perpendicular radii).
+    pub fn mapped(&self, f: impl Fn(DVec3) -> DVec3) -> Option<Analytic> {
+        let (centre, radius, axis) = match *self {
+            Analytic::Sphere { centre, radius } => (centre, radius, DVec3::Z),
+            Analytic::Cylinder {
+                axis_point,
+                axis,
+                radius,
+            } => (axis_point, radius, axis),
+        };
+        let (x, y) = axis.any_orthonormal_pair();
+        let moved = f(centre);
+        let images = [x, y, axis].map(|d| f(centre + radius * d) - moved);
+        let lengths = images.map(|v| v.length());
+        let scaled = lengths[0];
+        let square = images[0]
+            .dot(images[1])
+            .abs()
+            .max(images[0].dot(images[2]).abs())
+            .max(images[1].dot(images[2]).abs());
+        if !(scaled > 0.0 && scaled.is_finite())
+            || lengths
+                .iter()
+                .any(|l| (l - scaled).abs() > SIMILARITY_REL * scaled)
+            || square > SIMILARITY_REL * scaled * scaled
+        {
+            return None;
+        }
+        Some(match self {
+            Analytic::Sphere { .. } => Analytic::Sphere {
+                centre: moved,
+                radius: scaled,
+            },
+            Analytic::Cylinder { .. } => Analytic::Cylinder {
+                axis_point: moved,
+                axis: images[2] / scaled,
+                radius: scaled,
+            },
+        })
+    }
+
+    /// The largest distance between the flat triangle with `corners` on the surface and
+    /// the surface over it: R − √(R² − r²), r the radius of the smallest circle around the
+    /// corners (for the cylinder: around their projections across the axis). Every point
+    /// of the triangle lies inside the ball (the cylinder), both convex, at least
+    /// √(R² − r²) from the centre (the axis), so within that of the surface; and the surface
+    /// point on the ray from the centre (the axis) through it is that near, so a mesh whose
+    /// triangles cover the face seen from the centre holds the face within the largest of
+    /// them. Exact for an acute triangle (its circumcentre's point).
+    pub fn triangle_deviation(&self, corners: [DVec3; 3]) -> f64 {
+        let (radius, q) = match *self {
+            Analytic::Sphere { radius, .. } => (radius, corners),
+            Analytic::Cylinder { axis, radius, .. } => {
+                (radius, corners.map(|p| p - p.dot(axis) * axis))
+            }
+        };
+        let sides = [0, 1, 2].map(|k| q[(k + 1) % 3].distance_squared(q[(k + 2) % 3]));
+        let doubled_area_squared = (q[1] - q[0]).cross(q[2] - q[0]).length_squared();
+        let r_squared = enclosing_radius_squared(sides, doubled_area_squared).min(radius * radius);
+        // R − √(R² − r²) without the cancellation: r² / (R + √(R² − r²)).
+        r_squared / (radius + (radius * radius - r_squared).sqrt())
+    }
+
+    /// The angle (radians) between the surface's normals at `a` and `b` (points on it).
+    pub fn normal_angle(&self, a: DVec3, b: DVec3) -> f64 {
+        let radial = |p: DVec3| match *self {
+            Analytic::Sphere { centre, .. } => p - centre,
+            Analytic::Cylinder {
+                axis_point, axis, ..
+            } => {
+                let d = p - axis_point;
+                d - d.dot(axis) * axis
+            }
+        };
+        radial(a).angle_between(radial(b))
+    }
+
+    /// How far the triangle with `corners` on the surface is from meeting `limits`, as
+    /// [`DerivativeBound::triangle_excess`](super::DerivativeBound::triangle_excess) but
+    /// exact: its [`triangle_deviation`](Self::triangle_deviation) over the tolerance, its
+    /// longest edge over the longest allowed, the largest [`normal_angle`](Self::normal_angle)
+    /// between its corners over the angle. At most 1: it meets them.
+    pub fn triangle_excess(&self, corners: [DVec3; 3], limits: SamplingLimits) -> f64 {
+        let mut excess = self.triangle_deviation(corners) / limits.tolerance;
+        for k in 0..3 {
+            let (a, b) = (corners[k], corners[(k + 1) % 3]);
+            excess = excess
+                .max(a.distance(b) / limits.max_edge)
+                .max(self.normal_angle(a, b) / limits.max_angle);
+        }
+        excess
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The largest distance from `shape` over a dense barycentric sampling of the
+    /// triangle: |‖p − c‖ − R| for the sphere, the distance across the axis for the cylinder.
+    fn sampled_deviation(shape: &Analytic, corners: [DVec3; 3]) -> f64 {
+        let n = 200;
+        let mut worst: f64 = 0.0;
+        for i in 0..=n {
+            for j in 0..=n - i {
+                let (a, b) = (i as f64 / n as f64, j as f64 / n as f64);
+                let p = corners[0] + a * (corners[1] - corners[0]) + b * (corners[2] - corners[0]);
+                let off = match *shape {
+                    Analytic::Sphere { centre, radius } => (p.distance(centre) - radius).abs(),
+                    Analytic::Cylinder {
+                        axis_point,
+                        axis,
+                        radius,
+                    } => {
+                        let d = p - axis_point;
+                        ((d - d.dot(axis) * axis).length() - radius).abs()
+                    }
+                };
+                worst = worst.max(off);
+            }
+        }
+        worst
+    }
+
+    fn on_sphere(centre: DVec3, radius: f64, longitude: f64, latitude: f64) -> DVec3 {
+        centre
+            + radius
+                * DVec3::new(
+                    latitude.cos() * longitude.cos(),
+                    latitude.cos() * longitude.sin(),
+                    latitude.sin(),
+                )
+    }
+
+    #[test]
+    fn sphere_triangles_deviate_as_the_closed_form_says() {
+        let (centre, radius) = (DVec3::new(1e3, -2.0, 5.0), 3.0);
+        let sphere = Analytic::Sphere { centre, radius };
+        // Acute (the bound is reached at the circumcentre), obtuse (reached on the longest
+        // side), and one with two corners at a pole.
+        let triangles = [
+            [(0.0, 0.0), (0.3, 0.05), (0.1, 0.3)],
+            [(0.0, 0.0), (0.6, 0.0), (0.3, 0.05)],
+            [(0.0, std::f64::consts::FRAC_PI_2), (0.0, 1.2), (0.7, 1.2)],
+        ];
+        for t in triangles {
+            let corners = t.map(|(lon, lat)| on_sphere(centre, radius, lon, lat));
+            let bound = sphere.triangle_deviation(corners);
+            let sampled = sampled_deviation(&sphere, corners);
+            assert!(
+                sampled <= bound * (1.0 + 1e-9),
+                "{t:?}: {sampled} > {bound}"
+            );
+            assert!(sampled >= 0.999 * bound, "{t:?}: {sampled} ≪ {bound}");
+        }
+        // A cap: the triangle through three points of a circle of radius ρ on the sphere.
+        let rho: f64 = 0.5;
+        let lat = (rho / radius).acos();
+        let corners = [0.0, 2.1, 4.2].map(|lon| on_sphere(centre, radius, lon, lat));
+        let cap = radius - (radius * radius - rho * rho).sqrt();
+        assert!((sphere.triangle_deviation(corners) - cap).abs() <= 1e-12 * radius);
+    }
+
+    #[test]
+    fn cylinder_triangles_deviate_as_the_closed_form_says() {
+        let axis = DVec3::new(1.0, 2.0, 2.0) / 3.0;
+        let (x, y) = axis.any_orthonormal_pair();
+        let (axis_point, radius) = (DVec3::new(-4.0, 0.5, 7.0), 0.25);
+        let cylinder = Analytic::Cylinder {
+            axis_point,
+            axis,
+            radius,
+        };
+        let at = |angle: f64, height: f64| {
+            axis_point + radius * (angle.cos() * x + angle.sin() * y) + height * axis
+        };
+        for t in [
+            [(0.0, 0.0), (0.4, 0.1), (0.2, 0.9)],
+            [(0.0, 0.0), (0.0, 1.0), (0.5, 0.5)],
+            [(1.0, 0.0), (1.9, 0.0), (1.45, 0.3)],
+        ] {
+            let corners = t.map(|(angle, height)| at(angle, height));
+            let bound = cylinder.triangle_deviation(corners);
+            let sampled = sampled_deviation(&cylinder, corners);
+            assert!(
+                sampled <= bound * (1.0 + 1e-9),
+                "{t:?}: {sampled} > {bound}"
+            );
+            assert!(sampled >= 0.999 * bound, "{t:?}: {sampled} ≪ {bound}");
+        }
+    }
+
+    #[test]
+    fn normal_angles_and_edges_make_the_excess() {
+        let sphere = Analytic::Sphere {
+            centre: DVec3::ZERO,
+            radius: 2.0,
+        };
+        let corners = [DVec3::X, DVec3::Y, DVec3::Z].map(|p| 2.0 * p);
+        // Right angles between the normals, edges 2√2, deviation 2 − 2/√3.
+        let deviation = 2.0 - 2.0 / 3f64.sqrt();
+        assert!((sphere.triangle_deviation(corners) - deviation).abs() < 1e-12);
+        let limits = |tolerance: f64, max_edge: f64, max_angle: f64| SamplingLimits {
+            tolerance,
+            max_edge,
+            max_angle,
+        };
+        let excess = |l| sphere.triangle_excess(corners, l);
+        assert!(
+            (excess(limits(0.5 * deviation, f64::INFINITY, f64::INFINITY)) - 2.0).abs() < 1e-12
+        );
+        assert!((excess(limits(1.0, 8f64.sqrt() / 4.0, f64::INFINITY)) - 4.0).abs() < 1e-12);
+        let quarter = std::f64::consts::FRAC_PI_2;
+        assert!((excess(limits(1.0, f64::INFINITY, quarter / 3.0)) - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn only_similarities_keep_a_shape() {
+        let cylinder = Analytic::Cylinder {
+            axis_point: DVec3::new(1.0, 0.0, 0.0),
+            axis: DVec3::Z,
+            radius: 0.5,
+        };
+        // Turned a quarter about x (z to −y), scaled by 10, moved.
+        let turned = cylinder
+            .mapped(|p| 10.0 * DVec3::new(p.x, -p.z, p.y) + DVec3::new(0.0, 3.0, 0.0))
+            .unwrap();
+        let Analytic::Cylinder {
+            axis_point,
+            axis,
+            radius,
+        } = turned
+        else {
+            panic!("a cylinder stays one")
+        };
+        assert!(axis_point.distance(DVec3::new(10.0, 3.0, 0.0)) < 1e-12);
+        assert!(axis.distance(DVec3::NEG_Y) < 1e-12);
+        assert!((radius - 5.0).abs() < 1e-12);
+        // Stretched along x: no longer a circular cylinder.
+        assert_eq!(cylinder.mapped(|p| DVec3::new(2.0 * p.x, p.y, p.z)), None);
+        // A shear keeps lengths along the axes' images unequal or skewed.
+        assert_eq!(cylinder.mapped(|p| DVec3::new(p.x + p.y, p.y, p.z)), None);
+    }
+}
