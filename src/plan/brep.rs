@@ -219,7 +219,7 @@ impl<'a> FaceView<'a> {
     /// The parameters of `p` (a point on the face's boundary): inverted from `seed`, else
     /// `near`, else from a grid search; along a closed axis a point on the seam takes the
     /// side `force` names, else the side nearer `near`; where the surface collapses (a
-    /// pole) a parameter along the collapse is `near`'s.
+    /// pole) a parameter along the collapse is `near`'s (`force`'s without one).
     fn invert(
         &self,
         p: DVec3,
@@ -293,14 +293,17 @@ impl<'a> FaceView<'a> {
                 .on_side(other, uv[other])
                 .is_some_and(|end| self.collapsed[2 * other + usize::from(end)]);
             if pole {
-                if let Some(side) = force[axis] {
+                // The point before's, so that the loop reaches the pole where it comes from
+                // (a seam run forced to the other side leaves the pole there, along the
+                // collapsed side, as the one point it is).
+                if let Some(near) = near {
+                    uv[axis] = near[axis];
+                } else if let Some(side) = force[axis] {
                     uv[axis] = if side {
                         self.ranges[axis].end
                     } else {
                         self.ranges[axis].start
                     };
-                } else if let Some(near) = near {
-                    uv[axis] = near[axis];
                 }
                 continue;
             }
