@@ -1137,6 +1137,49 @@ fn degenerate_points_keep_analytic_normals_at_every_placement() {
     }
 }
 
+/// The degeneracy rule scales with the model and the parameter domain: a twisted bilinear
+/// patch whose v = 0 edge is 1e-9 of its size (regular there: S_u × S_v is far above
+/// rounding, and its normal is not the limit a collapsed edge would take) keeps the same
+/// normals — to 1e-12 rad — at the same fractions of its range when its domain is 2⁻¹⁰..2¹⁰
+/// wide each way and its size 2⁻³⁰..2¹³ times its own (all exact: powers of two).
+#[test]
+fn the_degeneracy_rule_scales_with_the_model_and_its_domain() {
+    let corners = [
+        DVec3::new(0.0, 0.0, 0.0),
+        DVec3::new(1e-9, 0.0, 0.0),
+        DVec3::new(-1.0, 1.0, 0.25),
+        DVec3::new(1.0, 1.0, -0.5),
+    ];
+    let sliver = |width_u: f64, width_v: f64, scale: f64| {
+        let knots = |w: f64| KnotVector::try_new(1, vec![0.0, 0.0, w, w]).unwrap();
+        let points = corners.map(|p| scale * p);
+        BSplineSurface::try_new(knots(width_u), knots(width_v), &points, None).unwrap()
+    };
+    let fractions = [(0.0, 0.0), (0.5, 0.0), (1.0, 0.0), (0.25, 0.5), (0.0, 1.0)];
+    let reference = sliver(1.0, 1.0, 1.0);
+    let two = |k: i32| 2f64.powi(k);
+    for (width_u, width_v, scale) in [
+        (two(10), two(-10), 1.0),
+        (two(-10), two(10), two(13)),
+        (two(10), two(10), two(-10)),
+        (1.0, 1.0, two(-30)),
+    ] {
+        let moved = sliver(width_u, width_v, scale);
+        for (a, b) in fractions {
+            let expected = reference.evaluate(a, b).normal;
+            let normal = moved.evaluate(a * width_u, b * width_v).normal;
+            let turned = angle(normal, expected);
+            assert!(
+                turned <= 1e-12,
+                "domain {width_u} × {width_v}, scale {scale}, at ({a}, {b}): {turned:e} rad"
+            );
+        }
+    }
+    // And the edge is regular: its normal is S_u × S_v there, not the collapsed-edge limit.
+    let s = reference.evaluate(0.5, 0.0);
+    assert!(angle(s.normal, s.du.cross(s.dv)) <= 1e-12);
+}
+
 /// Curves and directly evaluated Coons patches are invariant under dyadic moves too: the
 /// same position (to ulps of the offset), derivatives and normals.
 #[test]
@@ -1685,6 +1728,71 @@ fn third_order_degeneracy_takes_the_sampled_limit() {
         assert!(
             turned <= 1e-4,
             "u = {u}: {ours} is {turned:e} rad from the exact normal next to the edge {near}"
+        );
+    }
+}
+
+/// A fold inside a rational patch: each control column of a bicubic × quadratic patch runs
+/// out and back (its first and last points and weights equal), so the surface turns back on
+/// itself along v = ½, where S_v vanishes exactly (and S_uv with it) while S_u does not.
+/// There the point is not a control point: relative to the dominant control point it is not
+/// zero, so the first-order limit's terms in S count (at collapsed rows, the other tests'
+/// degenerate points, the point is the dominant control point and they vanish). Weights
+/// 2⁻⁶..2⁶ and coordinates on a dyadic grid 2¹⁷ from the origin, so the input is exact;
+/// normals at (u, ½) against the exact oracle's limit toward the centre, within the
+/// issue's 1e-6 rad for limit normals, from both sides of the middle.
+#[test]
+fn a_fold_inside_a_rational_patch_takes_its_limit_normal() {
+    let offset = DVec3::new(131072.0, -65536.0, 32768.0);
+    let mut points = Vec::new();
+    let mut weights = Vec::new();
+    // Rows j = 0, 1, 2 of four points each (u fastest); row 2 repeats row 0.
+    let row = |j: usize, i: usize| {
+        let (x, k) = (i as f64, j as f64);
+        match j % 2 {
+            0 => (
+                DVec3::new(x, 0.25 * x * x, 0.5 * x),
+                [2.0, 0.015625, 64.0, 0.5][i],
+            ),
+            _ => (
+                DVec3::new(x + 0.75, 1.5 + 0.25 * k * x, -1.0 + 0.125 * x),
+                [0.25, 8.0, 1.0, 32.0][i],
+            ),
+        }
+    };
+    for j in 0..3 {
+        for i in 0..4 {
+            let (p, w) = row(j, i);
+            points.push(p + offset);
+            weights.push(w);
+        }
+    }
+    let knots_u = vec![0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0];
+    let knots_v = vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0];
+    let surface = BSplineSurface::try_new(
+        KnotVector::try_new(3, knots_u.clone()).unwrap(),
+        KnotVector::try_new(2, knots_v.clone()).unwrap(),
+        &points,
+        Some(&weights),
+    )
+    .unwrap();
+    let oracle = common::exact::ExactSurface::new((3, 2), &knots_u, &knots_v, &points, &weights);
+    for u in [0.125, 0.375, 0.5, 0.75, 0.9375] {
+        let exact = oracle.evaluate(u, 0.5);
+        assert_eq!(exact.dv, DVec3::ZERO, "the fold is exact at u = {u}");
+        let step_u = if u > 0.5 { -1.0 } else { 1.0 };
+        let limit = oracle
+            .limit_normal(u, 0.5, step_u, 1.0)
+            .expect("a first-order limit");
+        let ours = surface.evaluate(u, 0.5);
+        assert!(
+            ours.position.distance(exact.position) <= 1e-12 * 8.0 + 4.0 * f64::EPSILON * 131072.0
+        );
+        let turned = angle(ours.normal, limit);
+        assert!(
+            turned <= 1e-6,
+            "u = {u}: normal {} is {turned:e} rad from the limit {limit}",
+            ours.normal
         );
     }
 }
