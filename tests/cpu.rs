@@ -1465,6 +1465,8 @@ proptest! {
             let (u, v) = (ru.lerp(a), rv.lerp(b));
             let ours = surface.evaluate(u, v);
             check(u, v, ours.position, ours.normal, "evaluate")?;
+            // The position alone is the same sum.
+            prop_assert_eq!(surface.point(u, v), ours.position);
         }
         // The grid executor's row kernel on a 5 × 4 grid, at the same bars.
         let (grid_u, grid_v) = (5u32, 4u32);

@@ -215,9 +215,17 @@ impl BSplineSurface {
         sample
     }
 
-    /// The point at (u, v).
+    /// The point at (u, v): [`evaluate`](Self::evaluate)'s position (the same sum), without
+    /// the derivatives and the normal.
     pub fn point(&self, u: f64, v: f64) -> DVec3 {
-        self.evaluate(u, v).position
+        let support = Support::<1>::new(self, u, v, 0);
+        let (p, q) = (self.degree_u(), self.degree_v());
+        let mut h = DVec4::ZERO;
+        for b in 0..=q {
+            let row: DVec4 = (0..=p).map(|a| support.bu[0][a] * support.point(a, b)).sum();
+            h += support.bv[0][b] * row;
+        }
+        self.origin() + (support.reference + h.truncate() / h.w)
     }
 
     /// [`cross_scale`] of this surface: its control box diagonal over its knot domain.
