@@ -1,5 +1,5 @@
-//! The exact shape behind a B-spline surface where a file names one (a STEP sphere or
-//! circular cylinder, converted exactly by [`super::shapes`]): there the distance between a
+//! The exact shape behind a B-spline surface where a file names one (a STEP sphere,
+//! circular cylinder or cone, converted exactly by [`super::shapes`]): there the distance between a
 //! flat triangle and the surface has a closed form in the triangle's corners, tighter than
 //! any bound from the rational parametrisation (whose speed varies along each arc, so its
 //! second derivatives carry a tangential part that is no distance from the surface).
@@ -20,6 +20,13 @@ pub enum Analytic {
         axis: DVec3,
         radius: f64,
     },
+    /// One nappe of the circular cone with its `apex`, opening along the unit vector `axis`
+    /// at `half_angle` (radians, in (0, π/2)) from it.
+    Cone {
+        apex: DVec3,
+        axis: DVec3,
+        half_angle: f64,
+    },
 }
 
 /// Farthest (relative) a mapped shape's radius may differ along three directions for the
@@ -38,6 +45,7 @@ impl Analytic {
                 axis,
                 radius,
             } => (axis_point, radius, axis),
+            Analytic::Cone { apex, axis, .. } => (apex, 1.0, axis),
         };
         let (x, y) = axis.any_orthonormal_pair();
         let moved = f(centre);
@@ -67,6 +75,11 @@ impl Analytic {
                 axis: images[2] / scaled,
                 radius: scaled,
             },
+            Analytic::Cone { half_angle, .. } => Analytic::Cone {
+                apex: moved,
+                axis: images[2] / scaled,
+                half_angle: *half_angle,
+            },
         })
     }
 
@@ -77,13 +90,21 @@ impl Analytic {
     /// √(R² − r²) from the centre (the axis), so within that of the surface; and the surface
     /// point on the ray from the centre (the axis) through it is that near, so a mesh whose
     /// triangles cover the face seen from the centre holds the face within the largest of
-    /// them. Exact for an acute triangle (its circumcentre's point).
+    /// them. Exact for an acute triangle (its circumcentre's point). On the cone: with ρᵢ
+    /// the corners' distances from the axis and θ the largest angle between their directions
+    /// from it (seen along the axis; the apex has none), ρ_max·(1 − cos(θ/2))·cos α, α the
+    /// half-angle (see `cone_deviation`).
     pub fn triangle_deviation(&self, corners: [DVec3; 3]) -> f64 {
         let (radius, q) = match *self {
             Analytic::Sphere { radius, .. } => (radius, corners),
             Analytic::Cylinder { axis, radius, .. } => {
                 (radius, corners.map(|p| p - p.dot(axis) * axis))
             }
+            Analytic::Cone {
+                apex,
+                axis,
+                half_angle,
+            } => return cone_deviation(corners.map(|p| across(p - apex, axis)), half_angle),
         };
         let sides = [0, 1, 2].map(|k| q[(k + 1) % 3].distance_squared(q[(k + 2) % 3]));
         let doubled_area_squared = (q[1] - q[0]).cross(q[2] - q[0]).length_squared();
@@ -92,18 +113,25 @@ impl Analytic {
         r_squared / (radius + (radius * radius - r_squared).sqrt())
     }
 
-    /// The angle (radians) between the surface's normals at `a` and `b` (points on it).
+    /// The angle (radians) between the surface's normals at `a` and `b` (points on it; 0
+    /// where one is the cone's apex, which has none).
     pub fn normal_angle(&self, a: DVec3, b: DVec3) -> f64 {
-        let radial = |p: DVec3| match *self {
-            Analytic::Sphere { centre, .. } => p - centre,
+        let normal = |p: DVec3| match *self {
+            Analytic::Sphere { centre, .. } => (p - centre).try_normalize(),
             Analytic::Cylinder {
                 axis_point, axis, ..
-            } => {
-                let d = p - axis_point;
-                d - d.dot(axis) * axis
-            }
+            } => across(p - axis_point, axis).try_normalize(),
+            Analytic::Cone {
+                apex,
+                axis,
+                half_angle,
+            } => (across(p - apex, axis).try_normalize())
+                .map(|out| half_angle.cos() * out - half_angle.sin() * axis),
         };
-        radial(a).angle_between(radial(b))
+        match (normal(a), normal(b)) {
+            (Some(na), Some(nb)) => na.angle_between(nb),
+            _ => 0.0,
+        }
     }
 
     /// How far the triangle with `corners` on the surface is from meeting `limits`, as
@@ -121,6 +149,51 @@ impl Analytic {
         }
         excess
     }
+}
+
+/// The part of `d` across the unit `axis`.
+fn across(d: DVec3, axis: DVec3) -> DVec3 {
+    d - d.dot(axis) * axis
+}
+
+/// The cone's bound of [`Analytic::triangle_deviation`] from the corners' offsets `q` across
+/// the axis (from the apex's line). A point of the triangle with barycentric weights λ lies
+/// inside the (convex) solid cone, Σλᵢρᵢ·tan⁻¹α along the axis and |Σλᵢqᵢ| from it, so
+/// (Σλᵢρᵢ − |Σλᵢqᵢ|)·cos α from the surface; and |Σλᵢqᵢ| ≥ Σλᵢρᵢ·(êᵢ·ē) ≥ Σλᵢρᵢ·cos(θ/2)
+/// for ē halfway between the two directions farthest apart, when the third lies between
+/// them. Else (the directions spread over half a turn or more) ρ_max·cos α, the most a point
+/// inside can be from the surface at those heights.
+fn cone_deviation(q: [DVec3; 3], half_angle: f64) -> f64 {
+    let rho_max = q.iter().map(|v| v.length()).fold(0.0, f64::max);
+    let directions: Vec<DVec3> = q.iter().filter_map(|v| v.try_normalize()).collect();
+    let mut widest: Option<(f64, DVec3)> = None;
+    for i in 0..directions.len() {
+        for j in i + 1..directions.len() {
+            let cos = directions[i].dot(directions[j]).clamp(-1.0, 1.0);
+            if widest.is_none_or(|(c, _)| cos < c) {
+                widest = Some((cos, directions[i] + directions[j]));
+            }
+        }
+    }
+    let spread = match widest {
+        None => 0.0,
+        Some((cos, middle)) => match middle.try_normalize() {
+            // cos(θ/2) = √((1 + cos θ)/2), if every direction is within θ/2 of the middle.
+            Some(middle) => {
+                let half = (0.5 * (1.0 + cos)).sqrt();
+                if directions
+                    .iter()
+                    .all(|e| e.dot(middle) >= half * (1.0 - 1e-12))
+                {
+                    1.0 - half
+                } else {
+                    1.0
+                }
+            }
+            None => 1.0,
+        },
+    };
+    rho_max * spread * half_angle.cos()
 }
 
 #[cfg(test)]
@@ -145,6 +218,16 @@ mod tests {
                     } => {
                         let d = p - axis_point;
                         ((d - d.dot(axis) * axis).length() - radius).abs()
+                    }
+                    Analytic::Cone {
+                        apex,
+                        axis,
+                        half_angle,
+                    } => {
+                        // From the generatrix in p's axial half-plane.
+                        let d = p - apex;
+                        let (height, off_axis) = (d.dot(axis), across(d, axis).length());
+                        (off_axis * half_angle.cos() - height * half_angle.sin()).abs()
                     }
                 };
                 worst = worst.max(off);
@@ -219,6 +302,49 @@ mod tests {
             );
             assert!(sampled >= 0.999 * bound, "{t:?}: {sampled} ≪ {bound}");
         }
+    }
+
+    #[test]
+    fn cone_triangles_stay_within_the_angular_bound() {
+        let axis = DVec3::new(0.0, 0.6, 0.8);
+        let (x, y) = axis.any_orthonormal_pair();
+        let (apex, half_angle) = (DVec3::new(3.0, -1.0, 2.0), 0.4f64);
+        let cone = Analytic::Cone {
+            apex,
+            axis,
+            half_angle,
+        };
+        // (angle round the axis, height along it).
+        let at = |angle: f64, height: f64| {
+            apex + height * (axis + half_angle.tan() * (angle.cos() * x + angle.sin() * y))
+        };
+        // Two corners on one circle, the third below on the first's generatrix: the bound
+        // is reached at the middle of the upper edge.
+        let reached = [at(0.0, 2.0), at(0.5, 2.0), at(0.0, 1.0)];
+        let bound = cone.triangle_deviation(reached);
+        let sampled = sampled_deviation(&cone, reached);
+        assert!(
+            sampled <= bound * (1.0 + 1e-9) && sampled >= 0.999 * bound,
+            "{sampled} vs {bound}"
+        );
+        for t in [
+            [(0.0, 1.0), (0.3, 1.5), (0.1, 2.5)],
+            [(1.0, 0.2), (1.6, 0.3), (1.2, 0.9)],
+            [(0.0, 0.0), (0.2, 1.0), (0.6, 1.2)],
+            [(0.0, 1.0), (2.0, 1.0), (4.0, 1.0)],
+        ] {
+            let corners = t.map(|(angle, height)| at(angle, height));
+            let bound = cone.triangle_deviation(corners);
+            let sampled = sampled_deviation(&cone, corners);
+            assert!(
+                sampled <= bound * (1.0 + 1e-9),
+                "{t:?}: {sampled} > {bound}"
+            );
+        }
+        // Normals: outward, tilted toward the apex by the half-angle; the apex has none.
+        let across_angle = cone.normal_angle(at(0.0, 1.0), at(std::f64::consts::PI, 3.0));
+        assert!((across_angle - (std::f64::consts::PI - 2.0 * half_angle)).abs() < 1e-12);
+        assert_eq!(cone.normal_angle(apex, at(1.0, 1.0)), 0.0);
     }
 
     #[test]

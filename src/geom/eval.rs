@@ -222,7 +222,9 @@ impl BSplineSurface {
         let (p, q) = (self.degree_u(), self.degree_v());
         let mut h = DVec4::ZERO;
         for b in 0..=q {
-            let row: DVec4 = (0..=p).map(|a| support.bu[0][a] * support.point(a, b)).sum();
+            let row: DVec4 = (0..=p)
+                .map(|a| support.bu[0][a] * support.point(a, b))
+                .sum();
             h += support.bv[0][b] * row;
         }
         self.origin() + (support.reference + h.truncate() / h.w)

@@ -672,7 +672,7 @@ impl<'a> Model<'a> {
 
     /// The surface `id` in B-spline form, reaching past every point of `extent` (the face's
     /// edges) where the surface is unbounded, with its exact shape where the mesher has a
-    /// closed form for it (a sphere, a circular cylinder).
+    /// closed form for it (a sphere, a circular cylinder or cone).
     fn surface(
         &self,
         id: u64,
@@ -728,8 +728,8 @@ impl<'a> Model<'a> {
                 Err(rec.err(format!("an offset of a {kind} is not read yet")))
             }
         };
-        // The exact shape of a sphere or circular cylinder, for the mesher's closed-form
-        // deviation.
+        // The exact shape of a sphere, circular cylinder or cone, for the mesher's
+        // closed-form deviation.
         let mut shape = None;
         let result = match record.name.as_str() {
             "PLANE" => {
@@ -766,13 +766,21 @@ impl<'a> Model<'a> {
                 if radius <= 0.0 {
                     return Err(rec.err(format!("offset by {offset} has no radius left")));
                 }
-                if tan == 0.0 {
-                    shape = Some(Analytic::Cylinder {
+                shape = Some(if tan == 0.0 {
+                    Analytic::Cylinder {
                         axis_point: frame.origin,
                         axis: frame.z,
                         radius,
-                    });
-                }
+                    }
+                } else {
+                    // Radius + h·tan along z: the apex at h = −radius / tan, the nappe
+                    // opening the way the radius grows.
+                    Analytic::Cone {
+                        apex: frame.origin - radius / tan * frame.z,
+                        axis: tan.signum() * frame.z,
+                        half_angle: tan.abs().atan(),
+                    }
+                });
                 let heights: Vec<f64> = extent.iter().map(|&p| frame.local(p).z).collect();
                 let (mut h0, mut h1) = padded_range(&heights);
                 // Stop at the apex: the surface does not go on through it.
