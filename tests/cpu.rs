@@ -1113,6 +1113,15 @@ fn degenerate_points_keep_analytic_normals_at_every_placement() {
                 across <= bar,
                 "cone apex, {place}: {across:e} rad from 90° to the lower nappe"
             );
+            // The same cone with u and v swapped: the apex is at the middle of u, and the
+            // limit is again taken toward (+u, +v), the same nappe, with S_u and S_v swapped:
+            // the opposite normal.
+            let swapped = cone.transposed().evaluate(v_apex, u).normal;
+            let turned = angle(swapped, -apex);
+            assert!(
+                turned <= bar,
+                "transposed cone apex, {place}: {turned:e} rad"
+            );
             // A planar bilinear patch in z = offset whose v = 0 edge is 1e-9 of its size:
             // every normal is +z.
             let eps = 1e-9 * scale;
