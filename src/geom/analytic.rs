@@ -1,8 +1,9 @@
 //! The exact shape behind a B-spline surface where a file names one (a STEP sphere,
-//! circular cylinder or cone, converted exactly by [`super::shapes`]): there the distance between a
-//! flat triangle and the surface has a closed form in the triangle's corners, tighter than
-//! any bound from the rational parametrisation (whose speed varies along each arc, so its
-//! second derivatives carry a tangential part that is no distance from the surface).
+//! circular cylinder or cone, converted exactly by [`super::shapes`]): there the distance
+//! between a flat triangle and the surface has a closed form in the triangle's corners,
+//! tighter than any bound from the rational parametrisation (whose speed varies along each
+//! arc, so its second derivatives carry a tangential part that is no distance from the
+//! surface).
 
 use super::SamplingLimits;
 use super::deviation::enclosing_radius_squared;
@@ -97,9 +98,7 @@ impl Analytic {
     pub fn triangle_deviation(&self, corners: [DVec3; 3]) -> f64 {
         let (radius, q) = match *self {
             Analytic::Sphere { radius, .. } => (radius, corners),
-            Analytic::Cylinder { axis, radius, .. } => {
-                (radius, corners.map(|p| p - p.dot(axis) * axis))
-            }
+            Analytic::Cylinder { axis, radius, .. } => (radius, corners.map(|p| across(p, axis))),
             Analytic::Cone {
                 apex,
                 axis,
