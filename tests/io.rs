@@ -3421,6 +3421,13 @@ fn step_parts_mesh_into_closed_solids_within_the_tolerance() {
         volume <= exact && exact - volume <= tolerance * area,
         "sphere volume {volume} vs {exact}"
     );
+    // Two parts Open CASCADE exported (foxtrot's examples): a cube with a cylindrical hole
+    // (its cylinder judged by the exact bound) and an assembly of planes and a cylinder.
+    let (scene, _, [_, cylinders, _]) = check_closed_solids("data/cube_hole.step");
+    assert_eq!(scene.items.len(), 1);
+    assert!(cylinders > 0.0, "the hole is a cylinder the mesher knows");
+    let (scene, _, _) = check_closed_solids("data/abstract_pca.step");
+    assert_eq!(scene.items.len(), 2);
 }
 
 /// STEP text of a DATA section's instances (numbered from 1 in order), in a minimal file.
