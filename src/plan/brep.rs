@@ -73,7 +73,7 @@ pub fn plan_shell(shell: &Shell, limits: SamplingLimits, max_vertices: usize) ->
     let views: Vec<FaceView> = shell
         .faces()
         .iter()
-        .map(|f| FaceView::new(&f.surface, size))
+        .map(|f| FaceView::new(&f.surface, f.shape.is_some() || is_flat(&f.surface), size))
         .collect();
     let mut faces_of_edge: Vec<Vec<usize>> = vec![Vec::new(); shell.edges().len()];
     for (f, face) in shell.faces().iter().enumerate() {
@@ -158,13 +158,17 @@ struct FaceView<'a> {
     closed: [bool; 2],
     /// Whether the side u = start, u = end, v = start, v = end collapses to a point.
     collapsed: [bool; 4],
+    /// Whether the face's distance from its mesh has a closed form (an exact shape, or a
+    /// flat patch): a chord of its boundary then needs no share of the tolerance for the
+    /// surface between the chord and the curve in its parameters.
+    closed_form: bool,
     size: f64,
     /// Where inversions with no seed start.
     samples: SurfaceSamples,
 }
 
 impl<'a> FaceView<'a> {
-    fn new(surface: &'a BSplineSurface, model_size: f64) -> Self {
+    fn new(surface: &'a BSplineSurface, closed_form: bool, model_size: f64) -> Self {
         let ranges = [surface.range_u(), surface.range_v()];
         let (low, high) = surface.control_box();
         let size = (high - low).length().max(1e-12 * model_size);
@@ -198,6 +202,7 @@ impl<'a> FaceView<'a> {
             ranges,
             closed,
             collapsed,
+            closed_form,
             size,
             samples: SurfaceSamples::new(surface),
         }
@@ -353,13 +358,38 @@ impl<'a> FaceView<'a> {
     }
 }
 
+/// Whether `surface` is a flat bilinear patch (a file's plane): four coplanar corners.
+fn is_flat(surface: &BSplineSurface) -> bool {
+    if (
+        surface.degree_u(),
+        surface.degree_v(),
+        surface.count_u(),
+        surface.count_v(),
+    ) != (1, 1, 2, 2)
+    {
+        return false;
+    }
+    let p = [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(i, j)| surface.control_point(i, j));
+    let (low, high) = surface.control_box();
+    let size = (high - low).length();
+    let volume = (p[1] - p[0]).cross(p[2] - p[0]).dot(p[3] - p[0]).abs();
+    volume <= 1e-12 * size * size * size
+}
+
 /// The points of an edge's curve from its start to its end (see the module's step 1).
 fn sample_edge(
     curve: &crate::geom::BSplineCurve,
     faces: &[&FaceView],
     limits: SamplingLimits,
 ) -> SampledEdge {
-    let half = 0.5 * limits.tolerance;
+    // Half the tolerance for the chord and half for the surface beside it, except where
+    // every face along the edge has a closed-form distance (the triangles on the chord are
+    // judged exactly, and the surface beyond the chord lies within its sagitta of it).
+    let allowed = if faces.iter().all(|view| view.closed_form) {
+        limits.tolerance
+    } else {
+        0.5 * limits.tolerance
+    };
     let uv_of =
         |p: DVec3, near: Option<DVec2>, view: &FaceView| view.invert(p, None, near, [None; 2]).ok();
     let breaks = curve.span_breaks();
@@ -387,7 +417,7 @@ fn sample_edge(
             let mut ok = a.distance(b) <= limits.max_edge
                 && [0.25, 0.5, 0.75]
                     .iter()
-                    .all(|&s| curve.point(t0 + (t1 - t0) * s).distance(a.lerp(b, s)) <= half);
+                    .all(|&s| curve.point(t0 + (t1 - t0) * s).distance(a.lerp(b, s)) <= allowed);
             let mut crossing = None;
             if ok {
                 for (f, view) in faces.iter().enumerate() {
@@ -414,7 +444,7 @@ fn sample_edge(
                         view.surface
                             .point(chord.x, chord.y)
                             .distance(curve.point(t0 + (t1 - t0) * s))
-                            <= half
+                            <= allowed
                     });
                     if !ok {
                         break;
