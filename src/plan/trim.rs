@@ -608,10 +608,9 @@ impl FaceTriangulation<'_> {
         // Triangles found within the limits, by their sorted corners: one that is still
         // there later still is (its bound depends on its corners alone).
         let mut passed: HashSet<[usize; 3]> = HashSet::new();
-        // Queues the triangle `ids` at `corners` if it fails the limits, else remembers it.
+        // Queues the triangle `ids` if it fails the limits, else remembers it.
         let judge = |this: &Self,
                      ids: [usize; 3],
-                     corners: [DVec2; 3],
                      queue: &mut std::collections::BinaryHeap<Failing>,
                      passed: &mut HashSet<[usize; 3]>| {
             let mut key = ids;
@@ -619,7 +618,7 @@ impl FaceTriangulation<'_> {
             if passed.contains(&key) {
                 return;
             }
-            match this.excess(ids, corners, bounds, limits) {
+            match this.excess(ids, bounds, limits) {
                 excess if excess > 1.0 => queue.push(Failing { excess, ids }),
                 _ => {
                     passed.insert(key);
@@ -629,8 +628,8 @@ impl FaceTriangulation<'_> {
         loop {
             let triangles = self.triangles();
             let mut queue = std::collections::BinaryHeap::new();
-            for &(ids, corners) in &triangles {
-                judge(self, ids, corners, &mut queue, &mut passed);
+            for &(ids, _) in &triangles {
+                judge(self, ids, &mut queue, &mut passed);
             }
             // A sliver whose points round onto its corners cannot be split further at f64
             // resolution: refinement stops when a round adds nothing.
@@ -668,15 +667,10 @@ impl FaceTriangulation<'_> {
                 if on_constraint {
                     continue;
                 }
-                let around: Vec<[usize; 3]> = (vertex.out_edges())
-                    .filter_map(|edge| edge.face().as_inner())
-                    .map(|face| face.vertices().map(|v| v.fix().index()))
-                    .collect();
-                for ids in around {
+                for face in vertex.out_edges().filter_map(|edge| edge.face().as_inner()) {
                     judge(
                         self,
-                        ids,
-                        ids.map(|k| self.params[k]),
+                        face.vertices().map(|v| v.fix().index()),
                         &mut queue,
                         &mut passed,
                     );
@@ -688,17 +682,11 @@ impl FaceTriangulation<'_> {
         }
     }
 
-    /// How far the triangle `ids` at the parameters `corners` is from meeting `limits` (at
-    /// most 1: it meets them): by the surface's exact shape from the triangle's model-space
-    /// corners where it has one, else by the triangle bound of the cells its parameter box
-    /// overlaps.
-    fn excess(
-        &self,
-        ids: [usize; 3],
-        corners: [DVec2; 3],
-        bounds: &CellBounds,
-        limits: SamplingLimits,
-    ) -> f64 {
+    /// How far the triangle `ids` is from meeting `limits` (at most 1: it meets them): by
+    /// the surface's exact shape from the triangle's model-space corners where it has one,
+    /// else by the triangle bound of the cells its parameter box overlaps.
+    fn excess(&self, ids: [usize; 3], bounds: &CellBounds, limits: SamplingLimits) -> f64 {
+        let corners = ids.map(|k| self.params[k]);
         if let Some(exact) = &self.exact {
             return exact.triangle_excess(ids, corners, limits);
         }
