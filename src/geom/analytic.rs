@@ -5,9 +5,10 @@
 //! arc, so its second derivatives carry a tangential part that is no distance from the
 //! surface).
 
-use super::SamplingLimits;
 use super::deviation::enclosing_radius_squared;
-use glam::DVec3;
+use super::tensor::Bernstein;
+use super::{BSplineSurface, SamplingLimits};
+use glam::{DMat4, DVec3, DVec4};
 
 /// A surface's exact shape (model units).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -29,6 +30,14 @@ pub enum Analytic {
         half_angle: f64,
     },
 }
+
+/// Farthest (relative to its radius) a rational surface may be proved to lie from a sphere
+/// for [`Analytic::sphere_of`] to take it as that sphere: the rounding of control points
+/// and weights written to about 15 digits, far below any meshing tolerance.
+const SPHERE_REL: f64 = 1e-9;
+
+/// Points per side of the grid a sphere is fitted through.
+const SPHERE_FIT_SAMPLES: usize = 5;
 
 /// Farthest (relative) a mapped shape's radius may differ along three directions for the
 /// map to count as a similarity that keeps it.
@@ -82,6 +91,53 @@ impl Analytic {
                 half_angle: *half_angle,
             },
         })
+    }
+
+    /// The sphere `surface` lies on, where it provably lies on one to within [`SPHERE_REL`]
+    /// of its radius: the sphere fitted (least squares) through a grid of its points, then
+    /// checked on every rational Bezier patch of it. There, with H the homogeneous point
+    /// relative to the centre c and w the weight, F = H·H − R²·w² = w²·(|S − c|² − R²) is a
+    /// polynomial whose Bernstein coefficients bound it, so
+    /// |‖S − c‖ − R| ≤ max|F| / (min w² · R). `None` for a polynomial surface (no piece of
+    /// a sphere has a polynomial parametrisation) and wherever the check fails.
+    pub fn sphere_of(surface: &BSplineSurface) -> Option<Analytic> {
+        if !surface.is_rational() {
+            return None;
+        }
+        let (range_u, range_v) = (surface.range_u(), surface.range_v());
+        let last = (SPHERE_FIT_SAMPLES - 1) as f64;
+        let points: Vec<DVec3> = (0..SPHERE_FIT_SAMPLES * SPHERE_FIT_SAMPLES)
+            .map(|k| {
+                let (i, j) = (k % SPHERE_FIT_SAMPLES, k / SPHERE_FIT_SAMPLES);
+                surface.point(range_u.lerp(i as f64 / last), range_v.lerp(j as f64 / last))
+            })
+            .collect();
+        let (centre, radius) = fit_sphere(&points)?;
+        // Cheap refusal first: the samples themselves.
+        if points
+            .iter()
+            .any(|p| (p.distance(centre) - radius).abs() > SPHERE_REL * radius)
+        {
+            return None;
+        }
+        let on_sphere = surface.bezier_patches().iter().all(|patch| {
+            let (p, q) = (patch.degree_u, patch.degree_v);
+            let relative: Vec<DVec3> = (patch.points.iter())
+                .map(|h| h.truncate() - h.w * centre)
+                .collect();
+            let h = Bernstein::new(p, q, relative);
+            let w = Bernstein::new(p, q, patch.points.iter().map(|h| h.w).collect());
+            let square = w.product(&w, |a: f64, b: f64| a * b);
+            let least_square = (square.coefficients.iter()).fold(f64::INFINITY, |m, &c| m.min(c));
+            let h_squared = h.product(&h, |a: DVec3, b: DVec3| a.dot(b));
+            let residual = (h_squared.coefficients.iter())
+                .zip(&square.coefficients)
+                .fold(0.0f64, |m, (hh, ww)| {
+                    m.max((hh - radius * radius * ww).abs())
+                });
+            least_square > 0.0 && residual <= SPHERE_REL * radius * radius * least_square
+        });
+        on_sphere.then_some(Analytic::Sphere { centre, radius })
     }
 
     /// The largest distance between the flat triangle with `corners` on the surface and
@@ -148,6 +204,34 @@ impl Analytic {
         }
         excess
     }
+}
+
+/// The sphere (centre, radius) through `points` by least squares on
+/// |p − m|² = 2(p − m)·c' + (R² − |c'|²), m their centroid and c = m + c' (linear in c' and
+/// R² − |c'|²), in coordinates scaled to the points' spread; `None` where they lie on no
+/// one sphere's worth of directions (on a plane or a line: the equations are singular).
+fn fit_sphere(points: &[DVec3]) -> Option<(DVec3, f64)> {
+    let mean = points.iter().sum::<DVec3>() / points.len() as f64;
+    let spread = points.iter().map(|p| p.distance(mean)).fold(0.0, f64::max);
+    if !(spread > 0.0 && spread.is_finite()) {
+        return None;
+    }
+    let (mut normal, mut right) = (DMat4::ZERO, DVec4::ZERO);
+    for p in points {
+        let q = (*p - mean) / spread;
+        let row = (2.0 * q).extend(1.0);
+        normal += DMat4::from_cols(row * row.x, row * row.y, row * row.z, row * row.w);
+        right += row * q.length_squared();
+    }
+    // Relative to its scale (the scaled points' moments are of order one).
+    if normal.determinant().abs() <= 1e-12 {
+        return None;
+    }
+    let solution = normal.inverse() * right;
+    let offset = solution.truncate();
+    let radius_squared = solution.w + offset.length_squared();
+    (radius_squared > 0.0 && radius_squared.is_finite())
+        .then(|| (mean + offset * spread, radius_squared.sqrt() * spread))
 }
 
 /// The part of `d` across the unit `axis`.
@@ -396,5 +480,55 @@ mod tests {
         assert_eq!(cylinder.mapped(|p| DVec3::new(2.0 * p.x, p.y, p.z)), None);
         // A shear keeps lengths along the axes' images unequal or skewed.
         assert_eq!(cylinder.mapped(|p| DVec3::new(p.x + p.y, p.y, p.z)), None);
+    }
+    #[test]
+    fn spheres_written_as_rational_patches_are_recognised_and_nothing_else() {
+        use crate::geom::Interval;
+        use crate::geom::shapes::{ellipsoid, sphere, torus_section};
+        use std::f64::consts::FRAC_PI_2;
+        let (centre, radius) = (DVec3::new(1e4, -3.0, 250.0), 0.75);
+        let recognised = |s: &BSplineSurface| match Analytic::sphere_of(s) {
+            Some(Analytic::Sphere {
+                centre: c,
+                radius: r,
+            }) => {
+                assert!(c.distance(centre) <= 1e-9 * radius, "centre {c}");
+                assert!((r - radius).abs() <= 1e-9 * radius, "radius {r}");
+                true
+            }
+            Some(other) => panic!("{other:?}"),
+            None => false,
+        };
+        // The whole sphere (collapsed pole rows) and a patch of one.
+        assert!(recognised(&sphere(centre, radius)));
+        let patch = ellipsoid(
+            centre,
+            DVec3::splat(radius),
+            Interval::new(0.3, 2.9),
+            Interval::new(-0.2, 1.1),
+        )
+        .unwrap();
+        assert!(recognised(&patch));
+        // Near misses: an ellipsoid 1e-7 off round, a torus, one weight moved by 1e-7.
+        let squashed = DVec3::new(radius, radius, radius * (1.0 + 1e-7));
+        let whole = Interval::new(-FRAC_PI_2, FRAC_PI_2);
+        let ellipse = ellipsoid(centre, squashed, Interval::new(0.0, 6.0), whole).unwrap();
+        assert!(!recognised(&ellipse));
+        let tube = Interval::new(0.0, 6.0);
+        assert!(!recognised(
+            &torus_section(centre, 0.5, radius, tube, tube).unwrap()
+        ));
+        let mut weights: Vec<f64> = patch.homogeneous_points().iter().map(|h| h.w).collect();
+        let points: Vec<DVec3> = (patch.homogeneous_points().iter())
+            .map(|h| h.truncate() / h.w + patch.origin())
+            .collect();
+        weights[7] *= 1.0 + 1e-7;
+        let (knots_u, knots_v) = (patch.knots_u().clone(), patch.knots_v().clone());
+        let moved = BSplineSurface::try_new(knots_u, knots_v, &points, Some(&weights)).unwrap();
+        assert!(!recognised(&moved));
+        // A polynomial surface lies on no sphere, however close its points come.
+        let (knots_u, knots_v) = (patch.knots_u().clone(), patch.knots_v().clone());
+        let polynomial = BSplineSurface::try_new(knots_u, knots_v, &points, None).unwrap();
+        assert!(!recognised(&polynomial));
     }
 }

@@ -19,6 +19,7 @@
 
 use super::trim::plan_fixed_boundary;
 use crate::error::{Error, Result};
+use crate::geom::analytic::Analytic;
 use crate::geom::brep::{Bound, Shell};
 use crate::geom::project::{SurfaceSamples, invert, invert_from_grid, nearest};
 use crate::geom::{BSplineSurface, Interval, SamplingLimits};
@@ -72,8 +73,8 @@ pub fn plan_shell(shell: &Shell, limits: SamplingLimits, max_vertices: usize) ->
     let size = (high - low).length().max(f64::MIN_POSITIVE);
     let views: Vec<FaceView> = shell
         .faces()
-        .iter()
-        .map(|f| FaceView::new(&f.surface, f.shape.is_some() || is_flat(&f.surface), size))
+        .par_iter()
+        .map(|f| FaceView::new(&f.surface, f.shape, size))
         .collect();
     let mut faces_of_edge: Vec<Vec<usize>> = vec![Vec::new(); shell.edges().len()];
     for (f, face) in shell.faces().iter().enumerate() {
@@ -158,6 +159,9 @@ struct FaceView<'a> {
     closed: [bool; 2],
     /// Whether the side u = start, u = end, v = start, v = end collapses to a point.
     collapsed: [bool; 4],
+    /// The surface's exact shape: the file's, else a sphere the surface is proved to lie on
+    /// ([`Analytic::sphere_of`]; spheres are often written as rational patches).
+    shape: Option<Analytic>,
     /// Whether the face's distance from its mesh has a closed form (an exact shape, or a
     /// flat patch): a chord of its boundary then needs no share of the tolerance for the
     /// surface between the chord and the curve in its parameters.
@@ -168,7 +172,8 @@ struct FaceView<'a> {
 }
 
 impl<'a> FaceView<'a> {
-    fn new(surface: &'a BSplineSurface, closed_form: bool, model_size: f64) -> Self {
+    fn new(surface: &'a BSplineSurface, shape: Option<Analytic>, model_size: f64) -> Self {
+        let shape = shape.or_else(|| Analytic::sphere_of(surface));
         let ranges = [surface.range_u(), surface.range_v()];
         let (low, high) = surface.control_box();
         let size = (high - low).length().max(1e-12 * model_size);
@@ -202,7 +207,8 @@ impl<'a> FaceView<'a> {
             ranges,
             closed,
             collapsed,
-            closed_form,
+            shape,
+            closed_form: shape.is_some() || is_flat(surface),
             size,
             samples: SurfaceSamples::new(surface),
         }
@@ -702,7 +708,7 @@ fn plan_face(
         });
     }
     let triangulated =
-        plan_fixed_boundary(view.surface, face.shape, &polylines, limits, max_vertices)?;
+        plan_fixed_boundary(view.surface, view.shape, &polylines, limits, max_vertices)?;
     let shared: Vec<Option<u32>> = triangulated
         .boundary_point
         .iter()

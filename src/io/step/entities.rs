@@ -11,6 +11,7 @@ use crate::geom::shapes::{degenerate_torus_section, ellipsoid, revolve, torus_se
 use crate::geom::{BSplineCurve, BSplineSurface, Interval, KnotVector};
 use crate::scene::Dropped;
 use glam::{DMat4, DVec3};
+use std::cell::LazyCell;
 use std::collections::HashMap;
 use std::f64::consts::{FRAC_PI_2, TAU};
 
@@ -29,6 +30,11 @@ const MAX_CONTROL_POINTS: usize = 1 << 22;
 /// How far (as a fraction of the extent of a face's edges) an unbounded surface — a plane,
 /// the height of a cylinder or cone, an extrusion — is made to reach past the face's edges.
 const EXTENT_MARGIN: f64 = 0.02;
+
+/// Points along a face's edges, sampled only when its surface is unbounded and needs them
+/// (most surfaces do not, and sampling every edge of every face costs more than the rest
+/// of reading them).
+type Extent<'a> = LazyCell<Vec<DVec3>, Box<dyn FnOnce() -> Vec<DVec3> + 'a>>;
 
 /// A right-handed frame: origin and unit axes.
 #[derive(Clone, Copy, Debug)]
@@ -676,7 +682,7 @@ impl<'a> Model<'a> {
     fn surface(
         &self,
         id: u64,
-        extent: &[DVec3],
+        extent: &Extent,
         depth: usize,
     ) -> Result<(BSplineSurface, Option<Analytic>)> {
         self.offset_surface(id, extent, depth, 0.0)
@@ -689,7 +695,7 @@ impl<'a> Model<'a> {
     fn offset_surface(
         &self,
         id: u64,
-        extent: &[DVec3],
+        extent: &Extent,
         depth: usize,
         offset: f64,
     ) -> Result<(BSplineSurface, Option<Analytic>)> {
@@ -1112,8 +1118,10 @@ impl<'a> Model<'a> {
                     }
                 }
             }
-            let extent = builder.extent(&bounds);
-            let (surface, shape) = self.surface(rec.reference(2)?, &extent, 0)?;
+            let (surface, shape) = {
+                let extent: Extent = LazyCell::new(Box::new(|| builder.extent(&bounds)));
+                self.surface(rec.reference(2)?, &extent, 0)?
+            };
             let same_sense = rec.logical(3)?;
             Ok(Face {
                 surface,
