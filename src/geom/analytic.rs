@@ -93,6 +93,14 @@ impl Analytic {
         })
     }
 
+    /// The exact shape a face of `surface` is meshed by: `named` (the file's) where given,
+    /// else the sphere the surface is proved to lie on ([`Analytic::sphere_of`]: CAD tools
+    /// write spheres as rational patches as often as by name). Every planner of faces takes
+    /// its shape from here.
+    pub fn of_face(surface: &BSplineSurface, named: Option<Analytic>) -> Option<Analytic> {
+        named.or_else(|| Analytic::sphere_of(surface))
+    }
+
     /// The sphere `surface` lies on, where it provably lies on one to within [`SPHERE_REL`]
     /// of its radius: the sphere fitted (least squares) through a grid of its points, then
     /// checked on every rational Bezier patch of it. There, with H the homogeneous point
@@ -526,6 +534,37 @@ mod tests {
         let (knots_u, knots_v) = (patch.knots_u().clone(), patch.knots_v().clone());
         let moved = BSplineSurface::try_new(knots_u, knots_v, &points, Some(&weights)).unwrap();
         assert!(!recognised(&moved));
+        // Off the sphere only between the fitted samples: on the whole sphere the u samples
+        // fall on the double knots between its quarter arcs, where a mid-arc control point's
+        // basis function vanishes, so moving one leaves every sample on the sphere and only
+        // the per-patch proof can refuse it.
+        let whole = sphere(centre, radius);
+        let (mid_arc, equator) = (1, whole.count_v() / 2);
+        let mut bulged: Vec<DVec3> = (0..whole.count_v())
+            .flat_map(|j| (0..whole.count_u()).map(move |i| (i, j)))
+            .map(|(i, j)| whole.control_point(i, j))
+            .collect();
+        let bulge = &mut bulged[equator * whole.count_u() + mid_arc];
+        *bulge = centre + (*bulge - centre) * (1.0 + 1e-6);
+        let weights: Vec<f64> = (0..whole.count_v())
+            .flat_map(|j| (0..whole.count_u()).map(move |i| (i, j)))
+            .map(|(i, j)| whole.weight(i, j))
+            .collect();
+        let (knots_u, knots_v) = (whole.knots_u().clone(), whole.knots_v().clone());
+        let bulged = BSplineSurface::try_new(knots_u, knots_v, &bulged, Some(&weights)).unwrap();
+        let (range_u, range_v) = (bulged.range_u(), bulged.range_v());
+        let last = (SPHERE_FIT_SAMPLES - 1) as f64;
+        for k in 0..SPHERE_FIT_SAMPLES * SPHERE_FIT_SAMPLES {
+            let (i, j) = (k % SPHERE_FIT_SAMPLES, k / SPHERE_FIT_SAMPLES);
+            let p = bulged.point(range_u.lerp(i as f64 / last), range_v.lerp(j as f64 / last));
+            assert!(
+                (p.distance(centre) - radius).abs() <= 1e-12 * radius,
+                "sample {k}"
+            );
+        }
+        let between = bulged.point(range_u.lerp(1.0 / 8.0), range_v.lerp(0.5));
+        assert!((between.distance(centre) - radius).abs() > 1e-8 * radius);
+        assert!(!recognised(&bulged));
         // A polynomial surface lies on no sphere, however close its points come.
         let (knots_u, knots_v) = (patch.knots_u().clone(), patch.knots_v().clone());
         let polynomial = BSplineSurface::try_new(knots_u, knots_v, &points, None).unwrap();

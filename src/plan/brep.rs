@@ -159,8 +159,7 @@ struct FaceView<'a> {
     closed: [bool; 2],
     /// Whether the side u = start, u = end, v = start, v = end collapses to a point.
     collapsed: [bool; 4],
-    /// The surface's exact shape: the file's, else a sphere the surface is proved to lie on
-    /// ([`Analytic::sphere_of`]; spheres are often written as rational patches).
+    /// The surface's exact shape ([`Analytic::of_face`]).
     shape: Option<Analytic>,
     /// Whether the face's distance from its mesh has a closed form (an exact shape, or a
     /// flat patch): a chord of its boundary then needs no share of the tolerance for the
@@ -173,7 +172,7 @@ struct FaceView<'a> {
 
 impl<'a> FaceView<'a> {
     fn new(surface: &'a BSplineSurface, shape: Option<Analytic>, model_size: f64) -> Self {
-        let shape = shape.or_else(|| Analytic::sphere_of(surface));
+        let shape = Analytic::of_face(surface, shape);
         let ranges = [surface.range_u(), surface.range_v()];
         let (low, high) = surface.control_box();
         let size = (high - low).length().max(1e-12 * model_size);

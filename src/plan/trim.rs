@@ -16,8 +16,9 @@
 //! 3. The interior ([`Interior`]): for a trimmed face, or on a surface with a pole or a
 //!    kink, the cells' grid points inside the face, every cell line a constraint, so each
 //!    cell keeps its own rates along u and v; for a B-rep face elsewhere, or on a surface
-//!    whose exact shape the file names (a sphere, a circular cylinder or cone), nothing,
-//!    the interior left to step 5.
+//!    with an exact shape ([`Analytic::of_face`]: the sphere, circular cylinder or cone a
+//!    file names, or a sphere written as a rational patch), nothing, the interior left to
+//!    step 5.
 //! 4. A constrained Delaunay triangulation (spade) in scaled parameters keeps every
 //!    constraint; a triangle is part of the face when an odd number of loop edges separate
 //!    it from outside the hull (parity spread from face to face).
@@ -71,7 +72,8 @@ pub fn plan_trimmed_within(
     let surface = face.surface();
     let grid = surface_cells(surface, limits, BoundEffort::Tightest)?;
     let bounds = CellBounds::new(&grid);
-    let (interior, lines) = Interior::of(surface, None, &grid, &bounds);
+    let shape = Analytic::of_face(surface, None);
+    let (interior, lines) = Interior::of(surface, shape, &grid, &bounds);
     let FacePolylines {
         loops: mut polylines,
         specials: special_curves,
@@ -88,7 +90,7 @@ pub fn plan_trimmed_within(
     };
     let triangulation = triangulate(
         surface,
-        None,
+        shape,
         interior,
         &bounds,
         &lines,

@@ -1118,6 +1118,7 @@ impl<'a> Model<'a> {
                     }
                 }
             }
+            // In a block: the lazy extent borrows `bounds`, which the face takes below.
             let (surface, shape) = {
                 let extent: Extent = LazyCell::new(Box::new(|| builder.extent(&bounds)));
                 self.surface(rec.reference(2)?, &extent, 0)?
