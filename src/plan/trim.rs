@@ -790,20 +790,24 @@ fn loop_polylines(
         vertices: max_vertices,
         tolerance: limits.tolerance,
     };
-    // A piece of a path is kept when its chord follows the path on the surface and its
-    // parameter box allows half the tolerance.
+    // A piece of a path is kept when its chord follows the path on the surface (at ¼, ½
+    // and ¾ of it and at the parameters `inside` it) and its parameter box allows half the
+    // tolerance.
     let half = 0.5 * limits.tolerance;
-    let accept = |at: &dyn Fn(f64) -> DVec2, t0: f64, t1: f64, a: DVec2, b: DVec2| {
-        box_allows(&[a, b], half)
-            && [0.25, 0.5, 0.75].iter().all(|&s| {
+    let accept =
+        |at: &dyn Fn(f64) -> DVec2, t0: f64, t1: f64, a: DVec2, b: DVec2, inside: &[f64]| {
+            let follows = |s: f64| {
                 let on_loop = at(t0 + (t1 - t0) * s);
                 let on_chord = a + (b - a) * s;
                 surface
                     .point(on_loop.x, on_loop.y)
                     .distance(surface.point(on_chord.x, on_chord.y))
                     <= half
-            })
-    };
+            };
+            box_allows(&[a, b], half)
+                && [0.25, 0.5, 0.75].into_iter().all(follows)
+                && inside.iter().all(|&t| follows((t - t0) / (t1 - t0)))
+        };
     // Two consecutive pieces are kept when the box of their three points allows the whole
     // tolerance: the triangle they make (a loop's ear, a sliver where the loop is straight)
     // meets it too.
@@ -905,9 +909,22 @@ impl<'a> Path<'a> {
     }
 }
 
-/// Whether a piece of a path (the point function, its parameters t0 and t1, its end points)
-/// may be one loop segment.
-type PieceTest<'a> = &'a dyn Fn(&dyn Fn(f64) -> DVec2, f64, f64, DVec2, DVec2) -> bool;
+/// Whether a piece of a path (the point function, its parameters t0 and t1, its end points,
+/// parameters inside it where its chord must follow it too) may be one loop segment.
+type PieceTest<'a> = &'a dyn Fn(&dyn Fn(f64) -> DVec2, f64, f64, DVec2, DVec2, &[f64]) -> bool;
+
+/// A path's corners: breaks where its direction, from points this fraction of the two
+/// spans' width before and after, turns by more than [`KINK_TURN`] radians.
+const KINK_STEP: f64 = 1e-7;
+const KINK_TURN: f64 = 1e-3;
+
+/// Most pieces [`merge_pieces`] joins into one (bounds the checks a merge costs).
+const MAX_MERGED: usize = 64;
+
+/// Most a path may turn (radians, between the directions in the parameter plane of the
+/// first and last of the pieces) along one merged piece: a small closed curve keeps enough
+/// samples to enclose area, whatever the tolerance.
+const MAX_MERGED_TURN: f64 = 0.5;
 
 /// Most rounds of bisecting the pieces beside ears the tolerance does not allow.
 const MAX_EAR_ROUNDS: u32 = 30;
@@ -991,7 +1008,8 @@ fn sample_loop(
 /// Appends (parameter, point) of the start of every piece of a path (`at` over consecutive
 /// `breaks`), every piece bisected until `accept` keeps it, each span into at least `minimum`
 /// pieces, and cut where it crosses a cell line at the crossing's parameter (found by
-/// bisection; `at` puts points within rounding of a line on it). `None` past `max_pieces`.
+/// bisection; `at` puts points within rounding of a line on it); then consecutive pieces
+/// merged where `accept` keeps their union ([`merge_pieces`]). `None` past `max_pieces`.
 fn sample_path(
     at: &dyn Fn(f64) -> DVec2,
     breaks: &[f64],
@@ -1001,6 +1019,7 @@ fn sample_path(
     max_pieces: usize,
     out: &mut Vec<(f64, DVec2)>,
 ) -> Option<()> {
+    let first = out.len();
     for span in breaks.windows(2) {
         let (start, end) = (span[0], span[1]);
         let piece_end = |k: u32| {
@@ -1027,7 +1046,7 @@ fn sample_path(
                     on_line[axis] = line;
                     Some((t, on_line))
                 }
-                _ if depth >= MAX_LOOP_DEPTH || accept(at, t0, t1, a, b) => None,
+                _ if depth >= MAX_LOOP_DEPTH || accept(at, t0, t1, a, b, &[]) => None,
                 _ => {
                     let t = 0.5 * (t0 + t1);
                     Some((t, at(t)))
@@ -1043,7 +1062,69 @@ fn sample_path(
             }
         }
     }
+    let end = *breaks.last().expect("a path has breaks");
+    let corners: Vec<f64> = (breaks.windows(3))
+        .filter(|w| {
+            let step = KINK_STEP * (w[2] - w[0]);
+            let (before, after) = (at(w[1]) - at(w[1] - step), at(w[1] + step) - at(w[1]));
+            before.angle_to(after).abs() > KINK_TURN
+        })
+        .map(|w| w[1])
+        .collect();
+    let merged = merge_pieces(at, &out[first..], (end, at(end)), &corners, lines, accept);
+    out.truncate(first);
+    out.extend(merged);
     Some(())
+}
+
+/// The pieces of one path (`pieces`: parameter and point of each start, in order; the path
+/// ends at `end`) with consecutive ones joined wherever the longer chord passes over none of
+/// the path's `corners` (parameters) and crosses no cell line, the path turns by at most
+/// [`MAX_MERGED_TURN`] along it and `accept` keeps it,
+/// checked also at every start it passes over and in the middle of every piece it takes in
+/// (at most [`MAX_MERGED`]): a curve written as many short spans
+/// (a CAD file's quarter circle as 16 quadratic arcs) is cut into as few segments as the
+/// tolerance allows, not at least one per span.
+fn merge_pieces(
+    at: &dyn Fn(f64) -> DVec2,
+    pieces: &[(f64, DVec2)],
+    end: (f64, DVec2),
+    corners: &[f64],
+    lines: &CellLines,
+    accept: PieceTest,
+) -> Vec<(f64, DVec2)> {
+    let bound = |k: usize| pieces.get(k).copied().unwrap_or(end);
+    let mut merged = Vec::with_capacity(pieces.len());
+    let mut inside = Vec::new();
+    let mut start = 0;
+    while start < pieces.len() {
+        let (t0, a) = pieces[start];
+        merged.push((t0, a));
+        let first_direction = bound(start + 1).1 - a;
+        // The merged piece ends at the start of piece `stop` (or the path's end).
+        let mut stop = start + 1;
+        while stop < pieces.len() && stop - start < MAX_MERGED && !corners.contains(&bound(stop).0)
+        {
+            let (t1, b) = bound(stop + 1);
+            if first_direction.angle_to(b - bound(stop).1).abs() > MAX_MERGED_TURN {
+                break;
+            }
+            inside.clear();
+            for k in start..=stop {
+                let (from, to) = (bound(k).0, bound(k + 1).0);
+                if k > start {
+                    inside.push(from);
+                }
+                inside.push(0.5 * (from + to));
+            }
+            if lines.crossed(a, b).is_some() || !accept(at, t0, t1, a, b, &inside) {
+                break;
+            }
+            stop += 1;
+        }
+        start = stop;
+    }
+    merged
 }
 
 /// The parameter in (t0, t1) where the path crosses `line` of `axis`, to rounding
