@@ -2312,6 +2312,58 @@ fn trimmed_faces_on_rational_spheres_use_their_tolerance() {
     );
 }
 
+/// A trimmed face on a circular cylinder written as a rational patch is judged by the
+/// cylinder's closed form too, its loops by the straight chords in model space: a band of
+/// the rational cylinder of radius 0.5 over 2.6 rad around and 3.5 along, trimmed to its
+/// whole range, holds the cylinder within 1e-3 at every point sampled on its triangles and
+/// takes at most 1.5 times the 2·n triangles of the fewest chords around, n = ⌈2.6 / (2·acos(1
+/// − tol/R))⌉ = 21. Measured: 44 triangles; 136 before cylinders were recognised.
+#[test]
+fn trimmed_faces_on_rational_cylinders_use_their_tolerance() {
+    use knotwork::geom::shapes::elliptic_cylinder;
+    let (centre, radius, tolerance) = (DVec3::new(1.0, 2.0, -3.0), 0.5, 1e-3);
+    let (around, height) = (Interval::new(0.3, 2.9), Interval::new(-1.0, 2.5));
+    let band = elliptic_cylinder(centre, radius, radius, around, height).unwrap();
+    let (ru, rv) = (band.range_u(), band.range_v());
+    let corners = [
+        (ru.start, rv.start),
+        (ru.end, rv.start),
+        (ru.end, rv.end),
+        (ru.start, rv.end),
+    ];
+    let face = TrimmedSurface::try_new(
+        band,
+        ParamMap::SAME,
+        Some(uv_polygon(&corners.map(glam::DVec2::from))),
+        vec![],
+    )
+    .unwrap();
+    let mesh = trimmed_mesh(&face, tolerance);
+    let steps = 8;
+    let mut farthest = 0.0f64;
+    for t in mesh.indices.chunks(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
+        for i in 0..=steps {
+            for j in 0..=steps - i {
+                let (s, r) = (i as f64 / steps as f64, j as f64 / steps as f64);
+                let p = a + s * (b - a) + r * (c - a) - centre;
+                farthest = farthest.max((p.truncate().length() - radius).abs());
+            }
+        }
+    }
+    assert!(
+        farthest <= tolerance,
+        "farthest {farthest:e} from the cylinder at tolerance {tolerance:e}"
+    );
+    let chord_angle = 2.0 * (1.0 - tolerance / radius).acos();
+    let fewest = 2 * (around.width() / chord_angle).ceil() as usize;
+    let triangles = mesh.indices.len() / 3;
+    assert!(
+        triangles as f64 <= 1.5 * fewest as f64,
+        "{triangles} triangles where {fewest} could hold the tolerance"
+    );
+}
+
 /// A face's special curves (OBJ `scrv`) are edges of its mesh and its special points (`sp`)
 /// vertices, where they lie inside it: on a curved biquadratic trimmed to a disc, a straight
 /// special curve and a chain of two are each covered end to end by mesh edges through the

@@ -8,7 +8,7 @@
 use super::deviation::enclosing_radius_squared;
 use super::tensor::Bernstein;
 use super::{BSplineSurface, SamplingLimits};
-use glam::{DMat4, DVec3, DVec4};
+use glam::{DMat3, DMat4, DVec2, DVec3, DVec4};
 
 /// A surface's exact shape (model units).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -32,12 +32,18 @@ pub enum Analytic {
 }
 
 /// Farthest (relative to its radius) a rational surface may be proved to lie from a sphere
-/// for [`Analytic::sphere_of`] to take it as that sphere: the rounding of control points
-/// and weights written to about 15 digits, far below any meshing tolerance.
-const SPHERE_REL: f64 = 1e-9;
+/// or cylinder for [`Analytic::sphere_of`] or [`Analytic::cylinder_of`] to take it as that
+/// shape: the rounding of control points and weights written to about 15 digits, far below
+/// any meshing tolerance.
+const SHAPE_REL: f64 = 1e-9;
 
-/// Points per side of the grid a sphere is fitted through.
-const SPHERE_FIT_SAMPLES: usize = 5;
+/// Points per side of the grid a shape is fitted through.
+const SHAPE_FIT_SAMPLES: usize = 5;
+
+/// Least sine of the angle between two of a surface's normals for [`Analytic::cylinder_of`]
+/// to take their cross product as a cylinder's axis (a sliver of a cylinder narrower than
+/// about 0.06° is left to the parametric bounds).
+const AXIS_SINE: f64 = 1e-3;
 
 /// Farthest (relative) a mapped shape's radius may differ along three directions for the
 /// map to count as a similarity that keeps it.
@@ -98,54 +104,68 @@ impl Analytic {
     /// write spheres as rational patches as often as by name). Every planner of faces takes
     /// its shape from here.
     pub fn of_face(surface: &BSplineSurface, named: Option<Analytic>) -> Option<Analytic> {
-        named.or_else(|| Analytic::sphere_of(surface))
+        named
+            .or_else(|| Analytic::sphere_of(surface))
+            .or_else(|| Analytic::cylinder_of(surface))
     }
 
-    /// The sphere `surface` lies on, where it provably lies on one to within [`SPHERE_REL`]
+    /// The sphere `surface` lies on, where it provably lies on one to within [`SHAPE_REL`]
     /// of its radius: the sphere fitted (least squares) through a grid of its points, then
-    /// checked on every rational Bezier patch of it. There, with H the homogeneous point
-    /// relative to the centre c and w the weight, F = H·H − R²·w² = w²·(|S − c|² − R²) is a
-    /// polynomial whose Bernstein coefficients bound it, so
-    /// |‖S − c‖ − R| ≤ max|F| / (min w² · R). `None` for a polynomial surface (no piece of
-    /// a sphere has a polynomial parametrisation) and wherever the check fails.
+    /// proved on every rational Bezier patch of it ([`proved_at_radius`]). `None` for a
+    /// polynomial surface (no piece of a sphere has a polynomial parametrisation) and
+    /// wherever the proof fails.
     pub fn sphere_of(surface: &BSplineSurface) -> Option<Analytic> {
         if !surface.is_rational() {
             return None;
         }
-        let (range_u, range_v) = (surface.range_u(), surface.range_v());
-        let last = (SPHERE_FIT_SAMPLES - 1) as f64;
-        let points: Vec<DVec3> = (0..SPHERE_FIT_SAMPLES * SPHERE_FIT_SAMPLES)
-            .map(|k| {
-                let (i, j) = (k % SPHERE_FIT_SAMPLES, k / SPHERE_FIT_SAMPLES);
-                surface.point(range_u.lerp(i as f64 / last), range_v.lerp(j as f64 / last))
-            })
+        let points: Vec<DVec3> = fit_grid(surface)
+            .map(|(u, v)| surface.point(u, v))
             .collect();
         let (centre, radius) = fit_sphere(&points)?;
         // Cheap refusal first: the samples themselves.
-        if points
-            .iter()
-            .any(|p| (p.distance(centre) - radius).abs() > SPHERE_REL * radius)
-        {
+        let off = |p: &DVec3| (p.distance(centre) - radius).abs() > SHAPE_REL * radius;
+        if points.iter().any(off) {
             return None;
         }
-        let on_sphere = surface.bezier_patches().iter().all(|patch| {
-            let (p, q) = (patch.degree_u, patch.degree_v);
-            let relative: Vec<DVec3> = (patch.points.iter())
-                .map(|h| h.truncate() - h.w * centre)
-                .collect();
-            let h = Bernstein::new(p, q, relative);
-            let w = Bernstein::new(p, q, patch.points.iter().map(|h| h.w).collect());
-            let square = w.product(&w, |a: f64, b: f64| a * b);
-            let least_square = (square.coefficients.iter()).fold(f64::INFINITY, |m, &c| m.min(c));
-            let h_squared = h.product(&h, |a: DVec3, b: DVec3| a.dot(b));
-            let residual = (h_squared.coefficients.iter())
-                .zip(&square.coefficients)
-                .fold(0.0f64, |m, (hh, ww)| {
-                    m.max((hh - radius * radius * ww).abs())
-                });
-            least_square > 0.0 && residual <= SPHERE_REL * radius * radius * least_square
-        });
-        on_sphere.then_some(Analytic::Sphere { centre, radius })
+        proved_at_radius(surface, centre, radius, |d| d)
+            .then_some(Analytic::Sphere { centre, radius })
+    }
+
+    /// The circular cylinder `surface` lies on, where it provably lies on one to within
+    /// [`SHAPE_REL`] of its radius: the axis across the normals at a grid of points (the
+    /// cross product of the two farthest apart), the circle fitted (least squares) through
+    /// the points seen along it, then proved on every rational Bezier patch
+    /// ([`proved_at_radius`] on the parts across the axis). `None` for a polynomial surface
+    /// and wherever the proof fails.
+    pub fn cylinder_of(surface: &BSplineSurface) -> Option<Analytic> {
+        if !surface.is_rational() {
+            return None;
+        }
+        let samples: Vec<_> = fit_grid(surface)
+            .map(|(u, v)| surface.evaluate(u, v))
+            .collect();
+        let first = samples[0].normal;
+        let widest = (samples.iter().map(|s| first.cross(s.normal)))
+            .max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))?;
+        if widest.length() < AXIS_SINE {
+            return None;
+        }
+        let axis = widest.normalize();
+        let points: Vec<DVec3> = samples.iter().map(|s| s.position).collect();
+        let (axis_point, radius) = fit_circle(&points, axis)?;
+        let off = |p: &DVec3| {
+            (across(*p - axis_point, axis).length() - radius).abs() > SHAPE_REL * radius
+        };
+        if points.iter().any(off) {
+            return None;
+        }
+        proved_at_radius(surface, axis_point, radius, |d| across(d, axis)).then_some(
+            Analytic::Cylinder {
+                axis_point,
+                axis,
+                radius,
+            },
+        )
     }
 
     /// The largest distance between the flat triangle with `corners` on the surface and
@@ -212,6 +232,81 @@ impl Analytic {
         }
         excess
     }
+}
+
+/// The parameters of the grid of [`SHAPE_FIT_SAMPLES`]² points over `surface`'s range a
+/// shape is fitted through (corners included).
+fn fit_grid(surface: &BSplineSurface) -> impl Iterator<Item = (f64, f64)> {
+    let (range_u, range_v) = (surface.range_u(), surface.range_v());
+    let last = (SHAPE_FIT_SAMPLES - 1) as f64;
+    (0..SHAPE_FIT_SAMPLES * SHAPE_FIT_SAMPLES).map(move |k| {
+        let (i, j) = (k % SHAPE_FIT_SAMPLES, k / SHAPE_FIT_SAMPLES);
+        (range_u.lerp(i as f64 / last), range_v.lerp(j as f64 / last))
+    })
+}
+
+/// Whether every rational Bezier patch of `surface` provably lies within [`SHAPE_REL`] of
+/// `radius` from `centre`, distances measured on `part` (the identity for a sphere, the part
+/// across the axis for a cylinder; linear). With H the homogeneous point relative to the
+/// centre and w the weight, F = part(H)·part(H) − R²·w² = w²·(|part(S − c)|² − R²) is a
+/// polynomial whose Bernstein coefficients bound it, so
+/// |‖part(S − c)‖ − R| ≤ max|F| / (min w² · R).
+fn proved_at_radius(
+    surface: &BSplineSurface,
+    centre: DVec3,
+    radius: f64,
+    part: impl Fn(DVec3) -> DVec3,
+) -> bool {
+    surface.bezier_patches().iter().all(|patch| {
+        let (p, q) = (patch.degree_u, patch.degree_v);
+        let relative: Vec<DVec3> = (patch.points.iter())
+            .map(|h| part(h.truncate() - h.w * centre))
+            .collect();
+        let h = Bernstein::new(p, q, relative);
+        let w = Bernstein::new(p, q, patch.points.iter().map(|h| h.w).collect());
+        let square = w.product(&w, |a: f64, b: f64| a * b);
+        let least_square = (square.coefficients.iter()).fold(f64::INFINITY, |m, &c| m.min(c));
+        let h_squared = h.product(&h, |a: DVec3, b: DVec3| a.dot(b));
+        let residual = (h_squared.coefficients.iter())
+            .zip(&square.coefficients)
+            .fold(0.0f64, |m, (hh, ww)| {
+                m.max((hh - radius * radius * ww).abs())
+            });
+        least_square > 0.0 && residual <= SHAPE_REL * radius * radius * least_square
+    })
+}
+
+/// The circle (a point of its axis, radius) about the unit `axis` through `points` seen
+/// along it, by least squares on |q − m|² = 2(q − m)·c' + (R² − |c'|²) in the plane across
+/// the axis (q the points' parts across it, m their centroid), in coordinates scaled to
+/// their spread; `None` where they lie on a line seen along the axis.
+fn fit_circle(points: &[DVec3], axis: DVec3) -> Option<(DVec3, f64)> {
+    let mean = points.iter().sum::<DVec3>() / points.len() as f64;
+    let (e1, e2) = axis.any_orthonormal_pair();
+    let flat: Vec<DVec2> = (points.iter())
+        .map(|p| DVec2::new((*p - mean).dot(e1), (*p - mean).dot(e2)))
+        .collect();
+    let spread = flat.iter().map(|q| q.length()).fold(0.0, f64::max);
+    if !(spread > 0.0 && spread.is_finite()) {
+        return None;
+    }
+    let (mut normal, mut right) = (DMat3::ZERO, DVec3::ZERO);
+    for q in &flat {
+        let q = *q / spread;
+        let row = (2.0 * q).extend(1.0);
+        normal += DMat3::from_cols(row * row.x, row * row.y, row * row.z);
+        right += row * q.length_squared();
+    }
+    if normal.determinant().abs() <= 1e-12 {
+        return None;
+    }
+    let solution = normal.inverse() * right;
+    let offset = solution.truncate();
+    let radius_squared = solution.z + offset.length_squared();
+    (radius_squared > 0.0 && radius_squared.is_finite()).then(|| {
+        let centre = mean + spread * (offset.x * e1 + offset.y * e2);
+        (centre, radius_squared.sqrt() * spread)
+    })
 }
 
 /// The sphere (centre, radius) through `points` by least squares on
@@ -553,9 +648,9 @@ mod tests {
         let (knots_u, knots_v) = (whole.knots_u().clone(), whole.knots_v().clone());
         let bulged = BSplineSurface::try_new(knots_u, knots_v, &bulged, Some(&weights)).unwrap();
         let (range_u, range_v) = (bulged.range_u(), bulged.range_v());
-        let last = (SPHERE_FIT_SAMPLES - 1) as f64;
-        for k in 0..SPHERE_FIT_SAMPLES * SPHERE_FIT_SAMPLES {
-            let (i, j) = (k % SPHERE_FIT_SAMPLES, k / SPHERE_FIT_SAMPLES);
+        let last = (SHAPE_FIT_SAMPLES - 1) as f64;
+        for k in 0..SHAPE_FIT_SAMPLES * SHAPE_FIT_SAMPLES {
+            let (i, j) = (k % SHAPE_FIT_SAMPLES, k / SHAPE_FIT_SAMPLES);
             let p = bulged.point(range_u.lerp(i as f64 / last), range_v.lerp(j as f64 / last));
             assert!(
                 (p.distance(centre) - radius).abs() <= 1e-12 * radius,
@@ -569,5 +664,83 @@ mod tests {
         let (knots_u, knots_v) = (patch.knots_u().clone(), patch.knots_v().clone());
         let polynomial = BSplineSurface::try_new(knots_u, knots_v, &points, None).unwrap();
         assert!(!recognised(&polynomial));
+    }
+
+    #[test]
+    fn cylinders_written_as_rational_patches_are_recognised_and_nothing_else() {
+        use crate::geom::Interval;
+        use crate::geom::shapes::{elliptic_cone, elliptic_cylinder, sphere, torus_section};
+        use std::f64::consts::TAU;
+        let (centre, radius) = (DVec3::new(-2e3, 40.0, 7.0), 0.5);
+        let height = Interval::new(-1.0, 2.5);
+        // Tilted: the axis z turned about (1, 1, 0).
+        let tilt = DMat3::from_axis_angle(DVec3::new(1.0, 1.0, 0.0).normalize(), 0.7);
+        let tilted = |p: DVec3| centre + tilt * (p - centre);
+        let axis = tilt * DVec3::Z;
+        let recognised = |s: &BSplineSurface| match Analytic::cylinder_of(s) {
+            Some(Analytic::Cylinder {
+                axis_point,
+                axis: a,
+                radius: r,
+            }) => {
+                assert!(a.cross(axis).length() <= 1e-9, "axis {a}");
+                assert!(across(axis_point - centre, axis).length() <= 1e-9 * radius);
+                assert!((r - radius).abs() <= 1e-9 * radius, "radius {r}");
+                true
+            }
+            Some(other) => panic!("{other:?}"),
+            None => false,
+        };
+        let whole = elliptic_cylinder(centre, radius, radius, Interval::new(0.0, TAU), height)
+            .unwrap()
+            .mapped(tilted);
+        assert!(recognised(&whole));
+        let part = elliptic_cylinder(centre, radius, radius, Interval::new(0.3, 2.9), height)
+            .unwrap()
+            .mapped(tilted);
+        assert!(recognised(&part));
+        // Near misses: an elliptic cylinder 1e-7 off round, a cone, a sphere, a torus.
+        let oval = elliptic_cylinder(
+            centre,
+            radius,
+            radius * (1.0 + 1e-7),
+            Interval::new(0.3, 2.9),
+            height,
+        );
+        assert!(!recognised(&oval.unwrap().mapped(tilted)));
+        let cone = elliptic_cone(
+            centre,
+            1.0,
+            1.0,
+            Interval::new(0.3, 2.9),
+            Interval::new(0.5, 1.5),
+        );
+        assert!(!recognised(&cone.unwrap().mapped(tilted)));
+        assert!(!recognised(&sphere(centre, radius)));
+        let tube = Interval::new(0.0, 6.0);
+        assert!(!recognised(
+            &torus_section(centre, 2.0, radius, tube, tube).unwrap()
+        ));
+        // Off the cylinder only between the fitted samples: the whole cylinder's u samples
+        // fall on the double knots between its quarter arcs, where a mid-arc control
+        // point's basis function vanishes, so only the per-patch proof can refuse it.
+        let mut points: Vec<DVec3> = (0..whole.count_v())
+            .flat_map(|j| (0..whole.count_u()).map(move |i| (i, j)))
+            .map(|(i, j)| whole.control_point(i, j))
+            .collect();
+        let weights: Vec<f64> = (0..whole.count_v())
+            .flat_map(|j| (0..whole.count_u()).map(move |i| (i, j)))
+            .map(|(i, j)| whole.weight(i, j))
+            .collect();
+        let bulge = &mut points[1];
+        *bulge += across(*bulge - centre, axis) * 1e-6;
+        let (knots_u, knots_v) = (whole.knots_u().clone(), whole.knots_v().clone());
+        let bulged = BSplineSurface::try_new(knots_u, knots_v, &points, Some(&weights)).unwrap();
+        for (u, v) in fit_grid(&bulged) {
+            // On the cylinder to the rounding of points 2e3 from the origin.
+            let p = bulged.point(u, v);
+            assert!((across(p - centre, axis).length() - radius).abs() <= 1e-11 * radius);
+        }
+        assert!(!recognised(&bulged));
     }
 }

@@ -17,7 +17,7 @@
 //!    point it is.
 //! 4. **Interiors** as for trimmed faces, the boundary kept ([`super::trim`]).
 
-use super::trim::plan_fixed_boundary;
+use super::trim::{is_flat, plan_fixed_boundary};
 use crate::error::{Error, Result};
 use crate::geom::analytic::Analytic;
 use crate::geom::brep::{Bound, Shell};
@@ -361,24 +361,6 @@ impl<'a> FaceView<'a> {
             self.closed[axis] && (b[axis] - a[axis]).abs() > 0.5 * self.ranges[axis].width()
         })
     }
-}
-
-/// Whether `surface` is a flat bilinear patch (a file's plane): four coplanar corners.
-fn is_flat(surface: &BSplineSurface) -> bool {
-    if (
-        surface.degree_u(),
-        surface.degree_v(),
-        surface.count_u(),
-        surface.count_v(),
-    ) != (1, 1, 2, 2)
-    {
-        return false;
-    }
-    let p = [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(i, j)| surface.control_point(i, j));
-    let (low, high) = surface.control_box();
-    let size = (high - low).length();
-    let volume = (p[1] - p[0]).cross(p[2] - p[0]).dot(p[3] - p[0]).abs();
-    volume <= 1e-12 * size * size * size
 }
 
 /// The points of an edge's curve from its start to its end (see the module's step 1).
