@@ -34,7 +34,7 @@ pub struct RenderOptions {
     pub up: Axis,
     /// Frame the tessellated geometry as seen from `view`, edge to edge with a small margin,
     /// instead of the sphere around the control points (which fits any view and any
-    /// tessellation, with room to spare).
+    /// tessellation: the surfaces lie inside their control points' box).
     pub fit: bool,
 }
 
@@ -169,8 +169,8 @@ fn frame_for((lo, hi): (Vec3, Vec3), options: &RenderOptions) -> Frame {
     let centre = 0.5 * (lo + hi);
     let radius = (0.5 * (hi - lo).length()).max(1e-6);
     let (half_x, half_y) = half_angles(options);
-    // (The sphere around the control box is a generous bound: 0.85 of it still frames models.)
-    let distance = radius / half_x.min(half_y).sin() * 0.85;
+    // The whole sphere: a box's corners lie on it (a cube's control box is the cube).
+    let distance = radius / half_x.min(half_y).sin();
     camera(centre, distance, radius, options)
 }
 
@@ -774,3 +774,64 @@ pub fn save_png(path: &std::path::Path, image: &image::RgbaImage) -> Result<()> 
 }
 
 use image::ImageEncoder;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The default framing holds the whole control box from every side: the corners of a
+    /// cube (on the box's bounding sphere, the tightest case) and of a flat slab project
+    /// inside the image and between the near and far planes, for the named views and an
+    /// oblique one from below, in a wide and a tall image.
+    #[test]
+    fn the_default_frame_holds_the_whole_control_box() {
+        let boxes = [
+            (Vec3::splat(-25.0), Vec3::splat(25.0)),
+            (Vec3::new(-10.0, 3.0, 0.0), Vec3::new(30.0, 5.0, 0.5)),
+        ];
+        let oblique = View {
+            azimuth: 17.0,
+            elevation: -40.0,
+        };
+        let views = [
+            View::FRONT,
+            View::BACK,
+            View::LEFT,
+            View::RIGHT,
+            View::TOP,
+            View::BOTTOM,
+            View::ISO,
+            oblique,
+        ];
+        for (width, height) in [(800, 600), (300, 900)] {
+            for view in views {
+                for (lo, hi) in boxes {
+                    let options = RenderOptions {
+                        width,
+                        height,
+                        view,
+                        ..RenderOptions::DEFAULT
+                    };
+                    let frame = frame_for((lo, hi), &options);
+                    let view_projection = Mat4::from_cols_array_2d(&frame.view_projection);
+                    for k in 0..8 {
+                        let corner = Vec3::select(
+                            glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0),
+                            hi,
+                            lo,
+                        );
+                        let clip = view_projection * corner.extend(1.0);
+                        let ndc = clip.truncate() / clip.w;
+                        assert!(
+                            clip.w > 0.0
+                                && ndc.x.abs() <= 1.0
+                                && ndc.y.abs() <= 1.0
+                                && (0.0..=1.0).contains(&ndc.z),
+                            "corner {corner} at {ndc} from {view:?} in {width}x{height}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
