@@ -17,7 +17,7 @@
 //!    point it is.
 //! 4. **Interiors** as for trimmed faces, the boundary kept ([`super::trim`]).
 
-use super::trim::{is_flat, plan_fixed_boundary};
+use super::trim::{interior_checks, is_flat, plan_fixed_boundary};
 use crate::error::{Error, Result};
 use crate::geom::analytic::Analytic;
 use crate::geom::brep::{Bound, Shell};
@@ -26,6 +26,7 @@ use crate::geom::{BSplineSurface, Interval, SamplingLimits};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 use std::collections::HashMap;
+use std::f64::consts::FRAC_PI_2;
 
 /// Deepest bisection of one piece of an edge.
 const MAX_EDGE_DEPTH: u32 = 24;
@@ -372,13 +373,65 @@ fn sample_edge(
     // Half the tolerance for the chord and half for the surface beside it, except where
     // every face along the edge has a closed-form distance (the triangles on the chord are
     // judged exactly, and the surface beyond the chord lies within its sagitta of it).
-    let allowed = if faces.iter().all(|view| view.closed_form) {
+    let closed_form = faces.iter().all(|view| view.closed_form);
+    let allowed = if closed_form {
         limits.tolerance
     } else {
         0.5 * limits.tolerance
     };
     let uv_of =
         |p: DVec3, near: Option<DVec2>, view: &FaceView| view.invert(p, None, near, [None; 2]).ok();
+    // Whether the piece (t0, t1) may be one segment: its chord follows the curve at ¼, ½, ¾
+    // and at the parameters `inside` it, in model space and through every face's
+    // parameters, from the face's parameters of its start (`starts`, moved to the other
+    // side of a seam where the piece's end lies there) to those of its end (`ends`). Where
+    // the piece crosses a face's seam: where.
+    let test_piece = |t0: f64,
+                      t1: f64,
+                      inside: &[f64],
+                      starts: &mut [Option<DVec2>],
+                      ends: &mut [Option<DVec2>]|
+     -> (bool, Option<f64>) {
+        let (a, b) = (curve.point(t0), curve.point(t1));
+        let fractions: Vec<f64> = [0.25, 0.5, 0.75]
+            .into_iter()
+            .chain(inside.iter().map(|&t| (t - t0) / (t1 - t0)))
+            .collect();
+        let at = |s: f64| curve.point(t0 + (t1 - t0) * s);
+        if a.distance(b) > limits.max_edge
+            || fractions
+                .iter()
+                .any(|&s| at(s).distance(a.lerp(b, s)) > allowed)
+        {
+            return (false, None);
+        }
+        for (f, view) in faces.iter().enumerate() {
+            let Some(mut uv_a) = starts[f] else {
+                continue;
+            };
+            let Some(mut uv_b) = uv_of(b, Some(uv_a), view) else {
+                continue;
+            };
+            // A start on the seam takes the side of the piece's other end.
+            if view.jumps(uv_a, uv_b) && !view.jumps(view.twin(uv_a), uv_b) {
+                uv_a = view.twin(uv_a);
+                starts[f] = Some(uv_a);
+                uv_b = uv_of(b, Some(uv_a), view).unwrap_or(uv_b);
+            }
+            if view.jumps(uv_a, uv_b) {
+                return (false, Some(seam_crossing(curve, view, t0, t1, uv_a)));
+            }
+            ends[f] = Some(uv_b);
+            let follows = fractions.iter().all(|&s| {
+                let chord = uv_a.lerp(uv_b, s);
+                view.surface.point(chord.x, chord.y).distance(at(s)) <= allowed
+            });
+            if !follows {
+                return (false, None);
+            }
+        }
+        (true, None)
+    };
     let breaks = curve.span_breaks();
     let minimum = if curve.degree() > 1 { 2 } else { 1 };
     let mut starts: Vec<f64> = Vec::new();
@@ -392,55 +445,20 @@ fn sample_edge(
     let mut out = vec![curve.point(starts[0])];
     // Each face's parameters of the last point kept: depth-first and left first, every
     // piece starts there, so only its end is inverted (from the start's parameters).
-    let mut last_uv: Vec<Option<DVec2>> =
-        faces.iter().map(|view| uv_of(out[0], None, view)).collect();
+    let first_uv: Vec<Option<DVec2>> = faces.iter().map(|view| uv_of(out[0], None, view)).collect();
+    let mut last_uv = first_uv.clone();
     let mut end_uv: Vec<Option<DVec2>> = vec![None; faces.len()];
     let mut uvs: Vec<Vec<Option<DVec2>>> = last_uv.iter().map(|&uv| vec![uv]).collect();
+    let mut crossed_seam = false;
     for pair in starts.windows(2) {
         // Depth-first, left first: (t0, t1, depth).
         let mut stack = vec![(pair[0], pair[1], 0u32)];
         while let Some((t0, t1, depth)) = stack.pop() {
-            let (a, b) = (curve.point(t0), curve.point(t1));
-            let mut ok = a.distance(b) <= limits.max_edge
-                && [0.25, 0.5, 0.75]
-                    .iter()
-                    .all(|&s| curve.point(t0 + (t1 - t0) * s).distance(a.lerp(b, s)) <= allowed);
-            let mut crossing = None;
-            if ok {
-                for (f, view) in faces.iter().enumerate() {
-                    let Some(mut uv_a) = last_uv[f] else {
-                        continue;
-                    };
-                    let Some(mut uv_b) = uv_of(b, Some(uv_a), view) else {
-                        continue;
-                    };
-                    // A start on the seam takes the side of the piece's other end.
-                    if view.jumps(uv_a, uv_b) && !view.jumps(view.twin(uv_a), uv_b) {
-                        uv_a = view.twin(uv_a);
-                        last_uv[f] = Some(uv_a);
-                        uv_b = uv_of(b, Some(uv_a), view).unwrap_or(uv_b);
-                    }
-                    if view.jumps(uv_a, uv_b) {
-                        crossing = Some(seam_crossing(curve, view, t0, t1, uv_a));
-                        ok = false;
-                        break;
-                    }
-                    end_uv[f] = Some(uv_b);
-                    ok = [0.25, 0.5, 0.75].iter().all(|&s| {
-                        let chord = uv_a.lerp(uv_b, s);
-                        view.surface
-                            .point(chord.x, chord.y)
-                            .distance(curve.point(t0 + (t1 - t0) * s))
-                            <= allowed
-                    });
-                    if !ok {
-                        break;
-                    }
-                }
-            }
+            let (ok, crossing) = test_piece(t0, t1, &[], &mut last_uv, &mut end_uv);
             if ok || depth >= MAX_EDGE_DEPTH {
                 if !ok {
                     // Kept unrefined: the faces' parameters of its end, from its start.
+                    let b = curve.point(t1);
                     for (f, view) in faces.iter().enumerate() {
                         end_uv[f] = last_uv[f].and_then(|near| uv_of(b, Some(near), view));
                     }
@@ -449,20 +467,82 @@ fn sample_edge(
                 for (list, &uv) in uvs.iter_mut().zip(&last_uv) {
                     list.push(uv);
                 }
-                out.push(b);
+                out.push(curve.point(t1));
                 continue;
             }
             // A crossing within rounding of an end is that end (which lies on the seam).
             let margin = 1e-9 * (t1 - t0);
             let middle = match crossing {
-                Some(t) if t > t0 + margin && t < t1 - margin => t,
+                Some(t) if t > t0 + margin && t < t1 - margin => {
+                    crossed_seam = true;
+                    t
+                }
                 _ => 0.5 * (t0 + t1),
             };
             stack.push((middle, t1, depth + 1));
             stack.push((t0, middle, depth + 1));
         }
     }
+    // Bisection leaves pieces of 2⁻ᵏ of a span: where a closed form judges every face, the
+    // fewest even pieces that pass are tried (an arc needing 21 chords got 32), on a curve
+    // with no corner, no piece turning past a quarter turn, none crossing a seam.
+    let pieces = out.len() - 1;
+    if closed_form && !crossed_seam && pieces > 1 && !has_corner(curve, &breaks) {
+        let even = |count: usize| -> Option<SampledEdge> {
+            let parameter = |k: usize| match k == count {
+                true => end,
+                false => breaks[0] + (end - breaks[0]) * k as f64 / count as f64,
+            };
+            let mut last_uv = first_uv.clone();
+            let mut end_uv = vec![None; faces.len()];
+            let mut points = vec![out[0]];
+            let mut lists: Vec<Vec<Option<DVec2>>> = first_uv.iter().map(|&uv| vec![uv]).collect();
+            for k in 0..count {
+                let (t0, t1) = (parameter(k), parameter(k + 1));
+                let inside = interior_checks(&breaks, t0, t1);
+                let [_, d0, _] = curve.derivatives(t0);
+                let [_, d1, _] = curve.derivatives(t1);
+                if d0.angle_between(d1) > FRAC_PI_2
+                    || !test_piece(t0, t1, &inside, &mut last_uv, &mut end_uv).0
+                {
+                    return None;
+                }
+                last_uv.clone_from(&end_uv);
+                for (list, &uv) in lists.iter_mut().zip(&last_uv) {
+                    list.push(uv);
+                }
+                points.push(curve.point(t1));
+            }
+            Some((points, lists))
+        };
+        let (mut low, mut high) = (1, pieces - 1);
+        let mut best = None;
+        while low <= high {
+            let count = low + (high - low) / 2;
+            match even(count) {
+                Some(sampled) => {
+                    best = Some(sampled);
+                    high = count - 1;
+                }
+                None => low = count + 1,
+            }
+        }
+        if let Some(sampled) = best {
+            return sampled;
+        }
+    }
     (out, uvs)
+}
+
+/// Whether `curve` has a corner at one of its inner `breaks`: its direction turns there by
+/// more than 1e-3 rad (from its one-sided derivatives, sampled 1e-9 of the range away).
+fn has_corner(curve: &crate::geom::BSplineCurve, breaks: &[f64]) -> bool {
+    let step = 1e-9 * (breaks[breaks.len() - 1] - breaks[0]);
+    breaks.windows(3).any(|w| {
+        let [_, before, _] = curve.derivatives(w[1] - step);
+        let [_, after, _] = curve.derivatives(w[1] + step);
+        before.angle_between(after) > 1e-3
+    })
 }
 
 /// Where the curve meets a face's seam between t0 and t1 (the parameters jump there),
@@ -926,4 +1006,59 @@ fn walk_boundary(
         polygons.push(polygon);
     }
     Ok(polygons)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::{curves, shapes};
+    use std::f64::consts::TAU;
+
+    /// An edge between faces a closed form judges (the rim of a cylinder on a plane) takes
+    /// the fewest even chords its tolerance allows: at least n = ⌈2π / (2·acos(1 − tol/R))⌉
+    /// = 100 and at most 1.1·n (even in the parameter of its rational quarter arcs, which
+    /// runs unevenly in angle: 105; bisection gave a power of two per quarter arc, 128), and
+    /// each chord holds the circle within the tolerance (200 points a chord); the faces'
+    /// parameters of every point map back to it.
+    #[test]
+    fn closed_form_edges_take_the_fewest_even_chords() {
+        let (radius, tolerance) = (2.0, 1e-3);
+        let centre = DVec3::new(5.0, -1.0, 3.0);
+        let height = Interval::new(0.0, 4.0);
+        let tube =
+            shapes::elliptic_cylinder(centre, radius, radius, Interval::new(0.0, TAU), height)
+                .unwrap();
+        let corners = [(-3.0, -3.0), (3.0, -3.0), (-3.0, 3.0), (3.0, 3.0)]
+            .map(|(x, y)| centre + DVec3::new(x, y, 0.0));
+        let knots = || crate::geom::KnotVector::clamped_uniform(1, 2).unwrap();
+        let plane = BSplineSurface::try_new(knots(), knots(), &corners, None).unwrap();
+        let rim = curves::arc(centre, radius, DVec3::X, DVec3::Y, Interval::new(0.0, TAU)).unwrap();
+        let views = [
+            FaceView::new(&tube, None, 10.0),
+            FaceView::new(&plane, None, 10.0),
+        ];
+        assert!(views.iter().all(|view| view.closed_form));
+        let faces: Vec<&FaceView> = views.iter().collect();
+        let limits = SamplingLimits::tolerance(tolerance);
+        let (points, uvs) = sample_edge(&rim, &faces, limits);
+        let fewest = (TAU / (2.0 * (1.0 - tolerance / radius).acos())).ceil() as usize;
+        let chords = points.len() - 1;
+        assert!(
+            chords >= fewest && chords as f64 <= 1.1 * fewest as f64,
+            "{chords} chords, fewest {fewest}"
+        );
+        for pair in points.windows(2) {
+            for k in 0..=200 {
+                let p = pair[0].lerp(pair[1], k as f64 / 200.0);
+                let off = (p - centre).truncate().length() - radius;
+                assert!(off.abs() <= tolerance, "{off:e} off the circle");
+            }
+        }
+        for (view, list) in views.iter().zip(&uvs) {
+            for (p, uv) in points.iter().zip(list) {
+                let uv = uv.expect("every point found on both faces");
+                assert!(view.surface.point(uv.x, uv.y).distance(*p) <= 1e-9 * radius);
+            }
+        }
+    }
 }

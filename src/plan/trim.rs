@@ -1155,7 +1155,6 @@ fn even_pieces(
             }
         };
         let mut pieces = Vec::with_capacity(count);
-        let mut inside = Vec::new();
         for k in 0..count {
             let (t0, t1) = (parameter(k), parameter(k + 1));
             let (a, b) = (at(t0), at(t1));
@@ -1164,16 +1163,7 @@ fn even_pieces(
             if turn > MAX_MERGED_TURN || lines.crossed(a, b).is_some() {
                 return None;
             }
-            inside.clear();
-            let mut previous = t0;
-            for &knot in breaks.iter().filter(|&&knot| knot > t0 && knot < t1) {
-                inside.extend([0.5 * (previous + knot), knot]);
-                previous = knot;
-            }
-            if previous > t0 {
-                inside.push(0.5 * (previous + t1));
-            }
-            if !accept(at, t0, t1, a, b, &inside) {
+            if !accept(at, t0, t1, a, b, &interior_checks(breaks, t0, t1)) {
                 return None;
             }
             pieces.push((t0, a));
@@ -1193,6 +1183,21 @@ fn even_pieces(
         }
     }
     best
+}
+
+/// Where a piece (t0, t1) of a curve that spans several of its `breaks` is checked besides
+/// ¼, ½ and ¾ of it: at every break inside it and halfway between them.
+pub(crate) fn interior_checks(breaks: &[f64], t0: f64, t1: f64) -> Vec<f64> {
+    let mut checks = Vec::new();
+    let mut previous = t0;
+    for &knot in breaks.iter().filter(|&&knot| knot > t0 && knot < t1) {
+        checks.extend([0.5 * (previous + knot), knot]);
+        previous = knot;
+    }
+    if previous > t0 {
+        checks.push(0.5 * (previous + t1));
+    }
+    checks
 }
 
 /// The pieces of one path (`pieces`: parameter and point of each start, in order; the path
