@@ -3401,7 +3401,7 @@ fn step_parts_mesh_into_closed_solids_within_the_tolerance() {
     // The spheres' triangles are judged by the exact chord height (R − √(R² − r²)), which
     // their worst point reaches: measured 0.99 of the tolerance (the rational bound left
     // them at 0.3–0.6 of it, with 8 026 triangles on the seven faces where Open CASCADE has
-    // 2 380); the cones' by their angular bound, measured 0.44. The part as a whole: 4 916
+    // 2 380); the cones' by their angular bound, measured 0.44. The part as a whole: 4 932
     // triangles at 1e-3 where Open CASCADE has 5 617 (11 340 on the rational bounds alone).
     assert!(
         spheres > 0.8,
