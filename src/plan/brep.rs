@@ -885,13 +885,20 @@ fn walk_boundary(
                 (at(k), at(k + 1), 0)
             })
             .collect();
-        while let Some((a, b, depth)) = stack.pop() {
+        // Whether the chord from a to b follows the seam at ¼, ½, ¾ and at `inside`.
+        let follows = |a: f64, b: f64, inside: &[f64]| {
             let (pa, pb) = (at(a), at(b));
-            let ok = pa.distance(pb) <= limits.max_edge
-                && [0.25, 0.5, 0.75].iter().all(|&s| {
-                    at(a + (b - a) * s).distance(pa.lerp(pb, s)) <= 0.5 * limits.tolerance
-                });
-            if ok || depth >= MAX_EDGE_DEPTH {
+            pa.distance(pb) <= limits.max_edge
+                && [0.25, 0.5, 0.75]
+                    .iter()
+                    .map(|&s| a + (b - a) * s)
+                    .chain(inside.iter().copied())
+                    .all(|t| {
+                        at(t).distance(pa.lerp(pb, (t - a) / (b - a))) <= 0.5 * limits.tolerance
+                    })
+        };
+        while let Some((a, b, depth)) = stack.pop() {
+            if follows(a, b, &[]) || depth >= MAX_EDGE_DEPTH {
                 samples.push(b);
             } else {
                 let m = 0.5 * (a + b);
@@ -899,7 +906,31 @@ fn walk_boundary(
                 stack.push((a, m, depth + 1));
             }
         }
-        samples
+        // Then consecutive pieces joined where the longer chord still follows the seam,
+        // checked also at the samples it passes over and halfway between them: a straight
+        // seam (a cylinder's or cone's) keeps only its ends, and the strip beside it is
+        // not fanned from points along it.
+        let mut joined = vec![samples[0]];
+        let mut start = 0;
+        while start + 1 < samples.len() {
+            let mut stop = start + 1;
+            while stop + 1 < samples.len()
+                && follows(
+                    samples[start],
+                    samples[stop + 1],
+                    &interior_checks(
+                        &samples[start..=stop + 1],
+                        samples[start],
+                        samples[stop + 1],
+                    ),
+                )
+            {
+                stop += 1;
+            }
+            joined.push(samples[stop]);
+            start = stop;
+        }
+        joined
     };
     let seams = [
         view.closed[0].then(|| seam_samples(0)),
