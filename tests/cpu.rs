@@ -2265,6 +2265,23 @@ fn a_disc_with_a_square_hole_is_meshed_within_its_tolerance() {
     assert!((again_area - uv_area).abs() < 1e-3 * uv_area);
 }
 
+/// The largest `off` (a distance from a shape) over 45 points of every triangle of `mesh`
+/// (a barycentric grid of step ⅛, corners and edges included).
+fn farthest_on_triangles(mesh: &Mesh, off: impl Fn(DVec3) -> f64) -> f64 {
+    let steps = 8;
+    let mut farthest = 0.0f64;
+    for t in mesh.indices.chunks(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
+        for i in 0..=steps {
+            for j in 0..=steps - i {
+                let (s, r) = (i as f64 / steps as f64, j as f64 / steps as f64);
+                farthest = farthest.max(off(a + s * (b - a) + r * (c - a)));
+            }
+        }
+    }
+    farthest
+}
+
 /// A trimmed face on a sphere written as a rational patch (as IGES files write them) is
 /// judged by the sphere's closed form, not by the parametrisation's bound: a disc of the
 /// rational sphere of radius 2 meshed at 1e-3 holds the sphere within the tolerance at
@@ -2286,19 +2303,13 @@ fn trimmed_faces_on_rational_spheres_use_their_tolerance() {
     .unwrap();
     let tolerance = 1e-3;
     let mesh = trimmed_mesh(&face, tolerance);
-    let steps = 8;
-    let (mut farthest, mut area) = (0.0f64, 0.0);
-    for t in mesh.indices.chunks(3) {
-        let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
-        area += 0.5 * (b - a).cross(c - a).length();
-        for i in 0..=steps {
-            for j in 0..=steps - i {
-                let (s, r) = (i as f64 / steps as f64, j as f64 / steps as f64);
-                let p = a + s * (b - a) + r * (c - a);
-                farthest = farthest.max((p.distance(centre) - radius).abs());
-            }
-        }
-    }
+    let farthest = farthest_on_triangles(&mesh, |p| (p.distance(centre) - radius).abs());
+    let area: f64 = (mesh.indices.chunks(3))
+        .map(|t| {
+            let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
+            0.5 * (b - a).cross(c - a).length()
+        })
+        .sum();
     assert!(
         farthest <= tolerance,
         "farthest {farthest:e} from the sphere at tolerance {tolerance:e}"
@@ -2339,18 +2350,8 @@ fn trimmed_faces_on_rational_cylinders_use_their_tolerance() {
     )
     .unwrap();
     let mesh = trimmed_mesh(&face, tolerance);
-    let steps = 8;
-    let mut farthest = 0.0f64;
-    for t in mesh.indices.chunks(3) {
-        let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
-        for i in 0..=steps {
-            for j in 0..=steps - i {
-                let (s, r) = (i as f64 / steps as f64, j as f64 / steps as f64);
-                let p = a + s * (b - a) + r * (c - a) - centre;
-                farthest = farthest.max((p.truncate().length() - radius).abs());
-            }
-        }
-    }
+    let farthest =
+        farthest_on_triangles(&mesh, |p| ((p - centre).truncate().length() - radius).abs());
     assert!(
         farthest <= tolerance,
         "farthest {farthest:e} from the cylinder at tolerance {tolerance:e}"

@@ -17,7 +17,7 @@
 //!    point it is.
 //! 4. **Interiors** as for trimmed faces, the boundary kept ([`super::trim`]).
 
-use super::trim::{interior_checks, is_flat, plan_fixed_boundary};
+use super::trim::{fewest_passing, interior_checks, is_flat, plan_fixed_boundary};
 use crate::error::{Error, Result};
 use crate::geom::analytic::Analytic;
 use crate::geom::brep::{Bound, Shell};
@@ -515,19 +515,7 @@ fn sample_edge(
             }
             Some((points, lists))
         };
-        let (mut low, mut high) = (1, pieces - 1);
-        let mut best = None;
-        while low <= high {
-            let count = low + (high - low) / 2;
-            match even(count) {
-                Some(sampled) => {
-                    best = Some(sampled);
-                    high = count - 1;
-                }
-                None => low = count + 1,
-            }
-        }
-        if let Some(sampled) = best {
+        if let Some(sampled) = fewest_passing(pieces, even) {
             return sampled;
         }
     }

@@ -1133,11 +1133,12 @@ fn sample_path(
 }
 
 /// The fewest pieces of equal parameter width, fewer than `fewer_than`, a path with no corner
-/// (`at` over `breaks`) can be cut into — each crossing no cell line, turning by at most [`MAX_MERGED_TURN`] (between its directions at its ends) and
-/// kept by `accept`, checked also at the path's breaks inside it and halfway between them
-/// — as (parameter, point) of each start; `None` where no such count passes. The count is
-/// bisected: where the pieces bisection and merging leave are uneven (a uniform arc needs
-/// 21 chords, bisection gives 32), even ones are as few as the tolerance allows.
+/// (`at` over `breaks`) can be cut into — each crossing no cell line, turning by at most
+/// [`MAX_MERGED_TURN`] (between its directions at its ends) and kept by `accept`, checked
+/// also at the path's breaks inside it and halfway between them — as (parameter, point) of
+/// each start; `None` where no such count passes ([`fewest_passing`]). Where the pieces
+/// bisection and merging leave are uneven (a uniform arc needing 21 chords got 32), even
+/// ones are as few as the tolerance allows.
 fn even_pieces(
     at: &dyn Fn(f64) -> DVec2,
     breaks: &[f64],
@@ -1170,13 +1171,23 @@ fn even_pieces(
         }
         Some(pieces)
     };
+    fewest_passing(fewer_than, pieces_of)
+}
+
+/// What `attempt` gives for the fewest pieces, from 1 to `fewer_than` − 1, that it passes
+/// (`None` for a count that fails), found by bisecting the count — so in about log₂ of
+/// `fewer_than` attempts, taking more pieces to pass wherever fewer do.
+pub(crate) fn fewest_passing<T>(
+    fewer_than: usize,
+    attempt: impl Fn(usize) -> Option<T>,
+) -> Option<T> {
     let (mut low, mut high) = (1, fewer_than.checked_sub(1)?);
     let mut best = None;
     while low <= high {
         let count = low + (high - low) / 2;
-        match pieces_of(count) {
-            Some(pieces) => {
-                best = Some(pieces);
+        match attempt(count) {
+            Some(result) => {
+                best = Some(result);
                 high = count - 1;
             }
             None => low = count + 1,
