@@ -2327,8 +2327,8 @@ fn trimmed_faces_on_rational_spheres_use_their_tolerance() {
 /// cylinder's closed form too, its loops by the straight chords in model space: a band of
 /// the rational cylinder of radius 0.5 over 2.6 rad around and 3.5 along, trimmed to its
 /// whole range, holds the cylinder within 1e-3 at every point sampled on its triangles and
-/// takes at most 1.5 times the 2·n triangles of the fewest chords around, n = ⌈2.6 / (2·acos(1
-/// − tol/R))⌉ = 21. Measured: 44 triangles; 136 before cylinders were recognised.
+/// takes at most 1.1 times the 2·n triangles of the fewest chords around, n = ⌈2.6 / (2·acos(1
+/// − tol/R))⌉ = 21. Measured: 44 triangles; 64 with loops bisected (no even pieces), 136 before cylinders were recognised.
 #[test]
 fn trimmed_faces_on_rational_cylinders_use_their_tolerance() {
     use knotwork::geom::shapes::elliptic_cylinder;
@@ -2360,7 +2360,7 @@ fn trimmed_faces_on_rational_cylinders_use_their_tolerance() {
     let fewest = 2 * (around.width() / chord_angle).ceil() as usize;
     let triangles = mesh.indices.len() / 3;
     assert!(
-        triangles as f64 <= 1.5 * fewest as f64,
+        triangles as f64 <= 1.1 * fewest as f64,
         "{triangles} triangles where {fewest} could hold the tolerance"
     );
 }

@@ -100,9 +100,9 @@ impl Analytic {
     }
 
     /// The exact shape a face of `surface` is meshed by: `named` (the file's) where given,
-    /// else the sphere the surface is proved to lie on ([`Analytic::sphere_of`]: CAD tools
-    /// write spheres as rational patches as often as by name). Every planner of faces takes
-    /// its shape from here.
+    /// else the sphere or circular cylinder the surface is proved to lie on
+    /// ([`Analytic::sphere_of`], [`Analytic::cylinder_of`]: CAD tools write both as rational
+    /// patches as often as by name). Every planner of faces takes its shape from here.
     pub fn of_face(surface: &BSplineSurface, named: Option<Analytic>) -> Option<Analytic> {
         named
             .or_else(|| Analytic::sphere_of(surface))
@@ -647,16 +647,14 @@ mod tests {
             .collect();
         let (knots_u, knots_v) = (whole.knots_u().clone(), whole.knots_v().clone());
         let bulged = BSplineSurface::try_new(knots_u, knots_v, &bulged, Some(&weights)).unwrap();
-        let (range_u, range_v) = (bulged.range_u(), bulged.range_v());
-        let last = (SHAPE_FIT_SAMPLES - 1) as f64;
-        for k in 0..SHAPE_FIT_SAMPLES * SHAPE_FIT_SAMPLES {
-            let (i, j) = (k % SHAPE_FIT_SAMPLES, k / SHAPE_FIT_SAMPLES);
-            let p = bulged.point(range_u.lerp(i as f64 / last), range_v.lerp(j as f64 / last));
+        for (u, v) in fit_grid(&bulged) {
+            let p = bulged.point(u, v);
             assert!(
                 (p.distance(centre) - radius).abs() <= 1e-12 * radius,
-                "sample {k}"
+                "at ({u}, {v})"
             );
         }
+        let (range_u, range_v) = (bulged.range_u(), bulged.range_v());
         let between = bulged.point(range_u.lerp(1.0 / 8.0), range_v.lerp(0.5));
         assert!((between.distance(centre) - radius).abs() > 1e-8 * radius);
         assert!(!recognised(&bulged));

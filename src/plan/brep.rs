@@ -17,7 +17,9 @@
 //!    point it is.
 //! 4. **Interiors** as for trimmed faces, the boundary kept ([`super::trim`]).
 
-use super::trim::{fewest_passing, interior_checks, is_flat, plan_fixed_boundary};
+use super::trim::{
+    corners, fewest_passing, has_closed_form, interior_checks, joined_points, plan_fixed_boundary,
+};
 use crate::error::{Error, Result};
 use crate::geom::analytic::Analytic;
 use crate::geom::brep::{Bound, Shell};
@@ -208,7 +210,7 @@ impl<'a> FaceView<'a> {
             closed,
             collapsed,
             shape,
-            closed_form: shape.is_some() || is_flat(surface),
+            closed_form: has_closed_form(surface, shape),
             size,
             samples: SurfaceSamples::new(surface),
         }
@@ -487,7 +489,8 @@ fn sample_edge(
     // fewest even pieces that pass are tried (an arc needing 21 chords got 32), on a curve
     // with no corner, no piece turning past a quarter turn, none crossing a seam.
     let pieces = out.len() - 1;
-    if closed_form && !crossed_seam && pieces > 1 && !has_corner(curve, &breaks) {
+    if closed_form && !crossed_seam && pieces > 1 && corners(|t| curve.point(t), &breaks).is_empty()
+    {
         let even = |count: usize| -> Option<SampledEdge> {
             let parameter = |k: usize| match k == count {
                 true => end,
@@ -520,17 +523,6 @@ fn sample_edge(
         }
     }
     (out, uvs)
-}
-
-/// Whether `curve` has a corner at one of its inner `breaks`: its direction turns there by
-/// more than 1e-3 rad (from its one-sided derivatives, sampled 1e-9 of the range away).
-fn has_corner(curve: &crate::geom::BSplineCurve, breaks: &[f64]) -> bool {
-    let step = 1e-9 * (breaks[breaks.len() - 1] - breaks[0]);
-    breaks.windows(3).any(|w| {
-        let [_, before, _] = curve.derivatives(w[1] - step);
-        let [_, after, _] = curve.derivatives(w[1] + step);
-        before.angle_between(after) > 1e-3
-    })
 }
 
 /// Where the curve meets a face's seam between t0 and t1 (the parameters jump there),
@@ -898,27 +890,13 @@ fn walk_boundary(
         // checked also at the samples it passes over and halfway between them: a straight
         // seam (a cylinder's or cone's) keeps only its ends, and the strip beside it is
         // not fanned from points along it.
-        let mut joined = vec![samples[0]];
-        let mut start = 0;
-        while start + 1 < samples.len() {
-            let mut stop = start + 1;
-            while stop + 1 < samples.len()
-                && follows(
-                    samples[start],
-                    samples[stop + 1],
-                    &interior_checks(
-                        &samples[start..=stop + 1],
-                        samples[start],
-                        samples[stop + 1],
-                    ),
-                )
-            {
-                stop += 1;
-            }
-            joined.push(samples[stop]);
-            start = stop;
-        }
-        joined
+        joined_points(samples.len() - 1, |from, to| {
+            let (a, b) = (samples[from], samples[to]);
+            follows(a, b, &interior_checks(&samples[from..=to], a, b))
+        })
+        .into_iter()
+        .map(|k| samples[k])
+        .collect()
     };
     let seams = [
         view.closed[0].then(|| seam_samples(0)),

@@ -103,8 +103,17 @@ pub fn plan_trimmed_within(
     Ok(triangulation.plan)
 }
 
+/// Whether a face of `surface` with the exact `shape` ([`Analytic::of_face`]) has a closed-form
+/// distance from its triangles: an exact shape, or a flat patch.
+pub(crate) fn has_closed_form(
+    surface: &crate::geom::BSplineSurface,
+    shape: Option<Analytic>,
+) -> bool {
+    shape.is_some() || is_flat(surface)
+}
+
 /// Whether `surface` is a flat bilinear patch (a file's plane): four coplanar corners.
-pub(crate) fn is_flat(surface: &crate::geom::BSplineSurface) -> bool {
+fn is_flat(surface: &crate::geom::BSplineSurface) -> bool {
     if (
         surface.degree_u(),
         surface.degree_v(),
@@ -816,7 +825,7 @@ fn loop_polylines(
     // straight chord in model space follows the path within the whole tolerance and meets
     // the longest edge and the shape's angle between its ends' normals.
     let half = 0.5 * limits.tolerance;
-    let closed_form = shape.is_some() || is_flat(surface);
+    let closed_form = has_closed_form(surface, shape);
     let on_surface = |p: DVec2| surface.point(p.x, p.y);
     let accept =
         |at: &dyn Fn(f64) -> DVec2, t0: f64, t1: f64, a: DVec2, b: DVec2, inside: &[f64]| {
@@ -960,7 +969,38 @@ struct PieceRules<'a> {
 const KINK_STEP: f64 = 1e-7;
 const KINK_TURN: f64 = 1e-3;
 
-/// Most pieces [`merge_pieces`] joins into one (bounds the checks a merge costs).
+/// The inner `breaks` where the curve `at` has a corner (see [`KINK_STEP`]).
+pub(crate) fn corners(at: impl Fn(f64) -> DVec3, breaks: &[f64]) -> Vec<f64> {
+    (breaks.windows(3))
+        .filter(|w| {
+            let step = KINK_STEP * (w[2] - w[0]);
+            let (before, after) = (at(w[1]) - at(w[1] - step), at(w[1] + step) - at(w[1]));
+            before.angle_between(after) > KINK_TURN
+        })
+        .map(|w| w[1])
+        .collect()
+}
+
+/// The points kept when the pieces between points 0, 1, …, `count` are joined greedily
+/// from the first: each kept point is followed by the farthest point, at most
+/// [`MAX_MERGED`] pieces on, that `joins(from, to)` lets one piece reach (asked for
+/// to = from + 2, from + 3, … in turn while it holds, so a test may look only at what the
+/// last step adds). Always holds 0 and `count`.
+pub(crate) fn joined_points(count: usize, joins: impl Fn(usize, usize) -> bool) -> Vec<usize> {
+    let mut kept = vec![0];
+    let mut from = 0;
+    while from < count {
+        let mut to = from + 1;
+        while to < count && to - from < MAX_MERGED && joins(from, to + 1) {
+            to += 1;
+        }
+        kept.push(to);
+        from = to;
+    }
+    kept
+}
+
+/// Most pieces [`joined_points`] joins into one (bounds the checks a merge costs).
 const MAX_MERGED: usize = 64;
 
 /// Most a path may turn (radians, between the directions in the parameter plane of the
@@ -1096,14 +1136,7 @@ fn sample_path(
         }
     }
     let end = *breaks.last().expect("a path has breaks");
-    let corners: Vec<f64> = (breaks.windows(3))
-        .filter(|w| {
-            let step = KINK_STEP * (w[2] - w[0]);
-            let (before, after) = (at(w[1]) - at(w[1] - step), at(w[1] + step) - at(w[1]));
-            before.angle_to(after).abs() > KINK_TURN
-        })
-        .map(|w| w[1])
-        .collect();
+    let corners = corners(|t| at(t).extend(0.0), breaks);
     let merged = merge_pieces(at, &out[first..], (end, at(end)), &corners, rules);
     out.truncate(first);
     if !rules.even {
@@ -1212,13 +1245,12 @@ pub(crate) fn interior_checks(breaks: &[f64], t0: f64, t1: f64) -> Vec<f64> {
 }
 
 /// The pieces of one path (`pieces`: parameter and point of each start, in order; the path
-/// ends at `end`) with consecutive ones joined wherever the longer chord passes over none of
-/// the path's `corners` (parameters) and crosses no cell line, the path turns by at most
-/// [`MAX_MERGED_TURN`] along it and `accept` keeps it,
-/// checked also at every start it passes over and in the middle of every piece it takes in
-/// (at most [`MAX_MERGED`]): a curve written as many short spans
-/// (a CAD file's quarter circle as 16 quadratic arcs) is cut into as few segments as the
-/// tolerance allows, not at least one per span.
+/// ends at `end`) with consecutive ones joined ([`joined_points`]) wherever the longer chord
+/// passes over none of the path's `corners` (parameters) and crosses no cell line, the path
+/// turns by at most [`MAX_MERGED_TURN`] along it and `accept` keeps it, checked also at
+/// every start it passes over and in the middle of every piece it takes in: a curve written
+/// as many short spans (a CAD file's quarter circle as 16 quadratic arcs) is cut into as few
+/// segments as the tolerance allows, not at least one per span.
 fn merge_pieces(
     at: &dyn Fn(f64) -> DVec2,
     pieces: &[(f64, DVec2)],
@@ -1227,38 +1259,24 @@ fn merge_pieces(
     rules: &PieceRules,
 ) -> Vec<(f64, DVec2)> {
     let PieceRules { lines, accept, .. } = *rules;
-    let bound = |k: usize| pieces.get(k).copied().unwrap_or(end);
-    let mut merged = Vec::with_capacity(pieces.len());
-    let mut inside = Vec::new();
-    let mut start = 0;
-    while start < pieces.len() {
-        let (t0, a) = pieces[start];
-        merged.push((t0, a));
-        let first_direction = bound(start + 1).1 - a;
-        // The merged piece ends at the start of piece `stop` (or the path's end).
-        let mut stop = start + 1;
-        while stop < pieces.len() && stop - start < MAX_MERGED && !corners.contains(&bound(stop).0)
-        {
-            let (t1, b) = bound(stop + 1);
-            if first_direction.angle_to(b - bound(stop).1).abs() > MAX_MERGED_TURN {
-                break;
-            }
-            inside.clear();
-            for k in start..=stop {
-                let (from, to) = (bound(k).0, bound(k + 1).0);
-                if k > start {
-                    inside.push(from);
-                }
-                inside.push(0.5 * (from + to));
-            }
-            if lines.crossed(a, b).is_some() || !accept(at, t0, t1, a, b, &inside) {
-                break;
-            }
-            stop += 1;
-        }
-        start = stop;
-    }
-    merged
+    let points: Vec<(f64, DVec2)> = pieces.iter().copied().chain([end]).collect();
+    let parameters: Vec<f64> = points.iter().map(|&(t, _)| t).collect();
+    let kept = joined_points(pieces.len(), |from, to| {
+        let ((t0, a), (t1, b)) = (points[from], points[to]);
+        let first_direction = points[from + 1].1 - a;
+        !corners.contains(&parameters[to - 1])
+            && first_direction.angle_to(b - points[to - 1].1).abs() <= MAX_MERGED_TURN
+            && lines.crossed(a, b).is_none()
+            && accept(
+                at,
+                t0,
+                t1,
+                a,
+                b,
+                &interior_checks(&parameters[from..=to], t0, t1),
+            )
+    });
+    kept[..kept.len() - 1].iter().map(|&k| points[k]).collect()
 }
 
 /// The parameter in (t0, t1) where the path crosses `line` of `axis`, to rounding
