@@ -230,6 +230,33 @@ impl BSplineSurface {
         self.origin() + (support.reference + h.truncate() / h.w)
     }
 
+    /// The points at every (u, v) of `us` × `vs` (clamped to the knot domain), u fastest:
+    /// each column's and row's basis found once and every row's control points blended
+    /// along v once. Summed relative to the surface's [`origin`](Self::origin) rather than
+    /// each support's dominant point, so within a few ulps of the control box's size of
+    /// [`point`](Self::point): for seeds and searches, not for samples.
+    pub(crate) fn grid_points(&self, us: &[f64], vs: &[f64]) -> Vec<DVec3> {
+        let columns: Vec<(usize, Vec<f64>)> =
+            us.iter().map(|&u| self.knots_u().basis_values(u)).collect();
+        let (p, q, count_u) = (self.degree_u(), self.degree_v(), self.count_u());
+        let points = self.homogeneous_points();
+        let mut row = vec![DVec4::ZERO; count_u];
+        let mut grid = Vec::with_capacity(us.len() * vs.len());
+        for &v in vs {
+            let (span_v, bv) = self.knots_v().basis_values(v);
+            for (i, blended) in row.iter_mut().enumerate() {
+                *blended = (0..=q)
+                    .map(|b| bv[b] * points[(span_v - q + b) * count_u + i])
+                    .sum();
+            }
+            grid.extend(columns.iter().map(|(span_u, bu)| {
+                let h: DVec4 = (0..=p).map(|a| bu[a] * row[span_u - p + a]).sum();
+                self.origin() + h.truncate() / h.w
+            }));
+        }
+        grid
+    }
+
     /// [`cross_scale`] of this surface: its control box diagonal over its knot domain.
     pub fn cross_scale(&self) -> f64 {
         let (u0, u1) = self.knots_u().domain();

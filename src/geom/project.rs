@@ -88,14 +88,13 @@ impl SampleGrid {
             count(surface.count_u() - surface.degree_u()),
             count(surface.count_v() - surface.degree_v()),
         );
-        let params: Vec<DVec2> = (0..=nv)
-            .flat_map(|j| {
-                (0..=nu).map(move |i| {
-                    DVec2::new(ru.lerp(i as f64 / nu as f64), rv.lerp(j as f64 / nv as f64))
-                })
-            })
+        let us: Vec<f64> = (0..=nu).map(|i| ru.lerp(i as f64 / nu as f64)).collect();
+        let vs: Vec<f64> = (0..=nv).map(|j| rv.lerp(j as f64 / nv as f64)).collect();
+        let params = vs
+            .iter()
+            .flat_map(|&v| us.iter().map(move |&u| DVec2::new(u, v)))
             .collect();
-        let points = params.iter().map(|p| surface.point(p.x, p.y)).collect();
+        let points = surface.grid_points(&us, &vs);
         SampleGrid { params, points }
     }
 
@@ -331,4 +330,28 @@ pub(crate) fn nearest(
     }
     let global = invert_from_grid(surface, samples, target, tolerance);
     if global.1 < local.1 { global } else { local }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::shapes::torus;
+
+    /// The seed grid's points are the surface's points at its parameters: a rational torus
+    /// (non-uniform weights, repeated knots) 1e4 from the origin, to 1e-12 of its size.
+    #[test]
+    fn seed_grids_hold_the_surface_points_at_their_parameters() {
+        let surface = torus(DVec3::new(1e4, -2e4, 5e3), 3.0, 1.0);
+        let size = surface.control_box_diagonal();
+        for grid in [
+            SampleGrid::new(&surface, 2, 4, 16),
+            SampleGrid::new(&surface, 8, 8, 64),
+        ] {
+            assert!(grid.points.len() > 16);
+            for (st, p) in grid.params.iter().zip(&grid.points) {
+                let exact = surface.point(st.x, st.y);
+                assert!(p.distance(exact) <= 1e-12 * size, "{st}: {p} vs {exact}");
+            }
+        }
+    }
 }

@@ -4,26 +4,74 @@
 use super::cover_groups;
 use crate::mesh::AnyMesh;
 use crate::scene::ItemGroup;
-use glam::DVec3;
+use rayon::prelude::*;
 use std::fmt::Display;
 use std::io::{Result, Write};
 
 /// Formats `x` in the shortest form that parses back to the same f64: plain decimal for
 /// ordinary magnitudes, exponent form (`6.66134e-16`) for very small or large ones.
 pub fn format_f64(x: f64) -> String {
-    shortest(x, x.abs())
+    let mut text = Vec::new();
+    push_shortest(&mut text, x, x.abs());
+    String::from_utf8(text).expect("numbers format as ASCII")
 }
 
 /// As [`format_f64`], for the shortest form that parses back to the same f32.
 pub fn format_f32(x: f32) -> String {
-    shortest(x, f64::from(x.abs()))
+    let mut text = Vec::new();
+    push_shortest(&mut text, x, f64::from(x.abs()));
+    String::from_utf8(text).expect("numbers format as ASCII")
 }
 
-fn shortest(x: impl Display + std::fmt::LowerExp, magnitude: f64) -> String {
-    if magnitude != 0.0 && !(1e-5..1e16).contains(&magnitude) {
-        format!("{x:e}")
+/// Appends `x` as [`format_f64`] spells it.
+fn push_shortest(out: &mut Vec<u8>, x: impl Display + std::fmt::LowerExp, magnitude: f64) {
+    // Writing to a Vec cannot fail.
+    let _ = if magnitude != 0.0 && !(1e-5..1e16).contains(&magnitude) {
+        write!(out, "{x:e}")
     } else {
-        format!("{x}")
+        write!(out, "{x}")
+    };
+}
+
+/// Lines per block formatted on one thread.
+const LINES_PER_BLOCK: usize = 4096;
+
+/// Writes one line per item of `items`, each formatted by `line` (without its newline), the
+/// blocks of [`LINES_PER_BLOCK`] formatted in parallel and written in order.
+fn write_lines<T: Sync>(
+    w: &mut dyn Write,
+    items: &[T],
+    line: impl Fn(&mut Vec<u8>, &T) + Sync,
+) -> Result<()> {
+    let blocks: Vec<Vec<u8>> = items
+        .par_chunks(LINES_PER_BLOCK)
+        .map(|block| {
+            let mut text = Vec::with_capacity(block.len() * 48);
+            for item in block {
+                line(&mut text, item);
+                text.push(b'\n');
+            }
+            text
+        })
+        .collect();
+    blocks.iter().try_for_each(|text| w.write_all(text))
+}
+
+/// Appends `tag` and the exact coordinates of `values`, separated by spaces.
+fn push_vector(out: &mut Vec<u8>, tag: &str, values: impl IntoIterator<Item = f64>) {
+    out.extend_from_slice(tag.as_bytes());
+    for x in values {
+        out.push(b' ');
+        push_shortest(out, x, x.abs());
+    }
+}
+
+/// As [`push_vector`], each value in the shortest form of an f32.
+fn push_vector_f32(out: &mut Vec<u8>, tag: &str, values: &[f32]) {
+    out.extend_from_slice(tag.as_bytes());
+    for &x in values {
+        out.push(b' ');
+        push_shortest(out, x, f64::from(x.abs()));
     }
 }
 
@@ -45,30 +93,20 @@ pub fn write_obj_mesh<'a>(
     )?;
     match mesh {
         AnyMesh::F64(m) => {
-            for p in &m.positions {
-                write_vector(w, "v", *p)?;
-            }
-            for t in &m.uvs {
-                writeln!(w, "vt {} {}", format_f64(t.x), format_f64(t.y))?;
-            }
-            for n in &m.normals {
-                write_vector(w, "vn", *n)?;
-            }
+            write_lines(w, &m.positions, |out, p| {
+                push_vector(out, "v", p.to_array())
+            })?;
+            write_lines(w, &m.uvs, |out, t| push_vector(out, "vt", t.to_array()))?;
+            write_lines(w, &m.normals, |out, n| push_vector(out, "vn", n.to_array()))?;
         }
         AnyMesh::F32(m) => {
-            let line = |w: &mut dyn Write, tag: &str, v: &[f32]| {
-                let values: Vec<String> = v.iter().map(|&x| format_f32(x)).collect();
-                writeln!(w, "{tag} {}", values.join(" "))
-            };
-            for v in &m.vertices {
-                line(w, "v", &v.position)?;
-            }
-            for v in &m.vertices {
-                line(w, "vt", &v.uv)?;
-            }
-            for v in &m.vertices {
-                line(w, "vn", &v.normal)?;
-            }
+            write_lines(w, &m.vertices, |out, v| {
+                push_vector_f32(out, "v", &v.position)
+            })?;
+            write_lines(w, &m.vertices, |out, v| push_vector_f32(out, "vt", &v.uv))?;
+            write_lines(w, &m.vertices, |out, v| {
+                push_vector_f32(out, "vn", &v.normal)
+            })?;
         }
     }
     // Curve points follow the surface vertices.
@@ -76,9 +114,9 @@ pub fn write_obj_mesh<'a>(
     let mut next = mesh.vertex_count() + 1;
     for polyline in mesh.polylines() {
         first_points.push(next);
-        for p in &polyline.positions {
-            write_vector(w, "v", *p)?;
-        }
+        write_lines(w, &polyline.positions, |out, p| {
+            push_vector(out, "v", p.to_array())
+        })?;
         next += polyline.positions.len();
     }
     // Then each group in item order: its triangles, then an `l` statement per curve.
@@ -96,10 +134,11 @@ pub fn write_obj_mesh<'a>(
         let in_group = |item: u32| group.items.contains(&(item as usize));
         for part in mesh.parts().iter().filter(|p| in_group(p.item)) {
             let range = part.first_index as usize..(part.first_index + part.index_count) as usize;
-            for triangle in mesh.indices()[range].chunks_exact(3) {
+            let triangles: Vec<&[u32]> = mesh.indices()[range].chunks_exact(3).collect();
+            write_lines(w, &triangles, |out, triangle| {
                 let [a, b, c] = [triangle[0] + 1, triangle[1] + 1, triangle[2] + 1];
-                writeln!(w, "f {a}/{a}/{a} {b}/{b}/{b} {c}/{c}/{c}")?;
-            }
+                let _ = write!(out, "f {a}/{a}/{a} {b}/{b}/{b} {c}/{c}/{c}");
+            })?;
         }
         for (polyline, &first) in mesh.polylines().iter().zip(&first_points) {
             if in_group(polyline.item) {
@@ -111,15 +150,4 @@ pub fn write_obj_mesh<'a>(
         }
     }
     Ok(())
-}
-
-/// One `tag x y z` line, every coordinate exact.
-fn write_vector(w: &mut dyn Write, tag: &str, v: DVec3) -> Result<()> {
-    writeln!(
-        w,
-        "{tag} {} {} {}",
-        format_f64(v.x),
-        format_f64(v.y),
-        format_f64(v.z)
-    )
 }

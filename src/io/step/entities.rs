@@ -624,7 +624,7 @@ impl<'a> Model<'a> {
         end: DVec3,
         same_sense: bool,
     ) -> Result<BSplineCurve> {
-        let closed = start.distance(end) <= 1e-9 * (1.0 + start.length());
+        let closed = same_point(start, end);
         match curve {
             Curve::Line { .. } => {
                 if closed {
@@ -1284,6 +1284,12 @@ fn conic_arc(curve: &Curve, from: f64, to: f64) -> Result<BSplineCurve> {
     BSplineCurve::try_new(knots, &cartesian, Some(&weights))
 }
 
+/// Whether two model points are one (within 1e-9 of their distance from the origin, and
+/// 1e-9 near it): an edge's vertices, a vertex and its curve's end.
+fn same_point(a: DVec3, b: DVec3) -> bool {
+    a.distance(b) <= 1e-9 * (1.0 + a.length())
+}
+
 /// The parameter of `curve` nearest `p`: a line's projection, a conic's angle, a bounded
 /// curve's by a search over its spans refined by Newton steps.
 fn nearest_parameter(curve: &Curve, p: DVec3) -> f64 {
@@ -1296,7 +1302,15 @@ fn nearest_parameter(curve: &Curve, p: DVec3) -> f64 {
             (l.y / b).atan2(l.x / a)
         }
         Curve::Bounded(c) => {
-            let mut best = (f64::INFINITY, c.range().start);
+            // A vertex at one end of its curve, as most are, needs no search.
+            let range = c.range();
+            if let Some(end) = [range.start, range.end]
+                .into_iter()
+                .find(|&end| same_point(c.point(end), p))
+            {
+                return end;
+            }
+            let mut best = (f64::INFINITY, range.start);
             for span in c.span_breaks().windows(2) {
                 for k in 0..=16 {
                     let t = span[0] + (span[1] - span[0]) * f64::from(k) / 16.0;
@@ -1306,7 +1320,6 @@ fn nearest_parameter(curve: &Curve, p: DVec3) -> f64 {
                     }
                 }
             }
-            let range = c.range();
             let mut t = best.1;
             for _ in 0..16 {
                 let [q, d1, d2] = c.derivatives(t);
