@@ -400,18 +400,17 @@ impl<'a, const N: usize> Support<'a, N> {
             v.clamp(kv.domain().0, kv.domain().1),
         );
         let (span_u, span_v) = (ku.find_span(u), kv.find_span(v));
-        let mut bu = [[0.0; MAX_ORDER]; N];
-        let mut bv = [[0.0; MAX_ORDER]; N];
-        basis_ders(ku, span_u, u, order, &mut bu);
-        basis_ders(kv, span_v, v, order, &mut bv);
+        // Filled in place: the tables are a kilobyte, too much to copy on every evaluation.
         let mut support = Self {
             surface,
             span_u,
             span_v,
-            bu,
-            bv,
+            bu: [[0.0; MAX_ORDER]; N],
+            bv: [[0.0; MAX_ORDER]; N],
             reference: DVec3::ZERO,
         };
+        basis_ders(ku, span_u, u, order, &mut support.bu);
+        basis_ders(kv, span_v, v, order, &mut support.bv);
         let (p, q) = (ku.degree(), kv.degree());
         support.reference = dominant((0..=q).flat_map(|b| {
             let support = &support;
