@@ -9,7 +9,9 @@ exact area of its faces and volume of its solids (BRepGProp); knotwork tessellat
 with the exact ones (volumes only where the file has solids). T is REL times the diagonal of Open CASCADE's
 bounding box of the shape. Prints one Markdown table row per file: faces meshed, triangles,
 mesh area against the exact one, and seconds to read and mesh (knotwork's includes writing
-the OBJ file; Open CASCADE's is in-process, after Python's start).
+the OBJ file; Open CASCADE's is in-process, after Python's start): the median of RUNS runs
+of each, alternating (5 unless the environment variable RUNS says otherwise), as single
+runs on a shared machine vary by a tenth and more.
 
 Open CASCADE comes from PyPI (`pip install cadquery-ocp`); it is a comparison tool only,
 never a dependency of the crate.
@@ -18,6 +20,8 @@ Usage: tools/compare_occt.py KNOTWORK_BINARY REL FILE...
 """
 
 import math
+import os
+import statistics
 import re
 import subprocess
 import sys
@@ -149,6 +153,7 @@ def main():
           "area error knotwork | area error OCCT | volume error knotwork | volume error OCCT | "
           "seconds knotwork | seconds OCCT |")
     print("|---|---|---|---|---|---|---|---|---|---|")
+    runs = int(os.environ.get("RUNS", "5"))
     for path in files:
         measured = occt(path, rel)
         if measured is None:
@@ -157,6 +162,11 @@ def main():
         (faces, meshed, occ_triangles, occ_area, exact, occ_volume, exact_volume, occ_seconds,
          tolerance) = measured
         items, dropped, triangles, area, volume, seconds = knotwork(binary, path, tolerance)
+        occ_times, times = [occ_seconds], [seconds]
+        for _ in range(runs - 1):
+            occ_times.append(occt(path, rel)[7])
+            times.append(knotwork(binary, path, tolerance)[5])
+        occ_seconds, seconds = statistics.median(occ_times), statistics.median(times)
         # A STEP item is a shell: count faces, of which `dropped` were left out.
         step = Path(path).suffix.lower() in (".stp", ".step")
         total = faces if step else items
