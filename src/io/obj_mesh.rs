@@ -5,26 +5,33 @@ use super::cover_groups;
 use crate::mesh::AnyMesh;
 use crate::scene::ItemGroup;
 use rayon::prelude::*;
-use std::fmt::Display;
+use std::fmt::{Display, LowerExp};
 use std::io::{Result, Write};
 
 /// Formats `x` in the shortest form that parses back to the same f64: plain decimal for
 /// ordinary magnitudes, exponent form (`6.66134e-16`) for very small or large ones.
 pub fn format_f64(x: f64) -> String {
-    let mut text = Vec::new();
-    push_shortest(&mut text, x, x.abs());
-    String::from_utf8(text).expect("numbers format as ASCII")
+    shortest(x)
 }
 
 /// As [`format_f64`], for the shortest form that parses back to the same f32.
 pub fn format_f32(x: f32) -> String {
+    shortest(x)
+}
+
+/// A number that formats in its own shortest form: f64 or f32.
+trait Shortest: Display + LowerExp + Copy + Into<f64> {}
+impl<T: Display + LowerExp + Copy + Into<f64>> Shortest for T {}
+
+fn shortest(x: impl Shortest) -> String {
     let mut text = Vec::new();
-    push_shortest(&mut text, x, f64::from(x.abs()));
+    push_shortest(&mut text, x);
     String::from_utf8(text).expect("numbers format as ASCII")
 }
 
 /// Appends `x` as [`format_f64`] spells it.
-fn push_shortest(out: &mut Vec<u8>, x: impl Display + std::fmt::LowerExp, magnitude: f64) {
+fn push_shortest(out: &mut Vec<u8>, x: impl Shortest) {
+    let magnitude = x.into().abs();
     // Writing to a Vec cannot fail.
     let _ = if magnitude != 0.0 && !(1e-5..1e16).contains(&magnitude) {
         write!(out, "{x:e}")
@@ -58,20 +65,11 @@ fn write_lines<T: Sync>(
 }
 
 /// Appends `tag` and the exact coordinates of `values`, separated by spaces.
-fn push_vector(out: &mut Vec<u8>, tag: &str, values: impl IntoIterator<Item = f64>) {
+fn push_vector<T: Shortest>(out: &mut Vec<u8>, tag: &str, values: impl IntoIterator<Item = T>) {
     out.extend_from_slice(tag.as_bytes());
     for x in values {
         out.push(b' ');
-        push_shortest(out, x, x.abs());
-    }
-}
-
-/// As [`push_vector`], each value in the shortest form of an f32.
-fn push_vector_f32(out: &mut Vec<u8>, tag: &str, values: &[f32]) {
-    out.extend_from_slice(tag.as_bytes());
-    for &x in values {
-        out.push(b' ');
-        push_shortest(out, x, f64::from(x.abs()));
+        push_shortest(out, x);
     }
 }
 
@@ -100,13 +98,9 @@ pub fn write_obj_mesh<'a>(
             write_lines(w, &m.normals, |out, n| push_vector(out, "vn", n.to_array()))?;
         }
         AnyMesh::F32(m) => {
-            write_lines(w, &m.vertices, |out, v| {
-                push_vector_f32(out, "v", &v.position)
-            })?;
-            write_lines(w, &m.vertices, |out, v| push_vector_f32(out, "vt", &v.uv))?;
-            write_lines(w, &m.vertices, |out, v| {
-                push_vector_f32(out, "vn", &v.normal)
-            })?;
+            write_lines(w, &m.vertices, |out, v| push_vector(out, "v", v.position))?;
+            write_lines(w, &m.vertices, |out, v| push_vector(out, "vt", v.uv))?;
+            write_lines(w, &m.vertices, |out, v| push_vector(out, "vn", v.normal))?;
         }
     }
     // Curve points follow the surface vertices.
@@ -134,9 +128,9 @@ pub fn write_obj_mesh<'a>(
         let in_group = |item: u32| group.items.contains(&(item as usize));
         for part in mesh.parts().iter().filter(|p| in_group(p.item)) {
             let range = part.first_index as usize..(part.first_index + part.index_count) as usize;
-            let triangles: Vec<&[u32]> = mesh.indices()[range].chunks_exact(3).collect();
-            write_lines(w, &triangles, |out, triangle| {
-                let [a, b, c] = [triangle[0] + 1, triangle[1] + 1, triangle[2] + 1];
+            let (triangles, _) = mesh.indices()[range].as_chunks::<3>();
+            write_lines(w, triangles, |out, triangle| {
+                let [a, b, c] = triangle.map(|k| k + 1);
                 let _ = write!(out, "f {a}/{a}/{a} {b}/{b}/{b} {c}/{c}/{c}");
             })?;
         }
