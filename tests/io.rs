@@ -4940,3 +4940,174 @@ fn streamed_files_the_disk_cannot_hold_are_refused() {
     );
     assert!(!Path::new(&out).exists());
 }
+
+/// A one-face STEP part on a folded B-spline surface (degree 1: a sheet at z = 0 for
+/// u ∈ [0, ⅓], a wall at x = 1, a sheet at z = `gap` for u ∈ [⅔, 1] running back over the
+/// first): the face is the square x, y ∈ [0.2, 0.8] of the upper sheet, but its edges' model
+/// lines lie at 0.3·gap, nearer the lower sheet — a file whose edges miss their face by
+/// 0.7·gap (within the mesher's allowance of 1e-3 of the face's size). With `pcurves`, each
+/// edge is a SURFACE_CURVE whose pcurve draws it on the upper sheet.
+fn step_folded_face(gap: f64, pcurves: bool) -> String {
+    let mut w = StepWriter::default();
+    let rows: Vec<String> = [(0.0, 0.0), (1.0, 0.0), (1.0, gap), (0.0, gap)]
+        .iter()
+        .map(|&(x, z)| {
+            let (a, b) = (
+                w.point(DVec3::new(x, 0.0, z)),
+                w.point(DVec3::new(x, 1.0, z)),
+            );
+            format!("({a},{b})")
+        })
+        .collect();
+    let surface = w.add(format!(
+        "B_SPLINE_SURFACE_WITH_KNOTS('',1,1,({}),.UNSPECIFIED.,.F.,.F.,.F.,(2,1,1,2),(2,2),(0.,0.333333333333333,0.666666666666667,1.),(0.,1.),.UNSPECIFIED.)",
+        rows.join(",")
+    ));
+    // The upper sheet's u at x (x runs from 1 back to 0 over u ∈ [⅔, 1]).
+    let u_of = |x: f64| 0.666666666666667 + (1.0 - x) * 0.333333333333333;
+    let corners = [(0.2, 0.2), (0.2, 0.8), (0.8, 0.8), (0.8, 0.2)];
+    let vertices: Vec<String> = corners
+        .iter()
+        .map(|&(x, y)| w.vertex(DVec3::new(x, y, 0.3 * gap)))
+        .collect();
+    let mut edges = Vec::new();
+    for k in 0..4 {
+        let ((x0, y0), (x1, y1)) = (corners[k], corners[(k + 1) % 4]);
+        let (start, end) = (DVec3::new(x0, y0, 0.3 * gap), DVec3::new(x1, y1, 0.3 * gap));
+        let origin = w.point(start);
+        let direction = w.direction((end - start).normalize());
+        let vector = w.add(format!(
+            "VECTOR('',{direction},{:?})",
+            (end - start).length()
+        ));
+        let mut curve = w.add(format!("LINE('',{origin},{vector})"));
+        if pcurves {
+            // The same line in (u, v), with the same parameter: 0 at the start, 1 at the end.
+            let (uv0, uv1) = ((u_of(x0), y0), (u_of(x1), y1));
+            let origin = w.add(format!("CARTESIAN_POINT('',({:?},{:?}))", uv0.0, uv0.1));
+            let (du, dv) = (uv1.0 - uv0.0, uv1.1 - uv0.1);
+            let length = du.hypot(dv);
+            let direction = w.add(format!(
+                "DIRECTION('',({:?},{:?}))",
+                du / length,
+                dv / length
+            ));
+            let vector = w.add(format!("VECTOR('',{direction},{length:?})"));
+            let line = w.add(format!("LINE('',{origin},{vector})"));
+            let context = w.add(
+                "( GEOMETRIC_REPRESENTATION_CONTEXT(2) PARAMETRIC_REPRESENTATION_CONTEXT() REPRESENTATION_CONTEXT('',''))",
+            );
+            let representation = w.add(format!(
+                "DEFINITIONAL_REPRESENTATION('',({line}),{context})"
+            ));
+            let pcurve = w.add(format!("PCURVE('',{surface},{representation})"));
+            curve = w.add(format!("SURFACE_CURVE('',{curve},({pcurve}),.PCURVE_S1.)"));
+        }
+        edges.push((
+            w.add(format!(
+                "EDGE_CURVE('',{},{},{curve},.T.)",
+                vertices[k],
+                vertices[(k + 1) % 4]
+            )),
+            true,
+        ));
+    }
+    // The upper sheet's S_u × S_v points down (u runs along −x): the loop runs clockwise
+    // seen from above, counter-clockwise about the face's normal.
+    let face = w.face(&edges, &surface, true);
+    let shell = w.add(format!("OPEN_SHELL('',({face}))"));
+    let model = w.add(format!("SHELL_BASED_SURFACE_MODEL('folded',({shell}))"));
+    let unit = w.add("(LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.))");
+    let context = w.add(format!(
+        "(GEOMETRIC_REPRESENTATION_CONTEXT(3) GLOBAL_UNIT_ASSIGNED_CONTEXT(({unit})) REPRESENTATION_CONTEXT('',''))"
+    ));
+    w.add(format!(
+        "MANIFOLD_SURFACE_SHAPE_REPRESENTATION('',({model}),{context})"
+    ));
+    step_file(&w.0)
+}
+
+#[test]
+fn step_pcurves_put_edges_on_the_sheet_the_file_means() {
+    let gap = 1e-3;
+    // The upper sheet's normal points down; the lower sheet's up. Every vertex normal of the
+    // mesh says which sheet the face was meshed on (its positions are the edges' points,
+    // between the two).
+    let normals_z = |pcurves: bool| -> Vec<f64> {
+        let scene = step_scene(&step_folded_face(gap, pcurves));
+        assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
+        let knotwork::Geometry::Shell(shell) = &scene.items[0].geometry else {
+            panic!("a STEP face is a shell")
+        };
+        assert_eq!(shell.faces()[0].traces.len(), if pcurves { 4 } else { 0 });
+        let mesh = step_mesh(&scene, 1e-3);
+        assert!(!mesh.indices.is_empty());
+        mesh.normals.iter().map(|n| n.z).collect()
+    };
+    let with = normals_z(true);
+    assert!(with.iter().all(|&z| z < -1.0 + 1e-12), "{with:?}");
+    // Without them the edges' points go to the nearer sheet: the face is meshed there.
+    let without = normals_z(false);
+    assert!(without.iter().all(|&z| z > 1.0 - 1e-12), "{without:?}");
+}
+
+#[test]
+fn step_pcurves_trace_their_edges_on_every_analytic_surface() {
+    // Open CASCADE writes a pcurve for every edge on every face: on planes, cylinders, cones,
+    // spheres and tori (in angles and heights) and on seams (a pair each, left to the seam
+    // rules). Every other edge of every face gets a trace, and its points are the edge's.
+    for file in ["data/fixture_assembly.step", "data/occt_primitives.step"] {
+        let scene = read_scene(Path::new(file)).unwrap();
+        assert!(scene.dropped.is_empty(), "{file}: {:?}", scene.dropped);
+        let size = scene.control_box_diagonal();
+        let (mut traced, mut run_once, mut worst) = (0, 0, 0.0f64);
+        for item in &scene.items {
+            let knotwork::Geometry::Shell(shell) = &item.geometry else {
+                panic!("a STEP solid is a shell")
+            };
+            for face in shell.faces() {
+                let mut runs = std::collections::HashMap::new();
+                for bound in &face.bounds {
+                    if let knotwork::geom::brep::Bound::Edges(chain) = bound {
+                        for o in chain {
+                            *runs.entry(o.edge).or_insert(0) += 1;
+                        }
+                    }
+                }
+                run_once += runs.values().filter(|&&n| n == 1).count();
+                for trace in &face.traces {
+                    traced += 1;
+                    let curve = &shell.edges()[trace.edge].curve;
+                    let range = curve.range();
+                    let step = range.width() / 1024.0;
+                    for uv in &trace.params {
+                        let p = face.surface.point(uv.x, uv.y);
+                        // The nearest of 1025 samples, polished by Newton steps on
+                        // (C(t) − p)·C′(t) = 0.
+                        let mut t = (0..=1024)
+                            .map(|k| range.start + k as f64 * step)
+                            .min_by(|&a, &b| {
+                                curve
+                                    .point(a)
+                                    .distance(p)
+                                    .total_cmp(&curve.point(b).distance(p))
+                            })
+                            .unwrap();
+                        for _ in 0..8 {
+                            let [c, d1, d2] = curve.derivatives(t);
+                            let slope = (c - p).dot(d1);
+                            let curvature = d1.length_squared() + (c - p).dot(d2);
+                            t = (t - slope / curvature).clamp(range.start, range.end);
+                        }
+                        worst = worst.max(curve.point(t).distance(p) / size);
+                    }
+                }
+            }
+        }
+        assert_eq!(traced, run_once, "{file}");
+        assert!(
+            worst <= 1e-12,
+            "{file}: a trace point {worst:e} of the size off its edge"
+        );
+    }
+}

@@ -55,6 +55,20 @@ pub struct Face {
     /// The exact shape `surface` converts, where the file names one the mesher has a
     /// closed-form deviation for (see [`Analytic`]).
     pub shape: Option<Analytic>,
+    /// Where some of its edges run in `surface`'s parameters, as the file draws them there
+    /// (pcurves); at most one per edge.
+    pub traces: Vec<EdgeTrace>,
+}
+
+/// Where an edge runs in a face's parameters: points of the face's (u, v) along it, as the
+/// file's curve in the parameter domain (a pcurve) gives them, in no particular order. The
+/// mesher starts the inversion of each of the edge's points onto the face from the trace's
+/// point nearest it in model space, so the point takes the sheet, the side of a seam and
+/// the parameter at a pole that the file meant, where the edge alone is ambiguous.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EdgeTrace {
+    pub edge: usize,
+    pub params: Vec<glam::DVec2>,
 }
 
 impl Shell {
@@ -78,6 +92,12 @@ impl Shell {
         }
         let mut uses = vec![[0u32; 2]; edges.len()];
         for face in &faces {
+            if let Some(trace) = face.traces.iter().find(|t| t.edge >= edges.len()) {
+                return Err(invalid(format!(
+                    "{}: a trace names edge {}, which does not exist",
+                    face.name, trace.edge
+                )));
+            }
             for (b, bound) in face.bounds.iter().enumerate() {
                 let chain = match bound {
                     Bound::Vertex(v) if *v < vertices.len() => continue,

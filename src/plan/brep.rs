@@ -9,7 +9,9 @@
 //!    the curve meets the seam.
 //! 2. **Loops in parameters.** A face's loops are its edges' shared points inverted onto
 //!    its surface, each from the one before (so a point on a seam or pole takes the side
-//!    its neighbours are on; the second run along a seam edge the other side).
+//!    its neighbours are on; the second run along a seam edge the other side), starting
+//!    from the nearest point of the edge's trace on the face where the file draws one (a
+//!    pcurve: the sheet of a folded surface, the side of a seam that the file means).
 //! 3. **Seams and poles.** A loop that goes round a closed surface (a circle on a cylinder
 //!    with no seam edge) is cut where it jumps across the seam; the pieces are closed by
 //!    walking the boundary of the parameter range counter-clockwise with the face on the
@@ -95,9 +97,14 @@ pub fn plan_shell(shell: &Shell, limits: SamplingLimits, max_vertices: usize) ->
         .edges()
         .par_iter()
         .zip(&faces_of_edge)
-        .map(|(edge, faces)| {
+        .enumerate()
+        .map(|(e, (edge, faces))| {
+            let traces: Vec<Option<Trace>> = faces
+                .iter()
+                .map(|&f| Trace::of_edge(shell, e, f, &views[f]))
+                .collect();
             let faces: Vec<&FaceView> = faces.iter().map(|&f| &views[f]).collect();
-            sample_edge(&edge.curve, &faces, limits)
+            sample_edge(&edge.curve, &faces, &traces, limits)
         })
         .collect();
     let mut plan = ShellPlan {
@@ -144,6 +151,63 @@ pub fn plan_shell(shell: &Shell, limits: SamplingLimits, max_vertices: usize) ->
         });
     }
     Ok(plan)
+}
+
+/// Where an edge runs in a face's parameters as the file gives it ([`crate::geom::brep::EdgeTrace`]), with the
+/// surface's points there.
+struct Trace {
+    params: Vec<DVec2>,
+    points: Vec<DVec3>,
+}
+
+impl Trace {
+    /// Face `f`'s trace of edge `e`, where it has one, runs along the edge once (a seam
+    /// edge's two runs are left to the seam rules), and the trace reaches both of the edge's
+    /// vertices (within [`OFF_FACE`] of the face's size: else its parameters are not the
+    /// ones the edge has, and it is not used).
+    fn of_edge(shell: &Shell, e: usize, f: usize, view: &FaceView) -> Option<Trace> {
+        let face = &shell.faces()[f];
+        let trace = face.traces.iter().find(|t| t.edge == e)?;
+        let runs: usize = face
+            .bounds
+            .iter()
+            .map(|bound| match bound {
+                Bound::Edges(chain) => chain.iter().filter(|o| o.edge == e).count(),
+                Bound::Vertex(_) => 0,
+            })
+            .sum();
+        if runs != 1 || trace.params.is_empty() {
+            return None;
+        }
+        let points: Vec<DVec3> = trace
+            .params
+            .iter()
+            .map(|uv| view.surface.point(uv.x, uv.y))
+            .collect();
+        let edge = &shell.edges()[e];
+        let reaches = |vertex: usize| {
+            let v = shell.vertices()[vertex];
+            points.iter().any(|p| p.distance(v) <= OFF_FACE * view.size)
+        };
+        (reaches(edge.start) && reaches(edge.end)).then(|| Trace {
+            params: trace.params.clone(),
+            points,
+        })
+    }
+
+    /// The trace's parameters nearest `p` in model space.
+    fn seed(&self, p: DVec3) -> DVec2 {
+        let (k, _) = self
+            .points
+            .iter()
+            .map(|q| q.distance_squared(p))
+            .enumerate()
+            .fold(
+                (0, f64::INFINITY),
+                |best, (k, d)| if d < best.1 { (k, d) } else { best },
+            );
+        self.params[k]
+    }
 }
 
 /// An edge's points, and each of its faces' parameters of them (`None` where the point
@@ -366,10 +430,12 @@ impl<'a> FaceView<'a> {
     }
 }
 
-/// The points of an edge's curve from its start to its end (see the module's step 1).
+/// The points of an edge's curve from its start to its end (see the module's step 1); each
+/// point is inverted onto each face from the face's trace of the edge where it has one.
 fn sample_edge(
     curve: &crate::geom::BSplineCurve,
     faces: &[&FaceView],
+    traces: &[Option<Trace>],
     limits: SamplingLimits,
 ) -> SampledEdge {
     // Half the tolerance for the chord and half for the surface beside it, except where
@@ -381,8 +447,10 @@ fn sample_edge(
     } else {
         0.5 * limits.tolerance
     };
-    let uv_of =
-        |p: DVec3, near: Option<DVec2>, view: &FaceView| view.invert(p, None, near, [None; 2]).ok();
+    let uv_of = |p: DVec3, near: Option<DVec2>, f: usize| {
+        let seed = traces[f].as_ref().map(|trace| trace.seed(p));
+        faces[f].invert(p, seed, near, [None; 2]).ok()
+    };
     // Whether the piece (t0, t1) may be one segment: its chord follows the curve at ¼, ½, ¾
     // and at the parameters `inside` it, in model space and through every face's
     // parameters, from the face's parameters of its start (`starts`, moved to the other
@@ -411,14 +479,14 @@ fn sample_edge(
             let Some(mut uv_a) = starts[f] else {
                 continue;
             };
-            let Some(mut uv_b) = uv_of(b, Some(uv_a), view) else {
+            let Some(mut uv_b) = uv_of(b, Some(uv_a), f) else {
                 continue;
             };
             // A start on the seam takes the side of the piece's other end.
             if view.jumps(uv_a, uv_b) && !view.jumps(view.twin(uv_a), uv_b) {
                 uv_a = view.twin(uv_a);
                 starts[f] = Some(uv_a);
-                uv_b = uv_of(b, Some(uv_a), view).unwrap_or(uv_b);
+                uv_b = uv_of(b, Some(uv_a), f).unwrap_or(uv_b);
             }
             if view.jumps(uv_a, uv_b) {
                 return (false, Some(seam_crossing(curve, view, t0, t1, uv_a)));
@@ -447,7 +515,7 @@ fn sample_edge(
     let mut out = vec![curve.point(starts[0])];
     // Each face's parameters of the last point kept: depth-first and left first, every
     // piece starts there, so only its end is inverted (from the start's parameters).
-    let first_uv: Vec<Option<DVec2>> = faces.iter().map(|view| uv_of(out[0], None, view)).collect();
+    let first_uv: Vec<Option<DVec2>> = (0..faces.len()).map(|f| uv_of(out[0], None, f)).collect();
     let mut last_uv = first_uv.clone();
     let mut end_uv: Vec<Option<DVec2>> = vec![None; faces.len()];
     let mut uvs: Vec<Vec<Option<DVec2>>> = last_uv.iter().map(|&uv| vec![uv]).collect();
@@ -461,8 +529,8 @@ fn sample_edge(
                 if !ok {
                     // Kept unrefined: the faces' parameters of its end, from its start.
                     let b = curve.point(t1);
-                    for (f, view) in faces.iter().enumerate() {
-                        end_uv[f] = last_uv[f].and_then(|near| uv_of(b, Some(near), view));
+                    for f in 0..faces.len() {
+                        end_uv[f] = last_uv[f].and_then(|near| uv_of(b, Some(near), f));
                     }
                 }
                 last_uv.clone_from(&end_uv);
@@ -1037,7 +1105,7 @@ mod tests {
         assert!(views.iter().all(|view| view.closed_form));
         let faces: Vec<&FaceView> = views.iter().collect();
         let limits = SamplingLimits::tolerance(tolerance);
-        let (points, uvs) = sample_edge(&rim, &faces, limits);
+        let (points, uvs) = sample_edge(&rim, &faces, &[None, None], limits);
         let fewest = (TAU / (2.0 * (1.0 - tolerance / radius).acos())).ceil() as usize;
         let chords = points.len() - 1;
         assert!(

@@ -5,12 +5,12 @@
 use super::file::{ExchangeFile, Instance, Record, Value};
 use crate::error::{Error, Result};
 use crate::geom::analytic::Analytic;
-use crate::geom::brep::{Bound, Edge, Face, OrientedEdge, Shell};
+use crate::geom::brep::{Bound, Edge, EdgeTrace, Face, OrientedEdge, Shell};
 use crate::geom::curves::join;
 use crate::geom::shapes::{degenerate_torus_section, ellipsoid, revolve, torus_section, unit_arc};
-use crate::geom::{BSplineCurve, BSplineSurface, Interval, KnotVector};
+use crate::geom::{AxisMap, BSplineCurve, BSplineSurface, Interval, KnotVector, ParamMap};
 use crate::scene::Dropped;
-use glam::{DMat4, DVec3};
+use glam::{DMat4, DVec2, DVec3};
 use std::cell::LazyCell;
 use std::collections::HashMap;
 use std::f64::consts::{FRAC_PI_2, TAU};
@@ -79,6 +79,58 @@ enum Curve {
     },
     Bounded(BSplineCurve),
 }
+
+impl Curve {
+    /// The point at `t` (a conic's angle in radians; a bounded curve's parameter clamped to
+    /// its range).
+    fn at(&self, t: f64) -> DVec3 {
+        match self {
+            Curve::Line { origin, direction } => *origin + t * *direction,
+            Curve::Conic { frame, a, b } => {
+                let (sin, cos) = t.sin_cos();
+                frame.apply(DVec3::new(a * cos, b * sin, 0.0))
+            }
+            Curve::Bounded(c) => {
+                let range = c.range();
+                c.point(t.clamp(range.start, range.end))
+            }
+        }
+    }
+}
+
+/// An edge's curve in the parameters of one surface (a PCURVE of a SURFACE_CURVE or
+/// SEAM_CURVE), with the edge's stretch of it.
+#[derive(Clone, Debug)]
+struct Pcurve {
+    /// The surface entity the curve lies on.
+    surface: u64,
+    /// Read as a model curve: its points are the file's parameters times the length scale.
+    curve: Curve,
+    /// The curve's parameters at the edge's start and end (in the file's unit: a conic's
+    /// angle unit), as the edge's model curve has them: a pcurve shares its curve's
+    /// parameter.
+    range: (f64, f64),
+    /// The parameter's period where the model curve is a conic (a turn in the file's angle
+    /// unit): the pcurve's stretch may lie a whole turn on.
+    period: Option<f64>,
+}
+
+/// How a surface's parameters as the file has them (the parameters of its pcurves) map onto
+/// those of its B-spline form: each multiplied by `scale` (to radians and millimetres), then
+/// `map`.
+#[derive(Clone, Copy, Debug)]
+struct PcurveMap {
+    scale: DVec2,
+    map: ParamMap,
+}
+
+/// A surface in B-spline form, its exact shape where the mesher has a closed form for it,
+/// and how its pcurves' parameters map onto the B-spline form's where knotwork knows.
+type ReadSurface = (BSplineSurface, Option<Analytic>, Option<PcurveMap>);
+
+/// Fewest points of a pcurve an edge's trace on a face has (a bounded pcurve gets 4 per
+/// knot span): they only seed the inversions of the edge's points onto the face.
+const TRACE_POINTS: usize = 64;
 
 /// The reader over one parsed file.
 pub struct Model<'a> {
@@ -365,15 +417,17 @@ impl<'a> Model<'a> {
         Ok(self.direction(rec.reference(1)?)? * magnitude)
     }
 
-    /// AXIS2_PLACEMENT_3D (location, axis = z, ref_direction ≈ x) as a right-handed frame.
+    /// AXIS2_PLACEMENT_3D (location, axis = z, ref_direction ≈ x) as a right-handed frame;
+    /// AXIS2_PLACEMENT_2D (location, ref_direction) as one about z (a pcurve's circle).
     fn frame(&self, id: u64) -> Result<Frame> {
-        let rec = self.expect(id, &["AXIS2_PLACEMENT_3D"])?;
+        let rec = self.expect(id, &["AXIS2_PLACEMENT_3D", "AXIS2_PLACEMENT_2D"])?;
         let origin = self.point(rec.reference(1)?)?;
+        let planar = rec.record.name == "AXIS2_PLACEMENT_2D";
         let z = match rec.optional_reference(2)? {
-            Some(axis) => self.direction(axis)?,
-            None => DVec3::Z,
+            Some(axis) if !planar => self.direction(axis)?,
+            _ => DVec3::Z,
         };
-        let reference = match rec.optional_reference(3)? {
+        let reference = match rec.optional_reference(if planar { 2 } else { 3 })? {
             Some(r) => self.direction(r)?,
             None if z.x.abs() < 0.9 => DVec3::X,
             None => DVec3::Y,
@@ -624,67 +678,95 @@ impl<'a> Model<'a> {
         end: DVec3,
         same_sense: bool,
     ) -> Result<BSplineCurve> {
-        let closed = same_point(start, end);
-        match curve {
-            Curve::Line { .. } => {
-                if closed {
-                    return Err(Error::Unsupported {
-                        what: "a closed edge on a line".into(),
-                    });
-                }
-                polyline(&[start, end])
-            }
-            Curve::Conic { frame, a, b } => {
-                let angle = |p: DVec3| {
-                    let l = frame.local(p);
-                    (l.y / b).atan2(l.x / a)
-                };
-                let (a0, a1) = (angle(start), angle(end));
-                let (from, to) = if same_sense { (a0, a1) } else { (a1, a0) };
-                let mut sweep = (to - from).rem_euclid(TAU);
-                if closed || sweep < 1e-12 {
-                    sweep = TAU;
-                }
-                let arc = conic_arc(curve, from, from + sweep)?;
-                Ok(if same_sense { arc } else { arc.reversed() })
-            }
-            Curve::Bounded(c) => {
-                let range = c.range();
-                let (t0, t1) = if closed {
-                    if same_sense {
-                        (range.start, range.end)
-                    } else {
-                        (range.end, range.start)
-                    }
-                } else {
-                    (
-                        nearest_parameter(curve, start),
-                        nearest_parameter(curve, end),
-                    )
-                };
-                let (low, high) = (t0.min(t1), t0.max(t1));
-                if high <= low {
-                    return Err(Error::Unsupported {
-                        what: "an edge whose vertices are one point of its curve".into(),
-                    });
-                }
-                let cut = c.clone().with_range(Interval::new(low, high))?;
-                Ok(if t0 <= t1 { cut } else { cut.reversed() })
-            }
-        }
+        let (t0, t1) = edge_parameters(curve, start, end, same_sense)?;
+        let (low, high) = (t0.min(t1), t0.max(t1));
+        let cut = match curve {
+            Curve::Line { .. } => return polyline(&[start, end]),
+            Curve::Conic { .. } => conic_arc(curve, low, high)?,
+            Curve::Bounded(c) => c.clone().with_range(Interval::new(low, high))?,
+        };
+        Ok(if t0 <= t1 { cut } else { cut.reversed() })
+    }
+
+    /// The pcurves of an edge's `geometry` where it is a SURFACE_CURVE or SEAM_CURVE: each
+    /// surface it lies on, with the curve there. One that cannot be read is left out (the
+    /// edge is then put on that face by its model points alone).
+    fn pcurves(&self, geometry: u64) -> Vec<(u64, Curve)> {
+        let Ok(rec) = self.expect(geometry, &["SURFACE_CURVE", "SEAM_CURVE"]) else {
+            return Vec::new();
+        };
+        let Ok(associated) = rec.references(2) else {
+            return Vec::new();
+        };
+        associated
+            .into_iter()
+            .filter_map(|id| {
+                let pcurve = self.expect(id, &["PCURVE"]).ok()?;
+                let representation = self
+                    .expect(pcurve.reference(2).ok()?, &["DEFINITIONAL_REPRESENTATION"])
+                    .ok()?;
+                let item = *representation.references(1).ok()?.first()?;
+                Some((pcurve.reference(1).ok()?, self.curve(item, 1).ok()?))
+            })
+            .collect()
+    }
+
+    /// The file's parameters (s, t) of a pcurve's point at its parameter `t` (in the file's
+    /// unit: a conic's angle unit).
+    fn pcurve_point(&self, curve: &Curve, t: f64) -> DVec2 {
+        let t = match curve {
+            Curve::Conic { .. } => t * self.angle_scale,
+            _ => t,
+        };
+        (curve.at(t) / self.length_scale).truncate()
+    }
+
+    /// Points of `pcurve`'s stretch along its edge, in the parameters of `surface` (the
+    /// B-spline form of the surface it lies on, `map` from the file's); `None` where the
+    /// stretch leaves the surface's range (a conic's a turn on or back is tried too).
+    fn trace(
+        &self,
+        pcurve: &Pcurve,
+        map: PcurveMap,
+        surface: &BSplineSurface,
+    ) -> Option<Vec<DVec2>> {
+        let count = match &pcurve.curve {
+            Curve::Bounded(c) => (4 * c.span_breaks().len()).clamp(TRACE_POINTS, 4096),
+            _ => TRACE_POINTS,
+        };
+        let (ranges, slack) = ([surface.range_u(), surface.range_v()], 1e-6);
+        let (t0, t1) = pcurve.range;
+        let shifts = match pcurve.period {
+            Some(period) => vec![0.0, period, -period],
+            None => vec![0.0],
+        };
+        shifts.into_iter().find_map(|shift| {
+            (0..=count)
+                .map(|k| {
+                    let t = t0 + (t1 - t0) * k as f64 / count as f64 + shift;
+                    let st = self.pcurve_point(&pcurve.curve, t) * map.scale;
+                    let uv = map.map.apply(st);
+                    // The map clamps an angle to its sweep: a point it moved is outside.
+                    let inside = map.map.inverse(uv).distance(st) <= slack * (1.0 + st.length())
+                        && (0..2).all(|axis| {
+                            let range = ranges[axis];
+                            let margin = slack * range.width();
+                            uv[axis] >= range.start - margin && uv[axis] <= range.end + margin
+                        });
+                    inside.then_some(uv)
+                })
+                .collect()
+        })
     }
 
     // ---- surfaces ----------------------------------------------------------------------
 
     /// The surface `id` in B-spline form, reaching past every point of `extent` (the face's
     /// edges) where the surface is unbounded, with its exact shape where the mesher has a
-    /// closed form for it (a sphere, a circular cylinder or cone).
-    fn surface(
-        &self,
-        id: u64,
-        extent: &Extent,
-        depth: usize,
-    ) -> Result<(BSplineSurface, Option<Analytic>)> {
+    /// closed form for it (a sphere, a circular cylinder or cone), and the map from the
+    /// file's parameters of it to the B-spline form's where pcurves on it can be used (a
+    /// B-spline surface, plane, cylinder, cone, sphere or torus, and offsets of those).
+    fn surface(&self, id: u64, extent: &Extent, depth: usize) -> Result<ReadSurface> {
         self.offset_surface(id, extent, depth, 0.0)
     }
 
@@ -698,7 +780,7 @@ impl<'a> Model<'a> {
         extent: &Extent,
         depth: usize,
         offset: f64,
-    ) -> Result<(BSplineSurface, Option<Analytic>)> {
+    ) -> Result<ReadSurface> {
         self.depth_check(id, depth)?;
         let instance = self.instance(id)?;
         let wrap = |e: Error| in_entity(id, instance, e);
@@ -714,7 +796,13 @@ impl<'a> Model<'a> {
             }
             return self
                 .bspline_surface(id, instance)
-                .map(|s| (s, None))
+                .map(|s| {
+                    let map = PcurveMap {
+                        scale: DVec2::ONE,
+                        map: ParamMap::SAME,
+                    };
+                    (s, None, Some(map))
+                })
                 .map_err(wrap);
         }
         let record = &instance.records[0];
@@ -737,6 +825,12 @@ impl<'a> Model<'a> {
         // The exact shape of a sphere, circular cylinder or cone, for the mesher's
         // closed-form deviation.
         let mut shape = None;
+        // The file's parameters of the surface to the B-spline form's.
+        let mut map: Option<PcurveMap> = None;
+        let (length, angle) = (self.length_scale, self.angle_scale);
+        let around = AxisMap::Angle {
+            angles: Interval::new(0.0, TAU),
+        };
         let result = match record.name.as_str() {
             "PLANE" => {
                 let mut frame = self.frame(rec.reference(1)?)?;
@@ -753,6 +847,20 @@ impl<'a> Model<'a> {
                         ))
                     })
                     .collect();
+                // The file's (u, v) are the local x and y (file units); the patch's run from
+                // 0 at the low corner to 1 at the high one.
+                let affine = |low: f64, high: f64| AxisMap::Affine {
+                    scale: 1.0 / (high - low),
+                    offset: -low / (high - low),
+                };
+                map = Some(PcurveMap {
+                    scale: DVec2::splat(length),
+                    map: ParamMap {
+                        swap: false,
+                        u: affine(low.x, high.x),
+                        v: affine(low.y, high.y),
+                    },
+                });
                 let knots = KnotVector::try_new(1, vec![0.0, 0.0, 1.0, 1.0])?;
                 BSplineSurface::try_new(knots.clone(), knots, &corners, None)
             }
@@ -799,6 +907,20 @@ impl<'a> Model<'a> {
                     }
                 }
                 let at = |h: f64| DVec3::new(radius + h * tan, 0.0, h);
+                // The file's (u, v) are the angle and the height; the profile's parameter
+                // is its length from h0.
+                let slant = (1.0 + tan * tan).sqrt();
+                map = Some(PcurveMap {
+                    scale: DVec2::new(angle, length),
+                    map: ParamMap {
+                        swap: false,
+                        u: around,
+                        v: AxisMap::Affine {
+                            scale: slant,
+                            offset: -h0 * slant,
+                        },
+                    },
+                });
                 let profile = polyline(&[at(h0), at(h1)])?;
                 revolve(&profile, DVec3::ZERO, DVec3::Z, Interval::new(0.0, TAU))
                     .map(|s| s.mapped(|p| frame.apply(p)))
@@ -809,6 +931,17 @@ impl<'a> Model<'a> {
                 shape = Some(Analytic::Sphere {
                     centre: frame.origin,
                     radius,
+                });
+                // The file's (u, v) are the longitude and the latitude.
+                map = Some(PcurveMap {
+                    scale: DVec2::splat(angle),
+                    map: ParamMap {
+                        swap: false,
+                        u: around,
+                        v: AxisMap::Angle {
+                            angles: Interval::new(-FRAC_PI_2, FRAC_PI_2),
+                        },
+                    },
                 });
                 ellipsoid(
                     DVec3::ZERO,
@@ -821,6 +954,15 @@ impl<'a> Model<'a> {
             "TOROIDAL_SURFACE" => {
                 let frame = self.frame(rec.reference(1)?)?;
                 let (major, minor) = (self.length(&rec, 2)?, offset_radius(self.length(&rec, 3)?)?);
+                // The file's (u, v) are the angles about the axis and about the tube.
+                map = Some(PcurveMap {
+                    scale: DVec2::splat(angle),
+                    map: ParamMap {
+                        swap: false,
+                        u: around,
+                        v: around,
+                    },
+                });
                 torus_section(
                     DVec3::ZERO,
                     major,
@@ -871,8 +1013,8 @@ impl<'a> Model<'a> {
             }
             "RECTANGULAR_TRIMMED_SURFACE" => self
                 .offset_surface(rec.reference(1)?, extent, depth + 1, offset)
-                .map(|(surface, inner)| {
-                    shape = inner;
+                .map(|(surface, inner, inner_map)| {
+                    (shape, map) = (inner, inner_map);
                     surface
                 }),
             "OFFSET_SURFACE" => {
@@ -881,14 +1023,14 @@ impl<'a> Model<'a> {
                     return Err(rec.err("has no finite distance"));
                 }
                 self.offset_surface(rec.reference(1)?, extent, depth + 1, offset + distance)
-                    .map(|(surface, inner)| {
-                        shape = inner;
+                    .map(|(surface, inner, inner_map)| {
+                        (shape, map) = (inner, inner_map);
                         surface
                     })
             }
             _ => Err(rec.err("is not a surface knotwork reads")),
         };
-        result.map(|surface| (surface, shape)).map_err(wrap)
+        result.map(|surface| (surface, shape, map)).map_err(wrap)
     }
 
     /// A bounded form of a swept profile: a line cut to the span of `extent`'s projections
@@ -1100,11 +1242,14 @@ impl<'a> Model<'a> {
                             let (a, b) = (points[k], points[(k + 1) % points.len()]);
                             let curve = polyline(&[builder.vertices[a], builder.vertices[b]])?;
                             chain.push(OrientedEdge {
-                                edge: builder.push_edge(Edge {
-                                    curve,
-                                    start: a,
-                                    end: b,
-                                }),
+                                edge: builder.push_edge(
+                                    Edge {
+                                        curve,
+                                        start: a,
+                                        end: b,
+                                    },
+                                    Vec::new(),
+                                ),
                                 forward: true,
                             });
                         }
@@ -1119,9 +1264,14 @@ impl<'a> Model<'a> {
                 }
             }
             // In a block: the lazy extent borrows `bounds`, which the face takes below.
-            let (surface, shape) = {
+            let surface_id = rec.reference(2)?;
+            let (surface, shape, map) = {
                 let extent: Extent = LazyCell::new(Box::new(|| builder.extent(&bounds)));
-                self.surface(rec.reference(2)?, &extent, 0)?
+                self.surface(surface_id, &extent, 0)?
+            };
+            let traces = match map {
+                Some(map) => builder.traces(self, &bounds, surface_id, map, &surface),
+                None => Vec::new(),
             };
             let same_sense = rec.logical(3)?;
             Ok(Face {
@@ -1130,6 +1280,7 @@ impl<'a> Model<'a> {
                 bounds,
                 name: format!("{} #{id}", rec.record.name),
                 shape,
+                traces,
             })
         })();
         if result.is_err() {
@@ -1146,6 +1297,8 @@ struct ShellBuilder {
     vertex_of: HashMap<u64, usize>,
     edges: Vec<Edge>,
     edge_of: HashMap<u64, usize>,
+    /// Each edge's pcurves.
+    pcurves: Vec<Vec<Pcurve>>,
     faces: Vec<Face>,
 }
 
@@ -1163,8 +1316,9 @@ impl ShellBuilder {
         self.vertices.push(p);
         Ok(self.vertices.len() - 1)
     }
-    fn push_edge(&mut self, edge: Edge) -> usize {
+    fn push_edge(&mut self, edge: Edge, pcurves: Vec<Pcurve>) -> usize {
         self.edges.push(edge);
+        self.pcurves.push(pcurves);
         self.edges.len() - 1
     }
     fn edge(&mut self, model: &Model, id: u64) -> Result<usize> {
@@ -1176,18 +1330,75 @@ impl ShellBuilder {
             self.vertex(model, rec.reference(1)?)?,
             self.vertex(model, rec.reference(2)?)?,
         );
-        let curve = model.curve(rec.reference(3)?, 0)?;
+        let geometry = rec.reference(3)?;
+        let file_curve = model.curve(geometry, 0)?;
         let same_sense = rec.logical(4)?;
+        let (p0, p1) = (self.vertices[start], self.vertices[end]);
+        let in_edge = |e: Error| Error::InStepEntity {
+            id,
+            kind: "EDGE_CURVE".into(),
+            source: Box::new(e),
+        };
         let curve = model
-            .edge_curve(&curve, self.vertices[start], self.vertices[end], same_sense)
-            .map_err(|e| Error::InStepEntity {
-                id,
-                kind: "EDGE_CURVE".into(),
-                source: Box::new(e),
-            })?;
-        let k = self.push_edge(Edge { curve, start, end });
+            .edge_curve(&file_curve, p0, p1, same_sense)
+            .map_err(in_edge)?;
+        // A pcurve shares its model curve's parameter, in the file's unit.
+        let (t0, t1) = edge_parameters(&file_curve, p0, p1, same_sense).map_err(in_edge)?;
+        let (range, period) = match file_curve {
+            Curve::Conic { .. } => (
+                (t0 / model.angle_scale, t1 / model.angle_scale),
+                Some(TAU / model.angle_scale),
+            ),
+            _ => ((t0, t1), None),
+        };
+        let pcurves = model
+            .pcurves(geometry)
+            .into_iter()
+            .map(|(surface, curve)| Pcurve {
+                surface,
+                curve,
+                range,
+                period,
+            })
+            .collect();
+        let k = self.push_edge(Edge { curve, start, end }, pcurves);
         self.edge_of.insert(id, k);
         Ok(k)
+    }
+    /// The traces of a face's edges on its surface (`surface_id` in the file, `surface` in
+    /// B-spline form) from their pcurves on it: an edge with one pcurve there (a seam edge's
+    /// two, one for each side, are left to the mesher's seam rules) whose stretch lies in
+    /// the surface's range.
+    fn traces(
+        &self,
+        model: &Model,
+        bounds: &[Bound],
+        surface_id: u64,
+        map: PcurveMap,
+        surface: &BSplineSurface,
+    ) -> Vec<EdgeTrace> {
+        let mut edges: Vec<usize> = bounds
+            .iter()
+            .flat_map(|bound| match bound {
+                Bound::Edges(chain) => chain.iter().map(|o| o.edge).collect(),
+                Bound::Vertex(_) => Vec::new(),
+            })
+            .collect();
+        edges.sort_unstable();
+        edges.dedup();
+        edges
+            .into_iter()
+            .filter_map(|edge| {
+                let mut on_face = self.pcurves[edge]
+                    .iter()
+                    .filter(|p| p.surface == surface_id);
+                let (Some(pcurve), None) = (on_face.next(), on_face.next()) else {
+                    return None;
+                };
+                let params = model.trace(pcurve, map, surface)?;
+                Some(EdgeTrace { edge, params })
+            })
+            .collect()
     }
     /// Points along a face's bounds: its vertices and 16 points per knot span of each edge.
     fn extent(&self, bounds: &[Bound]) -> Vec<DVec3> {
@@ -1219,6 +1430,7 @@ impl ShellBuilder {
     fn rollback(&mut self, (vertices, edges): (usize, usize)) {
         self.vertices.truncate(vertices);
         self.edges.truncate(edges);
+        self.pcurves.truncate(edges);
         self.vertex_of.retain(|_, k| *k < vertices);
         self.edge_of.retain(|_, k| *k < edges);
     }
@@ -1338,6 +1550,67 @@ fn nearest_parameter(curve: &Curve, p: DVec3) -> f64 {
             t
         }
     }
+}
+
+/// The parameters of `curve` (a conic's angle in radians) at an edge's `start` and `end`
+/// vertices, running as the edge does (`same_sense`: with the curve's parameter): a closed
+/// edge goes once round a conic or over a bounded curve's whole range.
+fn edge_parameters(
+    curve: &Curve,
+    start: DVec3,
+    end: DVec3,
+    same_sense: bool,
+) -> Result<(f64, f64)> {
+    let closed = same_point(start, end);
+    let (t0, t1) = match curve {
+        Curve::Line { .. } => {
+            if closed {
+                return Err(Error::Unsupported {
+                    what: "a closed edge on a line".into(),
+                });
+            }
+            (
+                nearest_parameter(curve, start),
+                nearest_parameter(curve, end),
+            )
+        }
+        Curve::Conic { .. } => {
+            let (a0, a1) = (
+                nearest_parameter(curve, start),
+                nearest_parameter(curve, end),
+            );
+            let mut sweep = if same_sense { a1 - a0 } else { a0 - a1 }.rem_euclid(TAU);
+            if closed || sweep < 1e-12 {
+                sweep = TAU;
+            }
+            if same_sense {
+                (a0, a0 + sweep)
+            } else {
+                (a1 + sweep, a1)
+            }
+        }
+        Curve::Bounded(c) => {
+            let range = c.range();
+            if closed {
+                if same_sense {
+                    (range.start, range.end)
+                } else {
+                    (range.end, range.start)
+                }
+            } else {
+                (
+                    nearest_parameter(curve, start),
+                    nearest_parameter(curve, end),
+                )
+            }
+        }
+    };
+    if t0 == t1 {
+        return Err(Error::Unsupported {
+            what: "an edge whose vertices are one point of its curve".into(),
+        });
+    }
+    Ok((t0, t1))
 }
 
 /// (low, high) of `values`, padded by [`EXTENT_MARGIN`] of their spread (at least a little).

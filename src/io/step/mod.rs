@@ -6,7 +6,9 @@
 //! (`ADVANCED_FACE`, `FACE_SURFACE`) with `FACE_OUTER_BOUND`/`FACE_BOUND` over `EDGE_LOOP`,
 //! `VERTEX_LOOP` and `POLY_LOOP`; edges (`EDGE_CURVE` on `LINE`, `CIRCLE`, `ELLIPSE`,
 //! `B_SPLINE_CURVE_WITH_KNOTS` and its rational and Bezier/uniform forms, `POLYLINE`,
-//! `TRIMMED_CURVE`, `SURFACE_CURVE`/`SEAM_CURVE`); surfaces `B_SPLINE_SURFACE_WITH_KNOTS`
+//! `TRIMMED_CURVE`, `SURFACE_CURVE`/`SEAM_CURVE` with their `PCURVE`s, which become the
+//! edges' traces on faces over B-spline surfaces, planes, cylinders, cones, spheres and
+//! tori); surfaces `B_SPLINE_SURFACE_WITH_KNOTS`
 //! (and rational), `PLANE`, `CYLINDRICAL_SURFACE`, `CONICAL_SURFACE`, `SPHERICAL_SURFACE`,
 //! `TOROIDAL_SURFACE`, `SURFACE_OF_REVOLUTION`, `SURFACE_OF_LINEAR_EXTRUSION` and
 //! `RECTANGULAR_TRIMMED_SURFACE`, each converted exactly to B-spline form (unbounded ones
