@@ -5111,3 +5111,78 @@ fn step_pcurves_trace_their_edges_on_every_analytic_surface() {
         );
     }
 }
+
+#[test]
+fn step_a_torus_bounded_by_its_two_seams_meshes_closed_and_facing_out() {
+    // Open CASCADE's torus is one face whose loop is its two seam edges, each run both ways:
+    // every loop point lies on a seam, and only one choice of sides closes the loop round
+    // the parameter range without jumping across a seam.
+    let scene = read_scene(Path::new("data/occt_primitives.step")).unwrap();
+    assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
+    let (centre, axis, major, minor) = (
+        DVec3::new(40.0, 0.0, 0.0),
+        DVec3::new(0.0, 0.6, 0.8),
+        12.0,
+        3.0,
+    );
+    let torus = scene
+        .items
+        .iter()
+        .position(|item| match &item.geometry {
+            knotwork::Geometry::Shell(shell) => shell.faces().len() == 1,
+            _ => false,
+        })
+        .expect("the torus is a one-face solid");
+    // The centre of the tube's circle nearest p.
+    let tube_centre = |p: DVec3| {
+        let d = p - centre;
+        let radial = (d - d.dot(axis) * axis).normalize();
+        centre + major * radial
+    };
+    for tolerance_rel in [1e-3, 1e-4] {
+        let mesh = step_mesh(&scene, tolerance_rel);
+        for item in 0..scene.items.len() {
+            let parts = parts_of(&mesh, item);
+            assert_eq!(
+                topology(&mesh, &parts),
+                (0, 0, 0),
+                "item {item}, tolerance_rel {tolerance_rel}"
+            );
+        }
+        let tolerance = tolerance_rel * scene.control_box_diagonal();
+        let parts = parts_of(&mesh, torus);
+        let mut worst: f64 = 0.0;
+        for part in &parts {
+            let indices = &mesh.indices
+                [part.first_index as usize..(part.first_index + part.index_count) as usize];
+            for t in indices.chunks(3) {
+                let p = [t[0], t[1], t[2]].map(|k| mesh.positions[k as usize]);
+                for q in [
+                    p[0],
+                    (p[0] + p[1] + p[2]) / 3.0,
+                    0.5 * (p[0] + p[1]),
+                    0.5 * (p[1] + p[2]),
+                    0.5 * (p[2] + p[0]),
+                ] {
+                    worst = worst.max((q.distance(tube_centre(q)) - minor).abs());
+                }
+                let centroid = (p[0] + p[1] + p[2]) / 3.0;
+                let normal = (p[1] - p[0]).cross(p[2] - p[0]);
+                assert!(
+                    normal.dot(centroid - tube_centre(centroid)) > 0.0,
+                    "tolerance_rel {tolerance_rel}: a triangle faces in (or has no area) at {p:?}"
+                );
+            }
+        }
+        assert!(
+            worst <= tolerance,
+            "tolerance {tolerance}: a point {worst} off the torus"
+        );
+        let (area, volume) = area_and_volume(&mesh, &parts);
+        let exact_volume = 2.0 * std::f64::consts::PI.powi(2) * major * minor * minor;
+        assert!(
+            volume <= exact_volume && exact_volume - volume <= tolerance * area,
+            "tolerance {tolerance}: volume {volume} vs {exact_volume}"
+        );
+    }
+}

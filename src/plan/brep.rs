@@ -677,46 +677,79 @@ fn plan_face(
             continue;
         }
         // Start where the parameters are unambiguous: off every seam and pole.
-        let mut start = 0;
+        let mut start = None;
         for (k, &(id, _, _, seed)) in points.iter().enumerate() {
             let uv = match seed {
                 Some(uv) => uv,
                 None => view.invert(plan.points[id as usize], None, None, [None; 2])?,
             };
             if (0..2).all(|axis| view.on_side(axis, uv[axis]).is_none()) {
-                start = k;
+                start = Some(k);
                 break;
             }
         }
         let n = points.len();
-        let mut looped: Vec<LoopPoint> = Vec::with_capacity(n);
-        let mut near: Option<DVec2> = None;
-        for step in 0..n {
-            let (id, edge, run, seed) = points[(start + step) % n];
-            let mut force = [None; 2];
-            if runs[&edge] > 1 {
-                let (first, uvs) = first_runs.entry(edge).or_insert_with(|| (run, Vec::new()));
-                if *first != run {
-                    for axis in 0..2 {
-                        let sides: Vec<Option<bool>> =
-                            uvs.iter().map(|uv| view.on_side(axis, uv[axis])).collect();
-                        if view.closed[axis]
-                            && !sides.is_empty()
-                            && sides.iter().all(|s| s.is_some() && *s == sides[0])
-                        {
-                            force[axis] = sides[0].map(|side| !side);
+        // Each point from the one before, the first on the sides `first_sides` names where
+        // it lies on a seam.
+        let walk = |first_sides: [Option<bool>; 2],
+                    first_runs: &mut HashMap<usize, (usize, Vec<DVec2>)>|
+         -> Result<Vec<LoopPoint>> {
+            let mut looped: Vec<LoopPoint> = Vec::with_capacity(n);
+            let mut near: Option<DVec2> = None;
+            for step in 0..n {
+                let (id, edge, run, seed) = points[(start.unwrap_or(0) + step) % n];
+                let mut force = if step == 0 { first_sides } else { [None; 2] };
+                if runs[&edge] > 1 {
+                    let (first, uvs) = first_runs.entry(edge).or_insert_with(|| (run, Vec::new()));
+                    if *first != run {
+                        for axis in 0..2 {
+                            let sides: Vec<Option<bool>> =
+                                uvs.iter().map(|uv| view.on_side(axis, uv[axis])).collect();
+                            if view.closed[axis]
+                                && !sides.is_empty()
+                                && sides.iter().all(|s| s.is_some() && *s == sides[0])
+                            {
+                                force[axis] = sides[0].map(|side| !side);
+                            }
                         }
                     }
                 }
+                let uv = view.invert(plan.points[id as usize], seed, near, force)?;
+                if let Some((first, uvs)) = first_runs.get_mut(&edge)
+                    && *first == run
+                {
+                    uvs.push(uv);
+                }
+                looped.push(LoopPoint { uv, id });
+                near = Some(uv);
             }
-            let uv = view.invert(plan.points[id as usize], seed, near, force)?;
-            if let Some((first, uvs)) = first_runs.get_mut(&edge)
-                && *first == run
-            {
-                uvs.push(uv);
+            Ok(looped)
+        };
+        // A loop with no such point (the whole boundary of a torus's range: its two seam
+        // edges, each run both ways) starts on the sides of the seams that leave it no jump
+        // across one, where a choice does: a jump would be cut and walked round, over the
+        // seam edges' own points.
+        let mut choices = vec![[None; 2]];
+        if start.is_none() {
+            let sides = |axis: usize| match view.closed[axis] {
+                true => vec![Some(false), Some(true)],
+                false => vec![None],
+            };
+            for u in sides(0) {
+                choices.extend(sides(1).into_iter().map(|v| [u, v]));
             }
-            looped.push(LoopPoint { uv, id });
-            near = Some(uv);
+        }
+        let mut looped = Vec::new();
+        for (k, &first_sides) in choices.iter().enumerate() {
+            let mut trial_runs = first_runs.clone();
+            let trial = walk(first_sides, &mut trial_runs)?;
+            let jumps = (0..n).any(|k| view.jumps(trial[k].uv, trial[(k + 1) % n].uv));
+            if k == 0 || !jumps {
+                (looped, first_runs) = (trial, trial_runs);
+            }
+            if !jumps {
+                break;
+            }
         }
         // Cut where the loop jumps across a seam.
         let cuts: Vec<usize> = (0..n)
