@@ -5186,3 +5186,24 @@ fn step_a_torus_bounded_by_its_two_seams_meshes_closed_and_facing_out() {
         );
     }
 }
+
+#[test]
+fn step_abc_part_has_no_triangle_facing_against_its_surface() {
+    // Slivers along a loop (three nearly collinear points, the middle one a rounding off
+    // the chord) turned over before their diagonal was flipped: 9 at 1e-3.
+    let scene = read_scene(Path::new("data/abc-0000.step")).unwrap();
+    let mesh = step_mesh(&scene, 1e-3);
+    let turned: Vec<[DVec3; 3]> = mesh
+        .indices
+        .chunks(3)
+        .filter_map(|t| {
+            let p = [t[0], t[1], t[2]].map(|k| mesh.positions[k as usize]);
+            let normal = (p[1] - p[0]).cross(p[2] - p[0]);
+            let against = t
+                .iter()
+                .any(|&k| normal.dot(mesh.normals[k as usize]) <= 0.0);
+            against.then_some(p)
+        })
+        .collect();
+    assert!(turned.is_empty(), "{} turned over: {turned:?}", turned.len());
+}

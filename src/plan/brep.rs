@@ -849,8 +849,21 @@ fn plan_face(
             what: "the face's loops enclose nothing".into(),
         });
     }
-    let triangulated =
-        plan_fixed_boundary(view.surface, view.shape, &polylines, limits, max_vertices)?;
+    let boundary_points: Vec<DVec3> = ids
+        .iter()
+        .map(|&id| match id.checked_sub(EXTRA) {
+            Some(k) => extra[k as usize],
+            None => plan.points[id as usize],
+        })
+        .collect();
+    let triangulated = plan_fixed_boundary(
+        view.surface,
+        view.shape,
+        &polylines,
+        &boundary_points,
+        limits,
+        max_vertices,
+    )?;
     let shared: Vec<Option<u32>> = triangulated
         .boundary_point
         .iter()

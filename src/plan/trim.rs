@@ -96,6 +96,7 @@ pub fn plan_trimmed_within(
         &lines,
         &polylines,
         &special,
+        None,
         limits,
         max_vertices,
         false,
@@ -160,11 +161,14 @@ fn clamp_to_range(surface: &crate::geom::BSplineSurface, p: DVec2) -> DVec2 {
 /// uses the same points meets the face without a crack. Interior samples come from the
 /// adaptive cells (those within rounding of a polyline left out), triangles are refined as
 /// in [`plan_trimmed`] — on a surface whose exact `shape` is given, by the shape's
-/// closed-form deviation of each triangle. Errors as there.
+/// closed-form deviation of each triangle. Errors as there. `boundary_points`: the model
+/// points the polylines' points are (numbered through all of them in order), which a
+/// triangle's facing is judged from.
 pub(crate) fn plan_fixed_boundary(
     surface: &crate::geom::BSplineSurface,
     shape: Option<Analytic>,
     polylines: &[Vec<DVec2>],
+    boundary_points: &[DVec3],
     limits: SamplingLimits,
     max_vertices: usize,
 ) -> Result<Triangulated> {
@@ -180,6 +184,7 @@ pub(crate) fn plan_fixed_boundary(
         &lines,
         polylines,
         &Special::default(),
+        Some(boundary_points),
         limits,
         max_vertices,
         true,
@@ -189,7 +194,9 @@ pub(crate) fn plan_fixed_boundary(
 /// Steps 3–5 of the module's plan over loops already sampled. `fixed`: the polylines are
 /// kept as given (see [`plan_fixed_boundary`]): grid points within rounding of them are
 /// left out and cell lines only constrain where they cross no polyline. `shape`: the
-/// surface's exact shape, whose closed form then judges the triangles.
+/// surface's exact shape, whose closed form then judges the triangles. `boundary_points`:
+/// the polylines' points in model space where they are not the surface's points at their
+/// parameters (a B-rep's shared edge points).
 #[allow(clippy::too_many_arguments)]
 fn triangulate(
     surface: &crate::geom::BSplineSurface,
@@ -199,6 +206,7 @@ fn triangulate(
     lines: &CellLines,
     polylines: &[Vec<DVec2>],
     special: &Special,
+    boundary_points: Option<&[DVec3]>,
     limits: SamplingLimits,
     max_vertices: usize,
     fixed: bool,
@@ -342,11 +350,26 @@ fn triangulate(
     let triangles = mesh.refine(bounds, limits, max_vertices, &|p| {
         fixed && region.near(p, near_width)
     })?;
-    let (plan, origins) = mesh.collect(&triangles);
     let mut point_of_vertex: HashMap<usize, usize> = HashMap::new();
     for (point, &vertex) in boundary_vertex.iter().enumerate() {
         point_of_vertex.entry(vertex).or_insert(point);
     }
+    let model_point = |vertex: usize| match (boundary_points, point_of_vertex.get(&vertex)) {
+        (Some(points), Some(&k)) => points[k],
+        _ => {
+            let p = mesh.params[vertex];
+            surface.point(p.x, p.y)
+        }
+    };
+    let triangles = mesh.turned_over_flipped(
+        surface,
+        triangles,
+        &kept_edges,
+        &model_point,
+        bounds,
+        limits,
+    );
+    let (plan, origins) = mesh.collect(&triangles);
     Ok(Triangulated {
         plan,
         boundary_point: origins
@@ -762,6 +785,82 @@ impl FaceTriangulation<'_> {
             Some(p) if !keep_off(p) && (obtuse || inside(p)) => Some(p),
             _ => (!keep_off(centroid)).then_some(centroid),
         }
+    }
+
+    /// `triangles` with each one that faces against the surface (its corners' model points,
+    /// `model_point` of each vertex, turn the other way about S_u × S_v at its centroid)
+    /// flipped with a neighbour across an edge no loop or special curve keeps, where the
+    /// flipped pair is counter-clockwise in parameters, faces with the surface and meets
+    /// `limits` (judged as [`refine`](Self::refine) judges). A sliver along a loop whose
+    /// middle point lies a rounding (or a file's modelling tolerance) off the chord of its
+    /// neighbours is such a triangle; refinement cannot split it (no point may go on a loop).
+    fn turned_over_flipped(
+        &self,
+        surface: &crate::geom::BSplineSurface,
+        mut triangles: Vec<([usize; 3], [DVec2; 3])>,
+        kept_edges: &HashSet<[usize; 2]>,
+        model_point: &dyn Fn(usize) -> DVec3,
+        bounds: &CellBounds,
+        limits: SamplingLimits,
+    ) -> Vec<([usize; 3], [DVec2; 3])> {
+        let faces_with_surface = |ids: [usize; 3]| {
+            let [a, b, c] = ids.map(model_point);
+            let centroid = (self.params[ids[0]] + self.params[ids[1]] + self.params[ids[2]]) / 3.0;
+            let normal = surface.evaluate(centroid.x, centroid.y).normal;
+            (b - a).cross(c - a).dot(normal) > 0.0
+        };
+        let counter_clockwise = |ids: [usize; 3]| {
+            let [a, b, c] = ids.map(|k| self.params[k] * self.scale);
+            (b - a).perp_dot(c - a) > 0.0
+        };
+        // Each directed edge's triangle (counter-clockwise: a triangle (a, b, c) has the
+        // edges (a, b), (b, c), (c, a)).
+        let mut triangle_of: HashMap<[usize; 2], usize> = HashMap::new();
+        for (t, &(ids, _)) in triangles.iter().enumerate() {
+            for k in 0..3 {
+                triangle_of.insert([ids[k], ids[(k + 1) % 3]], t);
+            }
+        }
+        for t in 0..triangles.len() {
+            let ids = triangles[t].0;
+            if faces_with_surface(ids) {
+                continue;
+            }
+            for k in 0..3 {
+                let (a, b, c) = (ids[k], ids[(k + 1) % 3], ids[(k + 2) % 3]);
+                if kept_edges.contains(&edge_key(a, b)) {
+                    continue;
+                }
+                let Some(&n) = triangle_of.get(&[b, a]) else {
+                    continue;
+                };
+                let other = triangles[n].0;
+                let d = other[(other.iter().position(|&x| x == b).expect("shares b") + 2) % 3];
+                let pair = [[a, d, c], [d, b, c]];
+                let better = pair.iter().all(|&new| {
+                    counter_clockwise(new)
+                        && faces_with_surface(new)
+                        && self.excess(new, bounds, limits) <= 1.0
+                });
+                if !better {
+                    continue;
+                }
+                for (slot, new) in [(t, pair[0]), (n, pair[1])] {
+                    let old = triangles[slot].0;
+                    for k in 0..3 {
+                        triangle_of.remove(&[old[k], old[(k + 1) % 3]]);
+                    }
+                    triangles[slot] = (new, new.map(|k| self.params[k]));
+                }
+                for (slot, new) in [(t, pair[0]), (n, pair[1])] {
+                    for k in 0..3 {
+                        triangle_of.insert([new[k], new[(k + 1) % 3]], slot);
+                    }
+                }
+                break;
+            }
+        }
+        triangles
     }
 
     /// The plan of `triangles` (the face's) and the vertices they use, renumbered in order
