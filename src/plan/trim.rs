@@ -347,9 +347,13 @@ fn triangulate(
             FixedVertexHandle::from_index(b),
         );
     }
-    let triangles = mesh.refine(bounds, limits, max_vertices, &|p| {
-        fixed && region.near(p, near_width)
-    })?;
+    let triangles = mesh.refine(
+        bounds,
+        limits,
+        max_vertices,
+        &|p| fixed && region.near(p, near_width),
+        &|p| region.contains(p),
+    )?;
     let mut point_of_vertex: HashMap<usize, usize> = HashMap::new();
     for (point, &vertex) in boundary_vertex.iter().enumerate() {
         point_of_vertex.entry(vertex).or_insert(point);
@@ -649,13 +653,16 @@ impl FaceTriangulation<'_> {
     /// triangles beyond are not the face's) leaves its triangles to the next round, which
     /// finds the face's triangles again by the loops' parity. Points `keep_off` refuses
     /// (within rounding of a boundary that must stay as it is) fall back to the centroid,
-    /// and are left out if that is refused too.
+    /// and are left out if that is refused too. A triangle whose longest edge is a
+    /// constraint and obtuse opposite it gets the apex of the right isosceles triangle on
+    /// that edge where `in_face` takes it (see [`Self::split_point`]).
     fn refine(
         &mut self,
         bounds: &CellBounds,
         limits: SamplingLimits,
         max_vertices: usize,
         keep_off: &dyn Fn(DVec2) -> bool,
+        in_face: &dyn Fn(DVec2) -> bool,
     ) -> Result<Vec<([usize; 3], [DVec2; 3])>> {
         // Triangles found within the limits, by their sorted corners: one that is still
         // there later still is (its bound depends on its corners alone).
@@ -688,7 +695,7 @@ impl FaceTriangulation<'_> {
             let before = self.params.len();
             while let Some(Failing { ids, .. }) = queue.pop() {
                 let corners = ids.map(|k| self.params[k]);
-                let Some(p) = self.split_point(ids, corners, keep_off) else {
+                let Some(p) = self.split_point(ids, corners, keep_off, in_face) else {
                     continue;
                 };
                 if self.params.len() >= max_vertices {
@@ -755,6 +762,7 @@ impl FaceTriangulation<'_> {
         ids: [usize; 3],
         corners: [DVec2; 3],
         keep_off: &dyn Fn(DVec2) -> bool,
+        in_face: &dyn Fn(DVec2) -> bool,
     ) -> Option<DVec2> {
         let handle = |k: usize| FixedVertexHandle::from_index(ids[k]);
         let first = self.cdt.get_edge_from_neighbors(handle(0), handle(1))?;
@@ -774,8 +782,23 @@ impl FaceTriangulation<'_> {
                 FixedVertexHandle::from_index(a),
                 FixedVertexHandle::from_index(b),
             )?;
-            (!self.cdt.is_constraint_edge(edge.as_undirected().fix()))
-                .then(|| 0.5 * (self.params[a] + self.params[b]))
+            if self.cdt.is_constraint_edge(edge.as_undirected().fix()) {
+                // The edge is a loop's (or a cell line's): nothing may go on it, and a point
+                // between it and the obtuse corner (the centroid) leaves a sliver still
+                // nearer it, which stands on edge in model space where the surface bulges
+                // from the edge's chord and may face the wrong way, refined again and again.
+                // The apex of the right isosceles triangle on the edge, on the triangle's
+                // side, is well away from it.
+                let (qa, qb) = (q[(longest + 1) % 3], q[(longest + 2) % 3]);
+                let mut across = (qb - qa).perp() * 0.5;
+                if across.dot(q[longest] - qa) < 0.0 {
+                    across = -across;
+                }
+                let apex = (0.5 * (qa + qb) + across) / self.scale;
+                (in_face(apex) && !keep_off(apex)).then_some(apex)
+            } else {
+                Some(0.5 * (self.params[a] + self.params[b]))
+            }
         };
         let inside = |p: DVec2| {
             let s = p * self.scale;
