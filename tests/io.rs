@@ -5049,6 +5049,18 @@ fn step_pcurves_put_edges_on_the_sheet_the_file_means() {
     // Without them the edges' points go to the nearer sheet: the face is meshed there.
     let without = normals_z(false);
     assert!(without.iter().all(|&z| z > 1.0 - 1e-12), "{without:?}");
+    // The CLI calls the part what it is: a shell that bounds no solid.
+    let dir = scratch_dir("folded");
+    let (input, out) = (dir.join("folded.step"), dir.join("folded.obj"));
+    std::fs::write(&input, step_folded_face(gap, true)).unwrap();
+    let run = succeeds(&[
+        "tessellate",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(stdout.contains(": 1 open shell (1 face),"), "{stdout}");
 }
 
 #[test]

@@ -43,8 +43,8 @@ fn render(
         "{}: {}, {}, {} rendered at {}x{} in {:.3} s ({}) -> {}",
         input.display(),
         {
-            let (surfaces, solids, faces) = scene_counts(&scene);
-            items_summary(surfaces, solids, faces)
+            let (surfaces, shells) = scene_counts(&scene);
+            items_summary(surfaces, shells)
         },
         count(scene.curves().count(), "curve"),
         count(triangles, "triangle"),
@@ -168,9 +168,7 @@ fn tessellator(backend: Backend) -> knotwork::Result<Box<dyn Tessellator + Send 
 #[derive(Default)]
 struct Tally {
     surfaces: usize,
-    /// B-rep shells (STEP solids), with their faces.
-    solids: usize,
-    faces: usize,
+    shells: Shells,
     curves: usize,
     vertices: usize,
     triangles: usize,
@@ -212,7 +210,7 @@ impl Tally {
         });
         format!(
             "{}, {}, {}, {}{instanced}{merged}{chosen}",
-            items_summary(self.surfaces, self.solids, self.faces),
+            items_summary(self.surfaces, self.shells),
             count(self.curves, "curve"),
             count(self.vertices, "vertex"),
             count(self.triangles, "triangle"),
@@ -252,31 +250,53 @@ fn report_skipped(
     reasons.len()
 }
 
-/// "32 surfaces", or with shells "6 solids (25 faces)" (and the surfaces beside them, if
-/// any).
-fn items_summary(surfaces: usize, solids: usize, faces: usize) -> String {
-    let shells = format!("{} ({})", count(solids, "solid"), count(faces, "face"));
-    match (surfaces, solids) {
-        (_, 0) => count(surfaces, "surface"),
-        (0, _) => shells,
-        _ => format!("{}, {shells}", count(surfaces, "surface")),
+/// B-rep shells counted: closed ones (solids) and open ones, with their faces.
+#[derive(Clone, Copy, Default)]
+struct Shells {
+    solids: usize,
+    open: usize,
+    faces: usize,
+}
+
+impl std::ops::AddAssign for Shells {
+    fn add_assign(&mut self, other: Shells) {
+        self.solids += other.solids;
+        self.open += other.open;
+        self.faces += other.faces;
     }
 }
 
-/// The (surfaces, solids, faces of the solids) of a scene: curves are counted apart.
-fn scene_counts(scene: &knotwork::Scene) -> (usize, usize, usize) {
-    let (mut solids, mut faces) = (0, 0);
+/// "32 surfaces", or with shells "6 solids (25 faces)", "1 solid, 2 open shells (9
+/// faces)" (and the surfaces beside them, if any).
+fn items_summary(surfaces: usize, shells: Shells) -> String {
+    let kinds: Vec<String> = [(shells.solids, "solid"), (shells.open, "open shell")]
+        .into_iter()
+        .filter(|&(n, _)| n > 0)
+        .map(|(n, noun)| count(n, noun))
+        .collect();
+    let listed = format!("{} ({})", kinds.join(", "), count(shells.faces, "face"));
+    match (surfaces, kinds.is_empty()) {
+        (_, true) => count(surfaces, "surface"),
+        (0, false) => listed,
+        _ => format!("{}, {listed}", count(surfaces, "surface")),
+    }
+}
+
+/// The surfaces and shells of a scene: curves are counted apart.
+fn scene_counts(scene: &knotwork::Scene) -> (usize, Shells) {
+    let mut shells = Shells::default();
     for item in &scene.items {
         if let knotwork::Geometry::Shell(shell) = &item.geometry {
-            solids += 1;
-            faces += shell.faces().len();
+            if shell.is_closed() {
+                shells.solids += 1;
+            } else {
+                shells.open += 1;
+            }
+            shells.faces += shell.faces().len();
         }
     }
-    (
-        scene.items.len() - scene.curves().count() - solids,
-        solids,
-        faces,
-    )
+    let surfaces = scene.items.len() - scene.curves().count() - shells.solids - shells.open;
+    (surfaces, shells)
 }
 
 /// "1 surface", "2 surfaces", "1 vertex", "3 vertices".
@@ -297,17 +317,17 @@ fn process(
 ) -> knotwork::Result<Tally> {
     let scene = knotwork::io::read_scene_as(input, job.input_format)?;
     let dropped = report_reading(input, &scene);
-    let (surfaces, solids, faces) = scene_counts(&scene);
+    let (surfaces, shells) = scene_counts(&scene);
     let trimmed = scene
         .items
         .iter()
         .filter(|i| matches!(i.geometry, knotwork::Geometry::Trimmed(_)))
         .count();
-    if job.grid_given && solids + trimmed > 0 {
+    if job.grid_given && shells.solids + shells.open + trimmed > 0 {
         eprintln!(
             "warning: {}: --grid does not apply to its {}: they are meshed to {} of the diagonal (--tolerance or --tolerance-rel sets it)",
             input.display(),
-            items_summary(trimmed, solids, faces).replace("surface", "trimmed face"),
+            items_summary(trimmed, shells).replace("surface", "trimmed face"),
             knotwork::cpu::TRIMMED_DEFAULT_TOLERANCE_REL
         );
     }
@@ -340,8 +360,7 @@ fn process(
     let skipped = report_skipped(input, &scene, &defaults, written.part_items.into_iter());
     Ok(Tally {
         surfaces,
-        solids,
-        faces,
+        shells,
         curves: scene.curves().count(),
         vertices: written.vertices,
         triangles: written.triangles,
@@ -509,8 +528,7 @@ fn tessellate(
             Ok(t) => {
                 failed += usize::from(t.dropped > 0);
                 total.surfaces += t.surfaces;
-                total.solids += t.solids;
-                total.faces += t.faces;
+                total.shells += t.shells;
                 total.curves += t.curves;
                 total.vertices += t.vertices;
                 total.triangles += t.triangles;
