@@ -136,13 +136,18 @@ def knotwork(binary, path, tolerance):
              "--tolerance", repr(tolerance)],
             capture_output=True, text=True,
         )
-        summary = re.search(r": (\d+) (?:surfaces?|solids?).* in ([0-9.]+) s", run.stdout)
+        # "N surfaces", "N solids", "N open shells", or a list of them ("1 solid, 2 open
+        # shells (9 faces)").
+        summary = re.search(
+            r": ((?:\d+ (?:surfaces?|solids?|open shells?)(?:, )?)+).* in ([0-9.]+) s",
+            run.stdout,
+        )
         if summary is None:
             raise RuntimeError(f"knotwork failed on {path}: {run.stderr}")
+        items = sum(int(n) for n in re.findall(r"\d+", summary.group(1)))
         triangles, area, volume = obj_area(out)
         dropped = [l for l in run.stderr.splitlines() if l.startswith("error:")]
-        return (int(summary.group(1)), len(dropped), triangles, area, volume,
-                float(summary.group(2)))
+        return (items, len(dropped), triangles, area, volume, float(summary.group(2)))
 
 
 def main():

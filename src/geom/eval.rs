@@ -230,6 +230,27 @@ impl BSplineSurface {
         self.origin() + (support.reference + h.truncate() / h.w)
     }
 
+    /// The point at (u, v) and S_u × S_v there (not normalised), from first derivatives only:
+    /// cheaper than [`evaluate`](Self::evaluate), whose normal is the cross product's limit
+    /// where it vanishes (at a pole or a collapsed edge it is zero, or rounding).
+    pub(crate) fn point_and_cross(&self, u: f64, v: f64) -> (DVec3, DVec3) {
+        let support = Support::<2>::new(self, u, v, 1);
+        let (p, q) = (self.degree_u(), self.degree_v());
+        let [mut h, mut hu, mut hv] = [DVec4::ZERO; 3];
+        for b in 0..=q {
+            let [c0, c1] = (support.bu)
+                .map(|row| (0..=p).map(|a| row[a] * support.point(a, b)).sum::<DVec4>());
+            let [n, dn] = support.bv.map(|row| row[b]);
+            h += n * c0;
+            hu += n * c1;
+            hv += dn * c0;
+        }
+        let position = h.truncate() / h.w;
+        let du = (hu.truncate() - hu.w * position) / h.w;
+        let dv = (hv.truncate() - hv.w * position) / h.w;
+        (self.origin() + (support.reference + position), du.cross(dv))
+    }
+
     /// The points at every (u, v) of `us` × `vs` (clamped to the knot domain), u fastest:
     /// each column's and row's basis found once and every row's control points blended
     /// along v once. Summed relative to the surface's [`origin`](Self::origin) rather than

@@ -31,7 +31,7 @@
 use super::adaptive::{BoundEffort, CellGrid, surface_cells};
 use crate::error::{Error, Result};
 use crate::geom::analytic::Analytic;
-use crate::geom::{DerivativeBound, Interval, SamplingLimits, TrimmedSurface};
+use crate::geom::{DerivativeBound, Interval, SamplingLimits, TrimmedSurface, degenerate_cross_sq};
 use glam::{DVec2, DVec3};
 use spade::handles::FixedVertexHandle;
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
@@ -359,11 +359,8 @@ fn triangulate(
         point_of_vertex.entry(vertex).or_insert(point);
     }
     let model_point = |vertex: usize| match (boundary_points, point_of_vertex.get(&vertex)) {
-        (Some(points), Some(&k)) => points[k],
-        _ => {
-            let p = mesh.params[vertex];
-            surface.point(p.x, p.y)
-        }
+        (Some(points), Some(&k)) => Some(points[k]),
+        _ => None,
     };
     let triangles = mesh.turned_over_flipped(
         surface,
@@ -425,6 +422,10 @@ impl<'a> Interior<'a> {
         }
     }
 }
+
+/// Twice the area over the longest side squared below which a triangle is a sliver: its
+/// height under a fiftieth of its length (see [`FaceTriangulation::turned_over_flipped`]).
+const SLIVER: f64 = 0.02;
 
 /// A point of the parameter plane in the triangulation's scaled coordinates.
 /// Coordinates nearer zero than this are zero to spade, which refuses smaller ones
@@ -810,8 +811,9 @@ impl FaceTriangulation<'_> {
         }
     }
 
-    /// `triangles` with each one that faces against the surface (its corners' model points,
-    /// `model_point` of each vertex, turn the other way about S_u × S_v at its centroid)
+    /// `triangles` with each one that faces against the surface (its corners' model points
+    /// turn the other way about the mean of their unit normals; `model_point` gives a
+    /// vertex's where it is not the surface's point at its parameters)
     /// flipped with a neighbour across an edge no loop or special curve keeps, where the
     /// flipped pair is counter-clockwise in parameters, faces with the surface and meets
     /// `limits` (judged as [`refine`](Self::refine) judges). A sliver along a loop whose
@@ -822,20 +824,62 @@ impl FaceTriangulation<'_> {
         surface: &crate::geom::BSplineSurface,
         mut triangles: Vec<([usize; 3], [DVec2; 3])>,
         kept_edges: &HashSet<[usize; 2]>,
-        model_point: &dyn Fn(usize) -> DVec3,
+        model_point: &dyn Fn(usize) -> Option<DVec3>,
         bounds: &CellBounds,
         limits: SamplingLimits,
     ) -> Vec<([usize; 3], [DVec2; 3])> {
-        let faces_with_surface = |ids: [usize; 3]| {
-            let [a, b, c] = ids.map(model_point);
-            let centroid = (self.params[ids[0]] + self.params[ids[1]] + self.params[ids[2]]) / 3.0;
-            let normal = surface.evaluate(centroid.x, centroid.y).normal;
-            (b - a).cross(c - a).dot(normal) > 0.0
+        // Each vertex's model point and unit normal, found once (the limit normal where
+        // S_u × S_v vanishes).
+        let degenerate = degenerate_cross_sq(surface.cross_scale(), f64::EPSILON);
+        let mut at_vertex: Vec<Option<(DVec3, DVec3)>> = vec![None; self.params.len()];
+        let mut vertex = |k: usize| {
+            *at_vertex[k].get_or_insert_with(|| {
+                let p = self.params[k];
+                let (point, cross) = surface.point_and_cross(p.x, p.y);
+                let normal = match cross.length_squared() > degenerate {
+                    true => cross.normalize(),
+                    false => surface.evaluate(p.x, p.y).normal,
+                };
+                (model_point(k).unwrap_or(point), normal)
+            })
+        };
+        // Whether the triangle's corners turn about the mean of their normals (the
+        // surface's at its centroid, near enough) the way the surface does.
+        let mut faces_with_surface = |ids: [usize; 3]| {
+            let [(a, na), (b, nb), (c, nc)] = ids.map(&mut vertex);
+            (b - a).cross(c - a).dot(na + nb + nc) > 0.0
         };
         let counter_clockwise = |ids: [usize; 3]| {
             let [a, b, c] = ids.map(|k| self.params[k] * self.scale);
             (b - a).perp_dot(c - a) > 0.0
         };
+        // Judged (each corner evaluated): a triangle with a corner whose model point is not
+        // the surface's (a B-rep's shared edge point, a file's tolerance off), a corner on
+        // a side of the parameter range (where a pole or a collapsed edge may be), or a
+        // sliver in the triangulation's coordinates (a fiftieth as high as long). Any other
+        // is a well-shaped triangle of surface points within the tolerance, which faces the
+        // way its surface does.
+        let (range_u, range_v) = (surface.range_u(), surface.range_v());
+        let on_side = |p: DVec2| {
+            p.x == range_u.start || p.x == range_u.end || p.y == range_v.start || p.y == range_v.end
+        };
+        let doubtful = |ids: [usize; 3]| {
+            let [a, b, c] = ids.map(|k| self.params[k] * self.scale);
+            let longest = a
+                .distance_squared(b)
+                .max(b.distance_squared(c))
+                .max(c.distance_squared(a));
+            (b - a).perp_dot(c - a) < SLIVER * longest
+                || ids
+                    .iter()
+                    .any(|&k| model_point(k).is_some() || on_side(self.params[k]))
+        };
+        let turned: Vec<usize> = (0..triangles.len())
+            .filter(|&t| doubtful(triangles[t].0) && !faces_with_surface(triangles[t].0))
+            .collect();
+        if turned.is_empty() {
+            return triangles;
+        }
         // Each directed edge's triangle (counter-clockwise: a triangle (a, b, c) has the
         // edges (a, b), (b, c), (c, a)).
         let mut triangle_of: HashMap<[usize; 2], usize> = HashMap::new();
@@ -844,8 +888,9 @@ impl FaceTriangulation<'_> {
                 triangle_of.insert([ids[k], ids[(k + 1) % 3]], t);
             }
         }
-        for t in 0..triangles.len() {
+        for t in turned {
             let ids = triangles[t].0;
+            // An earlier flip may have turned it back.
             if faces_with_surface(ids) {
                 continue;
             }
