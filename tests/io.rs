@@ -3519,13 +3519,21 @@ impl StepWriter {
     fn solid(mut self, faces: &[String], name: &str) -> String {
         let shell = self.add(format!("CLOSED_SHELL('',({}))", faces.join(",")));
         let solid = self.add(format!("MANIFOLD_SOLID_BREP('{name}',{shell})"));
+        self.file_of(&solid, "ADVANCED_BREP_SHAPE_REPRESENTATION")
+    }
+    /// A surface model (an open shell) of `faces` in millimetres, named `name`.
+    fn surface_model(mut self, faces: &[String], name: &str) -> String {
+        let shell = self.add(format!("OPEN_SHELL('',({}))", faces.join(",")));
+        let model = self.add(format!("SHELL_BASED_SURFACE_MODEL('{name}',({shell}))"));
+        self.file_of(&model, "MANIFOLD_SURFACE_SHAPE_REPRESENTATION")
+    }
+    /// The file: `item` in a `representation` whose lengths are millimetres.
+    fn file_of(mut self, item: &str, representation: &str) -> String {
         let unit = self.add("(LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.))");
         let context = self.add(format!(
             "(GEOMETRIC_REPRESENTATION_CONTEXT(3) GLOBAL_UNIT_ASSIGNED_CONTEXT(({unit})) REPRESENTATION_CONTEXT('',''))"
         ));
-        self.add(format!(
-            "ADVANCED_BREP_SHAPE_REPRESENTATION('',({solid}),{context})"
-        ));
+        self.add(format!("{representation}('',({item}),{context})"));
         step_file(&self.0)
     }
 }
@@ -3649,6 +3657,18 @@ fn step_cylinder_offset(r: f64, h: f64, offset: f64) -> String {
     w.solid(&[lateral, bottom_face, top_face], "cylinder")
 }
 
+/// Where a triangle's distance from its surface is checked: its first corner, its centroid
+/// and its edges' midpoints.
+fn checked_points(p: [DVec3; 3]) -> [DVec3; 5] {
+    [
+        p[0],
+        (p[0] + p[1] + p[2]) / 3.0,
+        0.5 * (p[0] + p[1]),
+        0.5 * (p[1] + p[2]),
+        0.5 * (p[2] + p[0]),
+    ]
+}
+
 fn step_scene(text: &str) -> Scene {
     knotwork::io::read_step(text).unwrap()
 }
@@ -3748,13 +3768,7 @@ fn step_hemisphere_with_a_seam_meridian_meshes_closed() {
         let mut worst: f64 = 0.0;
         for t in indices.chunks(3) {
             let p = [t[0], t[1], t[2]].map(|k| mesh.positions[k as usize]);
-            for q in [
-                p[0],
-                (p[0] + p[1] + p[2]) / 3.0,
-                0.5 * (p[0] + p[1]),
-                0.5 * (p[1] + p[2]),
-                0.5 * (p[2] + p[0]),
-            ] {
+            for q in checked_points(p) {
                 worst = worst.max((q.length() - r).abs());
             }
             let normal = (p[1] - p[0]).cross(p[2] - p[0]);
@@ -5015,16 +5029,7 @@ fn step_folded_face(gap: f64, pcurves: bool) -> String {
     // The upper sheet's S_u × S_v points down (u runs along −x): the loop runs clockwise
     // seen from above, counter-clockwise about the face's normal.
     let face = w.face(&edges, &surface, true);
-    let shell = w.add(format!("OPEN_SHELL('',({face}))"));
-    let model = w.add(format!("SHELL_BASED_SURFACE_MODEL('folded',({shell}))"));
-    let unit = w.add("(LENGTH_UNIT() NAMED_UNIT(*) SI_UNIT(.MILLI.,.METRE.))");
-    let context = w.add(format!(
-        "(GEOMETRIC_REPRESENTATION_CONTEXT(3) GLOBAL_UNIT_ASSIGNED_CONTEXT(({unit})) REPRESENTATION_CONTEXT('',''))"
-    ));
-    w.add(format!(
-        "MANIFOLD_SURFACE_SHAPE_REPRESENTATION('',({model}),{context})"
-    ));
-    step_file(&w.0)
+    w.surface_model(&[face], "folded")
 }
 
 #[test]
@@ -5169,13 +5174,7 @@ fn step_a_torus_bounded_by_its_two_seams_meshes_closed_and_facing_out() {
                 [part.first_index as usize..(part.first_index + part.index_count) as usize];
             for t in indices.chunks(3) {
                 let p = [t[0], t[1], t[2]].map(|k| mesh.positions[k as usize]);
-                for q in [
-                    p[0],
-                    (p[0] + p[1] + p[2]) / 3.0,
-                    0.5 * (p[0] + p[1]),
-                    0.5 * (p[1] + p[2]),
-                    0.5 * (p[2] + p[0]),
-                ] {
+                for q in checked_points(p) {
                     worst = worst.max((q.distance(tube_centre(q)) - minor).abs());
                 }
                 let centroid = (p[0] + p[1] + p[2]) / 3.0;
