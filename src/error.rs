@@ -234,6 +234,11 @@ pub enum Error {
         expected: &'static str,
     },
     #[error(
+        "{}: the mesh would be written over this input: give another output",
+        path.display()
+    )]
+    OutputIsInput { path: PathBuf },
+    #[error(
         "{} and {} would both be written to {}: rename one, or tessellate them separately",
         first.display(), second.display(), output.display()
     )]

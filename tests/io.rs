@@ -1355,6 +1355,34 @@ fn cli_refuses_a_folder_without_surface_files() {
     assert!(!out.exists());
 }
 
+/// A free-form OBJ tessellated to itself, alone or as a batch into its own folder, would be
+/// lost: the run refuses, naming it, and the file is as it was.
+#[test]
+fn cli_refuses_writing_a_mesh_over_its_input() {
+    let dir = scratch_dir("over-input");
+    let input = dir.join("special_curves.obj");
+    std::fs::copy("data/special_curves.obj", &input).unwrap();
+    let before = std::fs::read(&input).unwrap();
+    let dotted = dir.join(".").join("special_curves.obj");
+    for output in [&input, &dotted, &dir] {
+        let run = knotwork(&[
+            "tessellate",
+            input.to_str().unwrap(),
+            "-o",
+            output.to_str().unwrap(),
+            "--backend",
+            "cpu",
+        ]);
+        assert!(!run.status.success(), "{}", output.display());
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(
+            stderr.contains("special_curves.obj: the mesh would be written over this input"),
+            "{stderr}"
+        );
+        assert_eq!(std::fs::read(&input).unwrap(), before);
+    }
+}
+
 /// Two inputs of one file name would map to one output: the run refuses before writing
 /// anything, naming both; several inputs with an output that names a file are refused too.
 #[test]

@@ -489,6 +489,7 @@ fn tessellate(
     }
     let tessellator = tessellator(backend)?;
     if !batch {
+        knotwork::io::refuse_overwriting_inputs(inputs, output)?;
         let tally = process(&inputs[0], output, tessellator.as_ref(), job)
             .map_err(|error| error.naming_file(&inputs[0]))?;
         let seconds = start.elapsed().as_secs_f64();

@@ -176,9 +176,28 @@ impl MeshFormat {
     }
 }
 
+/// Refuses, before anything is written, writing a mesh to `output` where that is one of
+/// `inputs` (the same file by another path too: a free-form OBJ tessellated to itself would
+/// be lost). An output that does not exist yet is no input.
+pub fn refuse_overwriting_inputs(inputs: &[PathBuf], output: &Path) -> Result<()> {
+    let Ok(target) = output.canonicalize() else {
+        return Ok(());
+    };
+    match inputs
+        .iter()
+        .find(|input| input.canonicalize().is_ok_and(|input| input == target))
+    {
+        Some(input) => Err(Error::OutputIsInput {
+            path: input.clone(),
+        }),
+        None => Ok(()),
+    }
+}
+
 /// Where each input of a batch writes: `output/<input stem>.<extension>`, in input order.
 /// Refuses, before anything is written, an output that names a mesh file (a batch needs a
-/// folder) and two inputs that would write one file.
+/// folder), two inputs that would write one file, and an output that is an input
+/// ([`refuse_overwriting_inputs`]).
 pub fn output_targets(
     files: &[PathBuf],
     output: &Path,
@@ -212,6 +231,7 @@ pub fn output_targets(
                 second: input.clone(),
             });
         }
+        refuse_overwriting_inputs(files, &target)?;
         targets.push((input.clone(), target));
     }
     Ok(targets)
