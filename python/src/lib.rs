@@ -644,6 +644,7 @@ fn tessellate_file<'py>(
     let format = mesh_format(format)?;
     let (written, left_out) = detached(py, || {
         let run = || {
+            knotwork::io::refuse_overwriting_inputs(std::slice::from_ref(&source), &output)?;
             let scene = knotwork::io::read_scene(&source)?;
             let defaults = job.scene_options(&scene)?;
             let tessellator = tessellator(job.backend)?;

@@ -245,6 +245,13 @@ def test_tessellate_file_writes_what_the_mesh_would(tmp_path):
     with pytest.raises(knotwork.Error, match="conflict|extension"):
         knotwork.tessellate_file(TEAPOT, tmp_path / "t.ply", format="stl")
     assert not any(p.name.startswith(("missing", "t.")) for p in tmp_path.iterdir())
+    # A free-form OBJ written over itself would be lost: refused, the file as it was.
+    model = tmp_path / "model.obj"
+    model.write_bytes((HERE.parent.parent / "data" / "special_curves.obj").read_bytes())
+    before = model.read_bytes()
+    with pytest.raises(knotwork.Error, match="written over this input"):
+        knotwork.tessellate_file(model, model, backend="cpu")
+    assert model.read_bytes() == before
 
 
 def test_written_obj_reads_back_as_the_same_mesh(tmp_path):
