@@ -59,12 +59,13 @@ pub fn invert(surface: &BSplineSurface, target: DVec3, start: DVec2) -> (DVec2, 
 /// range (2 per knot span each way, 4 to 16), and on a fine one (8 per span, at most 64),
 /// made the first time a point needs it and kept for the next.
 pub(crate) struct SurfaceSamples {
-    coarse: SampleGrid,
-    fine: std::sync::OnceLock<SampleGrid>,
+    coarse: SurfacePoints,
+    fine: std::sync::OnceLock<SurfacePoints>,
 }
 
-/// A surface's points on a uniform grid of its range.
-struct SampleGrid {
+/// A surface's points at some of its parameters (a uniform grid of its range, the points
+/// of a curve in its domain): where a search for the parameters nearest a point starts.
+pub(crate) struct SurfacePoints {
     params: Vec<DVec2>,
     points: Vec<DVec3>,
 }
@@ -73,15 +74,15 @@ impl SurfaceSamples {
     /// The samples of `surface` (the coarse grid now, the fine one when first needed).
     pub(crate) fn new(surface: &BSplineSurface) -> Self {
         SurfaceSamples {
-            coarse: SampleGrid::new(surface, 2, 4, 16),
+            coarse: SurfacePoints::grid(surface, 2, 4, 16),
             fine: std::sync::OnceLock::new(),
         }
     }
 }
 
-impl SampleGrid {
-    /// `per_span` samples per knot span each way, clamped to `min..=max`.
-    fn new(surface: &BSplineSurface, per_span: usize, min: usize, max: usize) -> Self {
+impl SurfacePoints {
+    /// A uniform grid of `per_span` samples per knot span each way, clamped to `min..=max`.
+    fn grid(surface: &BSplineSurface, per_span: usize, min: usize, max: usize) -> Self {
         let (ru, rv) = (surface.range_u(), surface.range_v());
         let count = |spans: usize| (per_span * spans).clamp(min, max);
         let (nu, nv) = (
@@ -95,11 +96,22 @@ impl SampleGrid {
             .flat_map(|&v| us.iter().map(move |&u| DVec2::new(u, v)))
             .collect();
         let points = surface.grid_points(&us, &vs);
-        SampleGrid { params, points }
+        SurfacePoints { params, points }
+    }
+
+    /// The points of `surface` at `params`.
+    pub(crate) fn at(surface: &BSplineSurface, params: Vec<DVec2>) -> Self {
+        let points = params.iter().map(|p| surface.point(p.x, p.y)).collect();
+        SurfacePoints { params, points }
+    }
+
+    /// Whether a sample lies within `distance` of `target`.
+    pub(crate) fn reaches(&self, target: DVec3, distance: f64) -> bool {
+        self.points.iter().any(|p| p.distance(target) <= distance)
     }
 
     /// The parameters of the sample nearest `target`.
-    fn nearest(&self, target: DVec3) -> DVec2 {
+    pub(crate) fn nearest(&self, target: DVec3) -> DVec2 {
         let distances = self.points.iter().map(|p| p.distance_squared(target));
         let (k, _) =
             distances.enumerate().fold(
@@ -127,7 +139,7 @@ pub(crate) fn invert_from_grid(
     }
     let fine = samples
         .fine
-        .get_or_init(|| SampleGrid::new(surface, 8, 8, 64));
+        .get_or_init(|| SurfacePoints::grid(surface, 8, 8, 64));
     let fine = invert(surface, target, fine.nearest(target));
     if fine.1 < coarse.1 { fine } else { coarse }
 }
@@ -344,8 +356,8 @@ mod tests {
         let surface = torus(DVec3::new(1e4, -2e4, 5e3), 3.0, 1.0);
         let size = surface.control_box_diagonal();
         for grid in [
-            SampleGrid::new(&surface, 2, 4, 16),
-            SampleGrid::new(&surface, 8, 8, 64),
+            SurfacePoints::grid(&surface, 2, 4, 16),
+            SurfacePoints::grid(&surface, 8, 8, 64),
         ] {
             assert!(grid.points.len() > 16);
             for (st, p) in grid.params.iter().zip(&grid.points) {

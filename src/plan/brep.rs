@@ -25,7 +25,7 @@ use super::trim::{
 use crate::error::{Error, Result};
 use crate::geom::analytic::Analytic;
 use crate::geom::brep::{Bound, Shell};
-use crate::geom::project::{SurfaceSamples, invert, invert_from_grid, nearest};
+use crate::geom::project::{SurfacePoints, SurfaceSamples, invert, invert_from_grid, nearest};
 use crate::geom::{BSplineSurface, Interval, SamplingLimits};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
@@ -99,9 +99,9 @@ pub fn plan_shell(shell: &Shell, limits: SamplingLimits, max_vertices: usize) ->
         .zip(&faces_of_edge)
         .enumerate()
         .map(|(e, (edge, faces))| {
-            let traces: Vec<Option<Trace>> = faces
+            let traces: Vec<Option<SurfacePoints>> = faces
                 .iter()
-                .map(|&f| Trace::of_edge(shell, e, f, &views[f]))
+                .map(|&f| edge_trace(shell, e, f, &views[f]))
                 .collect();
             let faces: Vec<&FaceView> = faces.iter().map(|&f| &views[f]).collect();
             sample_edge(&edge.curve, &faces, &traces, limits)
@@ -153,61 +153,28 @@ pub fn plan_shell(shell: &Shell, limits: SamplingLimits, max_vertices: usize) ->
     Ok(plan)
 }
 
-/// Where an edge runs in a face's parameters as the file gives it ([`crate::geom::brep::EdgeTrace`]), with the
-/// surface's points there.
-struct Trace {
-    params: Vec<DVec2>,
-    points: Vec<DVec3>,
-}
-
-impl Trace {
-    /// Face `f`'s trace of edge `e`, where it has one, runs along the edge once (a seam
-    /// edge's two runs are left to the seam rules), and the trace reaches both of the edge's
-    /// vertices (within [`OFF_FACE`] of the face's size: else its parameters are not the
-    /// ones the edge has, and it is not used).
-    fn of_edge(shell: &Shell, e: usize, f: usize, view: &FaceView) -> Option<Trace> {
-        let face = &shell.faces()[f];
-        let trace = face.traces.iter().find(|t| t.edge == e)?;
-        let runs: usize = face
-            .bounds
-            .iter()
-            .map(|bound| match bound {
-                Bound::Edges(chain) => chain.iter().filter(|o| o.edge == e).count(),
-                Bound::Vertex(_) => 0,
-            })
-            .sum();
-        if runs != 1 || trace.params.is_empty() {
-            return None;
-        }
-        let points: Vec<DVec3> = trace
-            .params
-            .iter()
-            .map(|uv| view.surface.point(uv.x, uv.y))
-            .collect();
-        let edge = &shell.edges()[e];
-        let reaches = |vertex: usize| {
-            let v = shell.vertices()[vertex];
-            points.iter().any(|p| p.distance(v) <= OFF_FACE * view.size)
-        };
-        (reaches(edge.start) && reaches(edge.end)).then(|| Trace {
-            params: trace.params.clone(),
-            points,
+/// Face `f`'s trace of edge `e` ([`crate::geom::brep::EdgeTrace`]) as the surface's points
+/// there, where it has one, runs along the edge once (a seam edge's two runs are left to the
+/// seam rules), and the trace reaches both of the edge's vertices (within [`OFF_FACE`] of
+/// the face's size: else its parameters are not the ones the edge has, and it is not used).
+fn edge_trace(shell: &Shell, e: usize, f: usize, view: &FaceView) -> Option<SurfacePoints> {
+    let face = &shell.faces()[f];
+    let trace = face.traces.iter().find(|t| t.edge == e)?;
+    let runs: usize = face
+        .bounds
+        .iter()
+        .map(|bound| match bound {
+            Bound::Edges(chain) => chain.iter().filter(|o| o.edge == e).count(),
+            Bound::Vertex(_) => 0,
         })
+        .sum();
+    if runs != 1 || trace.params.is_empty() {
+        return None;
     }
-
-    /// The trace's parameters nearest `p` in model space.
-    fn seed(&self, p: DVec3) -> DVec2 {
-        let (k, _) = self
-            .points
-            .iter()
-            .map(|q| q.distance_squared(p))
-            .enumerate()
-            .fold(
-                (0, f64::INFINITY),
-                |best, (k, d)| if d < best.1 { (k, d) } else { best },
-            );
-        self.params[k]
-    }
+    let points = SurfacePoints::at(view.surface, trace.params.clone());
+    let edge = &shell.edges()[e];
+    let reaches = |v: usize| points.reaches(shell.vertices()[v], OFF_FACE * view.size);
+    (reaches(edge.start) && reaches(edge.end)).then_some(points)
 }
 
 /// An edge's points, and each of its faces' parameters of them (`None` where the point
@@ -435,7 +402,7 @@ impl<'a> FaceView<'a> {
 fn sample_edge(
     curve: &crate::geom::BSplineCurve,
     faces: &[&FaceView],
-    traces: &[Option<Trace>],
+    traces: &[Option<SurfacePoints>],
     limits: SamplingLimits,
 ) -> SampledEdge {
     // Half the tolerance for the chord and half for the surface beside it, except where
@@ -448,7 +415,7 @@ fn sample_edge(
         0.5 * limits.tolerance
     };
     let uv_of = |p: DVec3, near: Option<DVec2>, f: usize| {
-        let seed = traces[f].as_ref().map(|trace| trace.seed(p));
+        let seed = traces[f].as_ref().map(|trace| trace.nearest(p));
         faces[f].invert(p, seed, near, [None; 2]).ok()
     };
     // Whether the piece (t0, t1) may be one segment: its chord follows the curve at ¼, ½, ¾
@@ -725,30 +692,30 @@ fn plan_face(
             }
             Ok(looped)
         };
+        let jumps =
+            |looped: &[LoopPoint]| (0..n).any(|k| view.jumps(looped[k].uv, looped[(k + 1) % n].uv));
         // A loop with no such point (the whole boundary of a torus's range: its two seam
         // edges, each run both ways) starts on the sides of the seams that leave it no jump
         // across one, where a choice does: a jump would be cut and walked round, over the
         // seam edges' own points.
-        let mut choices = vec![[None; 2]];
-        if start.is_none() {
+        let before = start.is_none().then(|| first_runs.clone());
+        let mut looped = walk([None; 2], &mut first_runs)?;
+        if let Some(before) = before
+            && jumps(&looped)
+        {
             let sides = |axis: usize| match view.closed[axis] {
                 true => vec![Some(false), Some(true)],
                 false => vec![None],
             };
-            for u in sides(0) {
-                choices.extend(sides(1).into_iter().map(|v| [u, v]));
-            }
-        }
-        let mut looped = Vec::new();
-        for (k, &first_sides) in choices.iter().enumerate() {
-            let mut trial_runs = first_runs.clone();
-            let trial = walk(first_sides, &mut trial_runs)?;
-            let jumps = (0..n).any(|k| view.jumps(trial[k].uv, trial[(k + 1) % n].uv));
-            if k == 0 || !jumps {
-                (looped, first_runs) = (trial, trial_runs);
-            }
-            if !jumps {
-                break;
+            'choices: for u in sides(0) {
+                for v in sides(1) {
+                    let mut trial_runs = before.clone();
+                    let trial = walk([u, v], &mut trial_runs)?;
+                    if !jumps(&trial) {
+                        (looped, first_runs) = (trial, trial_runs);
+                        break 'choices;
+                    }
+                }
             }
         }
         // Cut where the loop jumps across a seam.

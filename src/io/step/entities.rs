@@ -669,25 +669,6 @@ impl<'a> Model<'a> {
         )
     }
 
-    /// The edge's curve from `start` to `end` (model points): the file's curve cut at the
-    /// vertices, run in the edge's direction (`same_sense`: the curve's own).
-    fn edge_curve(
-        &self,
-        curve: &Curve,
-        start: DVec3,
-        end: DVec3,
-        same_sense: bool,
-    ) -> Result<BSplineCurve> {
-        let (t0, t1) = edge_parameters(curve, start, end, same_sense)?;
-        let (low, high) = (t0.min(t1), t0.max(t1));
-        let cut = match curve {
-            Curve::Line { .. } => return polyline(&[start, end]),
-            Curve::Conic { .. } => conic_arc(curve, low, high)?,
-            Curve::Bounded(c) => c.clone().with_range(Interval::new(low, high))?,
-        };
-        Ok(if t0 <= t1 { cut } else { cut.reversed() })
-    }
-
     /// The pcurves of an edge's `geometry` where it is a SURFACE_CURVE or SEAM_CURVE: each
     /// surface it lies on, with the curve there. One that cannot be read is left out (the
     /// edge is then put on that face by its model points alone).
@@ -1339,11 +1320,9 @@ impl ShellBuilder {
             kind: "EDGE_CURVE".into(),
             source: Box::new(e),
         };
-        let curve = model
-            .edge_curve(&file_curve, p0, p1, same_sense)
-            .map_err(in_edge)?;
-        // A pcurve shares its model curve's parameter, in the file's unit.
         let (t0, t1) = edge_parameters(&file_curve, p0, p1, same_sense).map_err(in_edge)?;
+        let curve = edge_curve(&file_curve, p0, p1, (t0, t1)).map_err(in_edge)?;
+        // A pcurve shares its model curve's parameter, in the file's unit.
         let (range, period) = match file_curve {
             Curve::Conic { .. } => (
                 (t0 / model.angle_scale, t1 / model.angle_scale),
@@ -1550,6 +1529,23 @@ fn nearest_parameter(curve: &Curve, p: DVec3) -> f64 {
             t
         }
     }
+}
+
+/// The edge's curve from `start` to `end` (model points): the file's `curve` cut at the
+/// vertices' parameters `(t0, t1)` ([`edge_parameters`]), run from t0 to t1.
+fn edge_curve(
+    curve: &Curve,
+    start: DVec3,
+    end: DVec3,
+    (t0, t1): (f64, f64),
+) -> Result<BSplineCurve> {
+    let (low, high) = (t0.min(t1), t0.max(t1));
+    let cut = match curve {
+        Curve::Line { .. } => return polyline(&[start, end]),
+        Curve::Conic { .. } => conic_arc(curve, low, high)?,
+        Curve::Bounded(c) => c.clone().with_range(Interval::new(low, high))?,
+    };
+    Ok(if t0 <= t1 { cut } else { cut.reversed() })
 }
 
 /// The parameters of `curve` (a conic's angle in radians) at an edge's `start` and `end`
