@@ -3353,13 +3353,13 @@ fn parts_of(mesh: &knotwork::Mesh, item: usize) -> Vec<&knotwork::MeshPart> {
 /// its face's surface (the distance to a surface point found by Newton from the point's
 /// parameters and from each corner's: an upper bound of the true distance). Returns the
 /// scene, the mesh and the largest of those distances on faces of each exact shape kind
-/// ([`knotwork::geom::analytic::Analytic`]: sphere, cylinder, cone) over the tolerance.
-fn check_closed_solids(path: &str) -> (Scene, knotwork::Mesh, [f64; 3]) {
+/// ([`knotwork::geom::analytic::Analytic`]: sphere, cylinder, cone, torus) over the tolerance.
+fn check_closed_solids(path: &str) -> (Scene, knotwork::Mesh, [f64; 4]) {
     let scene = read_scene(Path::new(path)).unwrap();
     assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
     let mesh = step_mesh(&scene, 1e-3);
     let tolerance = 1e-3 * scene.control_box_diagonal();
-    let mut worst_on_shapes = [0.0f64; 3];
+    let mut worst_on_shapes = [0.0f64; 4];
     for (k, item) in scene.items.iter().enumerate() {
         let knotwork::Geometry::Shell(shell) = &item.geometry else {
             panic!("a STEP solid is a shell")
@@ -3412,6 +3412,7 @@ fn check_closed_solids(path: &str) -> (Scene, knotwork::Mesh, [f64; 3]) {
                         Some(knotwork::geom::analytic::Analytic::Sphere { .. }) => 0,
                         Some(knotwork::geom::analytic::Analytic::Cylinder { .. }) => 1,
                         Some(knotwork::geom::analytic::Analytic::Cone { .. }) => 2,
+                        Some(knotwork::geom::analytic::Analytic::Torus { .. }) => 3,
                         None => continue,
                     };
                     worst_on_shapes[kind] = worst_on_shapes[kind].max(distance / tolerance);
@@ -3424,19 +3425,20 @@ fn check_closed_solids(path: &str) -> (Scene, knotwork::Mesh, [f64; 3]) {
 
 #[test]
 fn step_parts_mesh_into_closed_solids_within_the_tolerance() {
-    let (scene, mesh, [spheres, ..]) = check_closed_solids("data/abc-0000.step");
+    let (scene, mesh, [spheres, _, _, tori]) = check_closed_solids("data/abc-0000.step");
     assert_eq!(scene.items.len(), 6);
     // The spheres' triangles are judged by the exact chord height (R − √(R² − r²)), which
     // their worst point reaches: measured 0.99 of the tolerance (the rational bound left
     // them at 0.3–0.6 of it, with 8 026 triangles on the seven faces where Open CASCADE has
-    // 2 380); the cones' by their angular bound, measured 0.44. The part as a whole: 4 906
-    // triangles at 1e-3 where Open CASCADE has 5 617 (11 340 on the rational bounds alone).
+    // 2 380); the cones' by their angular bound, measured 0.44; the tori's by their
+    // meridian bound, measured 0.98. The part as a whole: 3 850 triangles at 1e-3 where
+    // Open CASCADE has 5 617 (11 340 on the rational bounds alone, 5 452 with the tori's).
     assert!(
-        spheres > 0.8,
-        "the spheres' worst point at {spheres} of the tolerance"
+        spheres > 0.8 && tori > 0.8,
+        "the spheres' worst point at {spheres} of the tolerance, the tori's at {tori}"
     );
     assert!(
-        mesh.triangle_count() <= 5_500,
+        mesh.triangle_count() <= 4_200,
         "{} triangles",
         mesh.triangle_count()
     );
@@ -3457,7 +3459,7 @@ fn step_parts_mesh_into_closed_solids_within_the_tolerance() {
     );
     // Two parts Open CASCADE exported (foxtrot's examples): a cube with a cylindrical hole
     // (its cylinder judged by the exact bound) and an assembly of planes and a cylinder.
-    let (scene, mesh, [_, cylinders, _]) = check_closed_solids("data/cube_hole.step");
+    let (scene, mesh, [_, cylinders, ..]) = check_closed_solids("data/cube_hole.step");
     assert_eq!(scene.items.len(), 1);
     assert!(cylinders > 0.0, "the hole is a cylinder the mesher knows");
     // Its rims take the same even chords and its straight seam only its ends, so the strip
@@ -4417,9 +4419,10 @@ fn cli_meshes_a_step_part_into_a_glb_node_per_solid() {
 
 /// DEGENERATE_TOROIDAL_SURFACE is read exactly: abc-0000 with each of its seven spheres
 /// written as a degenerate torus of major radius 0 (an apple that is the sphere) and each
-/// torus as a "degenerate" torus whose tube fits (the ordinary torus) meshes to the same
-/// closed solids with the same volumes. (tests/forms.rs holds true apples and lemons to
-/// their tubes.)
+/// torus as a "degenerate" torus whose tube fits (the ordinary torus) has the same surfaces
+/// (to rounding, at a grid of parameters) and meshes to closed solids of the same volumes
+/// within what the tolerance allows. (tests/forms.rs holds true apples and lemons to their
+/// tubes.)
 #[test]
 fn step_degenerate_tori_are_the_surfaces_they_describe() {
     let original = std::fs::read_to_string("data/abc-0000.step").unwrap();
@@ -4448,6 +4451,29 @@ fn step_degenerate_tori_are_the_surfaces_they_describe() {
     assert_eq!(changed, 10, "7 spheres and 3 tori");
     let (before, after) = (step_scene(&original), step_scene(&rewritten));
     assert!(after.dropped.is_empty(), "{:?}", after.dropped);
+    let size = before.control_box_diagonal();
+    for (item, (b, a)) in before.items.iter().zip(&after.items).enumerate() {
+        let (knotwork::Geometry::Shell(b), knotwork::Geometry::Shell(a)) =
+            (&b.geometry, &a.geometry)
+        else {
+            panic!("STEP solids are shells")
+        };
+        for (fb, fa) in b.faces().iter().zip(a.faces()) {
+            assert_eq!(fb.shape, fa.shape, "solid {item} {}", fb.name);
+            let (ru, rv) = (fb.surface.range_u(), fb.surface.range_v());
+            assert_eq!((ru, rv), (fa.surface.range_u(), fa.surface.range_v()));
+            for k in 0..81 {
+                let (u, v) = (ru.lerp((k % 9) as f64 / 8.0), rv.lerp((k / 9) as f64 / 8.0));
+                let apart = fb.surface.point(u, v).distance(fa.surface.point(u, v));
+                assert!(
+                    apart <= 1e-12 * size,
+                    "solid {item} {}: {apart:e} apart",
+                    fb.name
+                );
+            }
+        }
+    }
+    let tolerance = 1e-3 * size;
     let (before, after) = (step_mesh(&before, 1e-3), step_mesh(&after, 1e-3));
     for k in 0..6 {
         assert_eq!(
@@ -4455,12 +4481,14 @@ fn step_degenerate_tori_are_the_surfaces_they_describe() {
             (0, 0, 0),
             "solid {k}"
         );
-        let (_, v0) = area_and_volume(&before, &parts_of(&before, k));
+        let (area, v0) = area_and_volume(&before, &parts_of(&before, k));
         let (_, v1) = area_and_volume(&after, &parts_of(&after, k));
-        // The same surfaces, built by another route (rounding apart): the meshes' volumes
-        // agree far inside what the tolerance allows (~1e-3 of the volume).
+        // The same surfaces to rounding, whose ties (cocircular points on a sphere) may
+        // still fall either way in the Delaunay refinement: each mesh holds the solid
+        // within the tolerance, so their volumes differ by less than tolerance × area
+        // (measured 1.5e-4 of the volume apart on solid 2).
         assert!(
-            (v1 - v0).abs() <= 1e-7 * v0.abs(),
+            (v1 - v0).abs() <= tolerance * area,
             "solid {k}: volume {v1} against {v0}"
         );
     }
@@ -5213,8 +5241,10 @@ fn step_a_torus_bounded_by_its_two_seams_meshes_closed_and_facing_out() {
                 );
             }
         }
+        // The torus's closed form is reached within a few per cent (the rational bound
+        // left its worst point at 0.57 of the tolerance, with 2.4× the triangles).
         assert!(
-            worst <= tolerance,
+            worst <= tolerance && worst >= 0.9 * tolerance,
             "tolerance {tolerance}: a point {worst} off the torus"
         );
         let (area, volume) = area_and_volume(&mesh, &parts);

@@ -1,5 +1,5 @@
 //! The exact shape behind a B-spline surface where a file names one (a STEP sphere,
-//! circular cylinder or cone, converted exactly by [`super::shapes`]): there the distance
+//! circular cylinder, cone or ring torus, converted exactly by [`super::shapes`]): there the distance
 //! between a flat triangle and the surface has a closed form in the triangle's corners,
 //! tighter than any bound from the rational parametrisation (whose speed varies along each
 //! arc, so its second derivatives carry a tangential part that is no distance from the
@@ -28,6 +28,15 @@ pub enum Analytic {
         apex: DVec3,
         axis: DVec3,
         half_angle: f64,
+    },
+    /// The ring torus about `centre`: the points at `minor` from the circle of `major`
+    /// about the unit `axis` through `centre` in the plane across it
+    /// (0 < `minor` < `major`).
+    Torus {
+        centre: DVec3,
+        axis: DVec3,
+        major: f64,
+        minor: f64,
     },
 }
 
@@ -62,6 +71,12 @@ impl Analytic {
                 radius,
             } => (axis_point, radius, axis),
             Analytic::Cone { apex, axis, .. } => (apex, 1.0, axis),
+            Analytic::Torus {
+                centre,
+                axis,
+                major,
+                ..
+            } => (centre, major, axis),
         };
         let (x, y) = axis.any_orthonormal_pair();
         let moved = f(centre);
@@ -95,6 +110,12 @@ impl Analytic {
                 apex: moved,
                 axis: images[2] / scaled,
                 half_angle: *half_angle,
+            },
+            Analytic::Torus { major, minor, .. } => Analytic::Torus {
+                centre: moved,
+                axis: images[2] / scaled,
+                major: scaled,
+                minor: minor * scaled / major,
             },
         })
     }
@@ -178,9 +199,17 @@ impl Analytic {
     /// them. Exact for an acute triangle (its circumcentre's point). On the cone: with ρᵢ
     /// the corners' distances from the axis and θ the largest angle between their directions
     /// from it (seen along the axis; the apex has none), ρ_max·(1 − cos(θ/2))·cos α, α the
-    /// half-angle (see `cone_deviation`).
+    /// half-angle (see `cone_deviation`). On the torus: the largest distance from the tube's
+    /// circle, in the meridian half-plane, over where the triangle's points can lie there
+    /// (see `torus_deviation`).
     pub fn triangle_deviation(&self, corners: [DVec3; 3]) -> f64 {
         let (radius, q) = match *self {
+            Analytic::Torus {
+                centre,
+                axis,
+                major,
+                minor,
+            } => return torus_deviation(corners.map(|p| p - centre), axis, major, minor),
             Analytic::Sphere { radius, .. } => (radius, corners),
             Analytic::Cylinder { axis, radius, .. } => (radius, corners.map(|p| across(p, axis))),
             Analytic::Cone {
@@ -210,6 +239,14 @@ impl Analytic {
                 half_angle,
             } => (across(p - apex, axis).try_normalize())
                 .map(|out| half_angle.cos() * out - half_angle.sin() * axis),
+            // Away from the nearest point of the tube's centre circle.
+            Analytic::Torus {
+                centre,
+                axis,
+                major,
+                ..
+            } => (across(p - centre, axis).try_normalize())
+                .and_then(|out| (p - centre - major * out).try_normalize()),
         };
         match (normal(a), normal(b)) {
             (Some(na), Some(nb)) => na.angle_between(nb),
@@ -345,12 +382,18 @@ fn across(d: DVec3, axis: DVec3) -> DVec3 {
 /// The cone's bound of [`Analytic::triangle_deviation`] from the corners' offsets `q` across
 /// the axis (from the apex's line). A point of the triangle with barycentric weights λ lies
 /// inside the (convex) solid cone, Σλᵢρᵢ·tan⁻¹α along the axis and |Σλᵢqᵢ| from it, so
-/// (Σλᵢρᵢ − |Σλᵢqᵢ|)·cos α from the surface; and |Σλᵢqᵢ| ≥ Σλᵢρᵢ·(êᵢ·ē) ≥ Σλᵢρᵢ·cos(θ/2)
-/// for ē halfway between the two directions farthest apart, when the third lies between
-/// them. Else (the directions spread over half a turn or more) ρ_max·cos α, the most a point
-/// inside can be from the surface at those heights.
+/// (Σλᵢρᵢ − |Σλᵢqᵢ|)·cos α from the surface, and |Σλᵢqᵢ| ≥ Σλᵢρᵢ·[`least_shrink`]`(q)`.
 fn cone_deviation(q: [DVec3; 3], half_angle: f64) -> f64 {
     let rho_max = q.iter().map(|v| v.length()).fold(0.0, f64::max);
+    rho_max * (1.0 - least_shrink(q)) * half_angle.cos()
+}
+
+/// For offsets `q` across an axis (ρᵢ = |qᵢ|), a factor c in [0, 1] with
+/// |Σλᵢqᵢ| ≥ c·Σλᵢρᵢ for all barycentric weights λ: |Σλᵢqᵢ| ≥ Σλᵢρᵢ·(êᵢ·ē) ≥ Σλᵢρᵢ·cos(θ/2)
+/// for ē halfway between the two directions êᵢ farthest apart (θ between them), when the
+/// third lies between them; else (the directions spread over half a turn or more) 0. Offsets
+/// of zero length have no direction and weigh nothing.
+fn least_shrink(q: [DVec3; 3]) -> f64 {
     let directions: Vec<DVec3> = q.iter().filter_map(|v| v.try_normalize()).collect();
     let mut widest: Option<(f64, DVec3)> = None;
     for i in 0..directions.len() {
@@ -361,8 +404,8 @@ fn cone_deviation(q: [DVec3; 3], half_angle: f64) -> f64 {
             }
         }
     }
-    let spread = match widest {
-        None => 0.0,
+    match widest {
+        None => 1.0,
         Some((cos, middle)) => match middle.try_normalize() {
             // cos(θ/2) = √((1 + cos θ)/2), if every direction is within θ/2 of the middle.
             Some(middle) => {
@@ -371,15 +414,77 @@ fn cone_deviation(q: [DVec3; 3], half_angle: f64) -> f64 {
                     .iter()
                     .all(|e| e.dot(middle) >= half * (1.0 - 1e-12))
                 {
-                    1.0 - half
+                    half
                 } else {
-                    1.0
+                    0.0
                 }
             }
-            None => 1.0,
+            None => 0.0,
         },
+    }
+}
+
+/// The torus's bound of [`Analytic::triangle_deviation`] from the corners `p` relative to
+/// its centre. A point x is |d − r| from the torus, d the distance of its meridian point
+/// m(x) = (ρ, z) (distance from the axis, height along it) from the tube's centre
+/// o = (R, 0). For x = Σλᵢpᵢ, z = Σλᵢzᵢ and c·Σλᵢρᵢ ≤ ρ ≤ Σλᵢρᵢ (c = [`least_shrink`] of
+/// the corners' offsets across the axis), so m(x) lies in Q' = {(s·a, b) : (a, b) in the
+/// triangle Q of the corners' meridian points, c ≤ s ≤ 1} — the convex hull of the six
+/// points mᵢ and (c·ρᵢ, zᵢ) (its slices along ρ run from c times the convex left side of
+/// Q's to Q's concave right side). The bound is the largest |d − r| over Q': outside the
+/// tube the farthest of the six from o (a convex set's farthest point is a corner),
+/// inside r less the distance from o to Q' (r where Q' holds o).
+fn torus_deviation(p: [DVec3; 3], axis: DVec3, major: f64, minor: f64) -> f64 {
+    let offsets = p.map(|v| across(v, axis));
+    let shrink = least_shrink(offsets);
+    let meridian = [0, 1, 2].map(|k| DVec2::new(offsets[k].length(), p[k].dot(axis)));
+    let mut hull = [DVec2::ZERO; 6];
+    for k in 0..3 {
+        hull[k] = meridian[k];
+        hull[k + 3] = DVec2::new(shrink * meridian[k].x, meridian[k].y);
+    }
+    let o = DVec2::new(major, 0.0);
+    let outside = hull
+        .iter()
+        .map(|m| m.distance(o) - minor)
+        .fold(0.0, f64::max);
+    // Q' holds o if Q's slice at height 0, [a₀, a₁], meets [R, R/c] (o = (s·a, 0)).
+    let mut slice = (f64::INFINITY, f64::NEG_INFINITY);
+    for k in 0..3 {
+        let (a, b) = (meridian[k], meridian[(k + 1) % 3]);
+        if (a.y <= 0.0) != (b.y <= 0.0) || a.y == 0.0 {
+            let t = if a.y == b.y { 0.0 } else { a.y / (a.y - b.y) };
+            let at = a.x + t * (b.x - a.x);
+            slice = (slice.0.min(at), slice.1.max(at));
+        }
+    }
+    let holds_o = slice.1 >= major && shrink * slice.0 <= major;
+    let nearest = if holds_o {
+        0.0
+    } else {
+        // The nearest point of a convex polygon not holding o is on a side: a segment
+        // between two of the six.
+        let mut nearest = f64::INFINITY;
+        for i in 0..6 {
+            for j in i + 1..6 {
+                nearest = nearest.min(segment_distance(o, hull[i], hull[j]));
+            }
+        }
+        nearest
     };
-    rho_max * spread * half_angle.cos()
+    outside.max(minor - nearest)
+}
+
+/// The distance from `o` to the segment from `a` to `b`.
+fn segment_distance(o: DVec2, a: DVec2, b: DVec2) -> f64 {
+    let ab = b - a;
+    let length_squared = ab.length_squared();
+    let t = if length_squared > 0.0 {
+        ((o - a).dot(ab) / length_squared).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    o.distance(a + t * ab)
 }
 
 #[cfg(test)]
@@ -414,6 +519,17 @@ mod tests {
                         let d = p - apex;
                         let (height, off_axis) = (d.dot(axis), across(d, axis).length());
                         (off_axis * half_angle.cos() - height * half_angle.sin()).abs()
+                    }
+                    Analytic::Torus {
+                        centre,
+                        axis,
+                        major,
+                        minor,
+                    } => {
+                        // From the tube's centre circle, in p's meridian half-plane.
+                        let d = p - centre;
+                        let (height, off_axis) = (d.dot(axis), across(d, axis).length());
+                        ((off_axis - major).hypot(height) - minor).abs()
                     }
                 };
                 worst = worst.max(off);
@@ -534,6 +650,69 @@ mod tests {
     }
 
     #[test]
+    fn torus_triangles_stay_within_the_meridian_bound() {
+        use std::f64::consts::{FRAC_PI_2, PI};
+        let axis = DVec3::new(0.0, 0.6, 0.8);
+        let (x, y) = axis.any_orthonormal_pair();
+        let (centre, major, minor) = (DVec3::new(40.0, 0.0, -3.0), 12.0, 3.0);
+        let torus = Analytic::Torus {
+            centre,
+            axis,
+            major,
+            minor,
+        };
+        // (angle about the axis, angle about the tube from the outer equator).
+        let at = |theta: f64, phi: f64| {
+            let out = theta.cos() * x + theta.sin() * y;
+            centre + (major + minor * phi.cos()) * out + minor * phi.sin() * axis
+        };
+        // Where a flat triangle bulges in (outer equator), lies flat along the circle
+        // about the axis (top) and bulges out (inner equator, a saddle), each spanning a
+        // step along either angle: the bound is reached within a few per cent there.
+        let steps: [(f64, f64); 3] = [(0.12, 0.05), (0.03, 0.3), (0.12, 0.3)];
+        for phi in [0.0, FRAC_PI_2, PI] {
+            for (dt, dp) in steps {
+                let corners = [
+                    at(0.5, phi),
+                    at(0.5 + dt.max(0.06), phi),
+                    at(0.5, phi + dp.max(0.15)),
+                ];
+                let bound = torus.triangle_deviation(corners);
+                let sampled = sampled_deviation(&torus, corners);
+                assert!(
+                    sampled <= bound * (1.0 + 1e-9),
+                    "φ {phi}, {dt}×{dp}: {sampled} > {bound}"
+                );
+                assert!(
+                    sampled >= 0.8 * bound,
+                    "φ {phi}, {dt}×{dp}: {sampled} ≪ {bound}"
+                );
+            }
+        }
+        // Large triangles: across the hole (the corners' directions spread over half a
+        // turn), round the tube (its meridian triangle holds the tube's centre), and one
+        // whose points pass inside the hole.
+        for t in [
+            [(0.0, 0.0), (2.2, 0.0), (4.4, 0.0)],
+            [(0.3, 0.0), (0.3, 2.2), (0.3, 4.4)],
+            [(0.0, PI), (1.2, PI), (0.6, 2.5)],
+        ] {
+            let corners = t.map(|(theta, phi)| at(theta, phi));
+            let bound = torus.triangle_deviation(corners);
+            let sampled = sampled_deviation(&torus, corners);
+            assert!(
+                sampled <= bound * (1.0 + 1e-9),
+                "{t:?}: {sampled} > {bound}"
+            );
+        }
+        // Normals: away from the tube's centre circle.
+        let outer_top = torus.normal_angle(at(1.0, 0.0), at(1.0, FRAC_PI_2));
+        assert!((outer_top - FRAC_PI_2).abs() < 1e-12);
+        let across_hole = torus.normal_angle(at(0.0, 0.0), at(PI, 0.0));
+        assert!((across_hole - PI).abs() < 1e-12);
+    }
+
+    #[test]
     fn normal_angles_and_edges_make_the_excess() {
         let sphere = Analytic::Sphere {
             centre: DVec3::ZERO,
@@ -579,6 +758,21 @@ mod tests {
         assert!(axis_point.distance(DVec3::new(10.0, 3.0, 0.0)) < 1e-12);
         assert!(axis.distance(DVec3::NEG_Y) < 1e-12);
         assert!((radius - 5.0).abs() < 1e-12);
+        let torus = Analytic::Torus {
+            centre: DVec3::X,
+            axis: DVec3::Z,
+            major: 2.0,
+            minor: 0.5,
+        };
+        assert_eq!(
+            torus.mapped(|p| 3.0 * DVec3::new(p.x, -p.z, p.y)),
+            Some(Analytic::Torus {
+                centre: DVec3::new(3.0, 0.0, 0.0),
+                axis: DVec3::NEG_Y,
+                major: 6.0,
+                minor: 1.5,
+            })
+        );
         // Stretched along x: no longer a circular cylinder.
         assert_eq!(cylinder.mapped(|p| DVec3::new(2.0 * p.x, p.y, p.z)), None);
         // A shear keeps lengths along the axes' images unequal or skewed.

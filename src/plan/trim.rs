@@ -16,9 +16,9 @@
 //! 3. The interior ([`Interior`]): for a trimmed face, or on a surface with a pole or a
 //!    kink, the cells' grid points inside the face, every cell line a constraint, so each
 //!    cell keeps its own rates along u and v; for a B-rep face elsewhere, or on a surface
-//!    with an exact shape ([`Analytic::of_face`]: the sphere, circular cylinder or cone a
-//!    file names, or a sphere written as a rational patch), nothing, the interior left to
-//!    step 5.
+//!    with an exact shape ([`Analytic::of_face`]: the sphere, circular cylinder, cone or
+//!    ring torus a file names, or a sphere or cylinder written as a rational patch),
+//!    nothing, the interior left to step 5.
 //! 4. A constrained Delaunay triangulation (spade) in scaled parameters keeps every
 //!    constraint; a triangle is part of the face when an odd number of loop edges separate
 //!    it from outside the hull (parity spread from face to face).

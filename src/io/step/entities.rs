@@ -744,7 +744,7 @@ impl<'a> Model<'a> {
 
     /// The surface `id` in B-spline form, reaching past every point of `extent` (the face's
     /// edges) where the surface is unbounded, with its exact shape where the mesher has a
-    /// closed form for it (a sphere, a circular cylinder or cone), and the map from the
+    /// closed form for it (a sphere, a circular cylinder or cone, a ring torus), and the map from the
     /// file's parameters of it to the B-spline form's where pcurves on it can be used (a
     /// B-spline surface, plane, cylinder, cone, sphere or torus, and offsets of those).
     fn surface(&self, id: u64, extent: &Extent, depth: usize) -> Result<ReadSurface> {
@@ -803,7 +803,7 @@ impl<'a> Model<'a> {
                 Err(rec.err(format!("an offset of a {kind} is not read yet")))
             }
         };
-        // The exact shape of a sphere, circular cylinder or cone, for the mesher's
+        // The exact shape of a sphere, circular cylinder, cone or ring torus, for the mesher's
         // closed-form deviation.
         let mut shape = None;
         // The file's parameters of the surface to the B-spline form's.
@@ -935,6 +935,7 @@ impl<'a> Model<'a> {
             "TOROIDAL_SURFACE" => {
                 let frame = self.frame(rec.reference(1)?)?;
                 let (major, minor) = (self.length(&rec, 2)?, offset_radius(self.length(&rec, 3)?)?);
+                shape = ring_torus(&frame, major, minor);
                 // The file's (u, v) are the angles about the axis and about the tube.
                 map = Some(PcurveMap {
                     scale: DVec2::splat(angle),
@@ -961,12 +962,14 @@ impl<'a> Model<'a> {
                 let major = rec.real(2)? * self.length_scale;
                 let minor = offset_radius(self.length(&rec, 3)?)?;
                 let outer = rec.logical(4)?;
-                if major == 0.0 {
-                    shape = Some(Analytic::Sphere {
+                shape = if major == 0.0 {
+                    Some(Analytic::Sphere {
                         centre: frame.origin,
                         radius: minor,
-                    });
-                }
+                    })
+                } else {
+                    ring_torus(&frame, major, minor)
+                };
                 degenerate_torus_section(DVec3::ZERO, major, minor, outer, Interval::new(0.0, TAU))
                     .map(|s| s.mapped(|p| frame.apply(p)))
             }
@@ -1607,6 +1610,18 @@ fn edge_parameters(
         });
     }
     Ok((t0, t1))
+}
+
+/// The exact shape of a torus about `frame`'s z axis with radii `major` and `minor`
+/// (model units) where it is a ring torus ([`Analytic::Torus`]); a horn or spindle torus,
+/// whose tube meets the axis, is judged by its parametrisation's bounds.
+fn ring_torus(frame: &Frame, major: f64, minor: f64) -> Option<Analytic> {
+    (minor > 0.0 && major > minor).then_some(Analytic::Torus {
+        centre: frame.origin,
+        axis: frame.z,
+        major,
+        minor,
+    })
 }
 
 /// (low, high) of `values`, padded by [`EXTENT_MARGIN`] of their spread (at least a little).
