@@ -225,10 +225,11 @@ impl Analytic {
         r_squared / (radius + (radius * radius - r_squared).sqrt())
     }
 
-    /// The angle (radians) between the surface's normals at `a` and `b` (points on it; 0
-    /// where one is the cone's apex, which has none).
-    pub fn normal_angle(&self, a: DVec3, b: DVec3) -> f64 {
-        let normal = |p: DVec3| match *self {
+    /// The unit normal at `p` (a point on the surface), pointing out of the sphere,
+    /// cylinder or torus's tube and away from the cone's axis; `None` at the cone's apex
+    /// (and on a sphere's centre or a cylinder's or torus's axis, which are not on it).
+    pub fn normal(&self, p: DVec3) -> Option<DVec3> {
+        match *self {
             Analytic::Sphere { centre, .. } => (p - centre).try_normalize(),
             Analytic::Cylinder {
                 axis_point, axis, ..
@@ -247,8 +248,13 @@ impl Analytic {
                 ..
             } => (across(p - centre, axis).try_normalize())
                 .and_then(|out| (p - centre - major * out).try_normalize()),
-        };
-        match (normal(a), normal(b)) {
+        }
+    }
+
+    /// The angle (radians) between the surface's normals at `a` and `b` (points on it; 0
+    /// where one has none: the cone's apex).
+    pub fn normal_angle(&self, a: DVec3, b: DVec3) -> f64 {
+        match (self.normal(a), self.normal(b)) {
             (Some(na), Some(nb)) => na.angle_between(nb),
             _ => 0.0,
         }
@@ -261,13 +267,17 @@ impl Analytic {
     /// between its corners over the angle. At most 1: it meets them.
     pub fn triangle_excess(&self, corners: [DVec3; 3], limits: SamplingLimits) -> f64 {
         let mut excess = self.triangle_deviation(corners) / limits.tolerance;
+        let normals = corners.map(|p| self.normal(p));
+        // The widest angle between two corners' normals is the one of least cosine.
+        let mut least_cos: f64 = 1.0;
         for k in 0..3 {
             let (a, b) = (corners[k], corners[(k + 1) % 3]);
-            excess = excess
-                .max(a.distance(b) / limits.max_edge)
-                .max(self.normal_angle(a, b) / limits.max_angle);
+            excess = excess.max(a.distance(b) / limits.max_edge);
+            if let (Some(na), Some(nb)) = (normals[k], normals[(k + 1) % 3]) {
+                least_cos = least_cos.min(na.dot(nb));
+            }
         }
-        excess
+        excess.max(least_cos.clamp(-1.0, 1.0).acos() / limits.max_angle)
     }
 }
 
