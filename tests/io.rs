@@ -925,6 +925,24 @@ fn batch_cli_processes_a_folder_and_reports_bad_files() {
     ]);
     assert!(!run.status.success(), "ducky.obj is not BPT");
     assert!(out2.join("teapot.obj").exists() && !out2.join("ducky.obj").exists());
+    // One file into a folder that does not exist yet, named by its trailing separator.
+    let out3 = format!("{}/", dir.join("out3").display());
+    let run = knotwork(&[
+        "tessellate",
+        "data/teapot.bpt",
+        "-o",
+        &out3,
+        "--backend",
+        "cpu",
+        "--grid",
+        "3x3",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(dir.join("out3").join("teapot.obj").is_file());
 }
 
 // ---------------------------------------------------------------- JSON scenes

@@ -483,7 +483,11 @@ fn tessellate(
     job: &Job,
 ) -> knotwork::Result<bool> {
     let start = Instant::now();
-    let batch = inputs.len() > 1 || inputs.iter().any(|p| p.is_dir()) || output.is_dir();
+    // An output ending in a path separator names a folder, made if missing, like an
+    // existing one: `-o meshes/` for one file writes meshes/<stem>.obj.
+    let names_folder = output.is_dir()
+        || (output.to_string_lossy()).ends_with(|c: char| std::path::is_separator(c));
+    let batch = inputs.len() > 1 || inputs.iter().any(|p| p.is_dir()) || names_folder;
     if output == Path::new("-") {
         return tessellate_to_stdout(inputs, batch, backend, job);
     }
@@ -552,11 +556,17 @@ fn tessellate(
             knotwork::io::INPUT_FORMATS
         );
     }
+    // In millions a second, or thousands below a tenth of a million (a small part).
+    let rate = total.vertices as f64 / seconds;
+    let rate = if rate >= 1e5 {
+        format!("{:.1} M", rate / 1e6)
+    } else {
+        format!("{:.1} k", rate / 1e3)
+    };
     println!(
-        "{} ({failed} failed): {} in {seconds:.3} s, {:.1} M vertices/s ({}) -> {}",
+        "{} ({failed} failed): {} in {seconds:.3} s, {rate} vertices/s ({}) -> {}",
         count(file_count, "file"),
         total.summary(),
-        total.vertices as f64 / seconds / 1e6,
         tessellator.name(),
         output.display()
     );
