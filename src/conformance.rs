@@ -354,6 +354,7 @@ pub fn export_suite(dir: &Path) -> Result<usize> {
     };
     write("tessellate.wgsl", crate::gpu::TESSELLATE_WGSL.as_bytes())?;
     write("view.wgsl", crate::gpu::view::VIEW_WGSL.as_bytes())?;
+    write("points.wgsl", crate::gpu::POINTS_WGSL.as_bytes())?;
     let mut cases_json = Vec::new();
     let cases = suite();
     // Cases sampled to a tolerance run the same kernels on cell grids; their triangles and
@@ -483,7 +484,7 @@ pub fn export_suite(dir: &Path) -> Result<usize> {
         ));
     }
     let manifest = format!(
-        "{{\"entry_points\": {:?}, \"uniform_stride\": {}, \"vertex_bytes\": {}, \"bars\": {{\"position_rel\": {:e}, \"f32_rounding\": {:e}, \"normal\": {:e}, \"degenerate_normal\": {:e}, \"uv\": {:e}, \"tangent_rel\": {:e}}}, \"cases\": [\n{}\n], \"curve_entry_point\": {:?}, \"sample_bytes\": {}, \"curve_cases\": [\n{}\n], \"coons_entry_point\": {:?}, \"coons_cases\": [\n{}\n], \"view_entry_points\": {:?}}}\n",
+        "{{\"entry_points\": {:?}, \"uniform_stride\": {}, \"vertex_bytes\": {}, \"bars\": {{\"position_rel\": {:e}, \"f32_rounding\": {:e}, \"normal\": {:e}, \"degenerate_normal\": {:e}, \"uv\": {:e}, \"tangent_rel\": {:e}}}, \"cases\": [\n{}\n], \"curve_entry_point\": {:?}, \"sample_bytes\": {}, \"curve_cases\": [\n{}\n], \"coons_entry_point\": {:?}, \"coons_cases\": [\n{}\n], \"view_entry_points\": {:?}, \"points_entry_point\": {:?}}}\n",
         KernelInputs::ENTRY_POINTS,
         KernelInputs::UNIFORM_STRIDE,
         KernelInputs::VERTEX_BYTES,
@@ -499,7 +500,8 @@ pub fn export_suite(dir: &Path) -> Result<usize> {
         curve_cases_json.join(",\n"),
         CoonsInputs::ENTRY_POINT,
         coons_cases_json.join(",\n"),
-        crate::gpu::view::ENTRY_POINTS
+        crate::gpu::view::ENTRY_POINTS,
+        crate::gpu::points::ENTRY_POINT
     );
     write("manifest.json", manifest.as_bytes())?;
     Ok(cases_json.len() + curve_cases.len() + coons_cases.len())

@@ -431,6 +431,15 @@ pub trait Tessellator {
     /// Samples curve k at `samples[k]` (≥ 2) parameters uniform over its range into a
     /// polyline (positions and first derivatives), in input order; errors name the curve.
     fn tessellate_curves(&self, curves: &[BSplineCurve], samples: &[u32]) -> Result<Vec<Polyline>>;
+    /// Positions (model units) and unit normals of each face's surface at its parameters —
+    /// the planned vertices of trimmed faces and shells — in the order given. The default
+    /// evaluates in f64 on the CPU ([`crate::cpu::evaluate_samples`]).
+    fn evaluate_face_samples(
+        &self,
+        faces: &[crate::plan::FaceSamples],
+    ) -> Result<Vec<Vec<(glam::DVec3, glam::DVec3)>>> {
+        Ok(crate::cpu::evaluate_samples(faces))
+    }
     /// A human-readable name of the backend (and adapter), for summaries.
     fn name(&self) -> String;
     /// Executes `plan` (made for `surfaces`; one whose vertices come in runs of rows, see
@@ -466,8 +475,13 @@ pub trait Tessellator {
     fn tessellate_scene(&self, scene: &Scene, defaults: &SceneOptions) -> Result<Mesh> {
         let defaults = &fit_triangle_budget(scene, defaults)?;
         let grid_bytes = check_memory(scene, defaults, F64_VERTEX_BYTES)?;
-        let trimmed =
-            crate::cpu::mesh_trimmed_faces(scene, defaults, grid_bytes, F64_VERTEX_BYTES)?;
+        let trimmed = crate::cpu::mesh_trimmed_faces_with(
+            scene,
+            defaults,
+            grid_bytes,
+            F64_VERTEX_BYTES,
+            &|faces| self.evaluate_face_samples(faces),
+        )?;
         let mut mesh = Mesh::default();
         let surfaces = scene.surface_list();
         self.execute_surfaces(
@@ -489,7 +503,13 @@ pub trait Tessellator {
         let defaults = &fit_triangle_budget(scene, defaults)?;
         let vertex_bytes = size_of::<crate::Vertex>() as u64;
         let grid_bytes = check_memory(scene, defaults, vertex_bytes)?;
-        let trimmed = crate::cpu::mesh_trimmed_faces(scene, defaults, grid_bytes, vertex_bytes)?;
+        let trimmed = crate::cpu::mesh_trimmed_faces_with(
+            scene,
+            defaults,
+            grid_bytes,
+            vertex_bytes,
+            &|faces| self.evaluate_face_samples(faces),
+        )?;
         let mut mesh = Mesh32::default();
         let surfaces = scene.surface_list();
         let plan = surface_plan(scene, &surfaces, defaults)?;

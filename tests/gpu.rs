@@ -41,6 +41,7 @@ fn shipped_shaders() -> Vec<(&'static str, &'static str)> {
         ("curves", knotwork::gpu::CURVES_WGSL),
         ("coons", knotwork::gpu::COONS_WGSL),
         ("view", knotwork::gpu::view::VIEW_WGSL),
+        ("points", knotwork::gpu::POINTS_WGSL),
     ];
     #[cfg(feature = "render")]
     let shaders = [shaders, vec![("render", knotwork::render::RENDER_WGSL)]].concat();
@@ -379,6 +380,117 @@ fn moving_control_points_reuploads_one_surface() {
             count: 33
         })
     ));
+}
+
+/// The vertices of trimmed faces (the Beetle lid's 134, from IGES) and of shells
+/// (abc-0000's six solids, from STEP) are evaluated by the GPU executor from the same plans
+/// as the f64 one: the same triangles, parts and uvs; positions within 1e-6 of the diagonal
+/// (measured 5.6e-8) and not all equal to the f64 ones (the kernel's f32 rounding shows it
+/// did the work; shared edge points are the plan's in both); normals within 1e-5 rad
+/// (measured 1.2e-6).
+#[test]
+fn trimmed_faces_and_shells_are_evaluated_on_the_gpu() {
+    let Some(context) = gpu() else { return };
+    let on_gpu = tessellator_on(context);
+    let defaults = knotwork::SceneOptions {
+        grid: TessOptions::DEFAULT.with_tolerance(knotwork::Tolerance::Relative(1e-3)),
+        ..Default::default()
+    };
+    for path in ["data/beetle_front_lid.igs", "data/abc-0000.step"] {
+        let scene = knotwork::io::read_scene(std::path::Path::new(path)).unwrap();
+        let cpu = CpuTessellator.tessellate_scene(&scene, &defaults).unwrap();
+        let gpu = on_gpu.tessellate_scene(&scene, &defaults).unwrap();
+        assert_eq!(gpu.parts, cpu.parts, "{path}");
+        assert_eq!(gpu.indices, cpu.indices, "{path}");
+        assert_eq!(gpu.uvs, cpu.uvs, "{path}");
+        let size = cpu.bounding_box_diagonal();
+        let (mut position, mut normal, mut differing) = (0.0f64, 0.0f64, 0);
+        for k in 0..cpu.positions.len() {
+            let apart = gpu.positions[k].distance(cpu.positions[k]);
+            position = position.max(apart / size);
+            differing += usize::from(apart > 0.0);
+            normal = normal.max(gpu.normals[k].angle_between(cpu.normals[k]));
+        }
+        assert!(
+            position <= 1e-6,
+            "{path}: positions {position:e} of the diagonal apart"
+        );
+        assert!(normal <= 1e-5, "{path}: normals {normal:e} rad apart");
+        assert!(
+            differing > cpu.positions.len() / 10,
+            "{path}: {differing} of {} positions differ from f64",
+            cpu.positions.len()
+        );
+    }
+}
+
+/// Chunks: under small binding limits the faces are cut into several dispatches with the
+/// same results as one; a face too large for a binding alone, and a face of degree 16, are
+/// evaluated on the CPU (bit for bit the f64 executor's).
+#[test]
+fn scattered_samples_chunk_and_fall_back_to_the_cpu() {
+    let Some(context) = gpu() else { return };
+    // Twelve rational bicubic patches (one cell each: 64 bytes of record, 1 040 of nets).
+    let surfaces: Vec<BSplineSurface> = (0..12)
+        .map(|f| {
+            let points: Vec<DVec3> = (0..16)
+                .map(|k| {
+                    let (i, j) = ((k % 4) as f64, (k / 4) as f64);
+                    DVec3::new(i, j, (0.7 * i + 0.4 * j + f as f64).sin())
+                })
+                .collect();
+            let weights: Vec<f64> = (0..16).map(|k| 1.0 + 0.1 * ((k + f) % 5) as f64).collect();
+            knotwork::geom::bezier_surface(3, 3, &points, Some(&weights)).unwrap()
+        })
+        .collect();
+    // Degree 16 × 1: a Bezier curve swept along v.
+    let points: Vec<DVec3> = (0..34)
+        .map(|k| {
+            DVec3::new(
+                (k % 17) as f64,
+                (k / 17) as f64,
+                ((k % 17) as f64 * 0.3).sin(),
+            )
+        })
+        .collect();
+    let high = knotwork::geom::bezier_surface(16, 1, &points, None).unwrap();
+    let params: Vec<Vec<glam::DVec2>> = (surfaces.iter().chain([&high]))
+        .map(|s| {
+            let (ru, rv) = (s.range_u(), s.range_v());
+            (0..200)
+                .map(|k| {
+                    glam::DVec2::new(
+                        ru.lerp((k % 20) as f64 / 19.0),
+                        rv.lerp((k / 20) as f64 / 9.0),
+                    )
+                })
+                .collect()
+        })
+        .collect();
+    let faces: Vec<knotwork::plan::FaceSamples> = (surfaces.iter().chain([&high]))
+        .zip(&params)
+        .map(|(surface, params)| knotwork::plan::FaceSamples { surface, params })
+        .collect();
+    let whole = knotwork::gpu::evaluate_samples(context, &faces, context.limits()).unwrap();
+    // 6.4 kB fits one face's 200 results (32 bytes each), not two.
+    let small = Limits {
+        binding_bytes: 6400,
+        ..context.limits()
+    };
+    let chunked = knotwork::gpu::evaluate_samples(context, &faces, small).unwrap();
+    assert_eq!(chunked, whole);
+    let f64_results = knotwork::cpu::evaluate_samples(&faces);
+    assert_eq!(whole.last(), f64_results.last(), "degree 16 on the CPU");
+    assert_ne!(whole[0], f64_results[0], "degree 3 on the GPU");
+    // Too small for any face: every face on the CPU.
+    let tiny = Limits {
+        binding_bytes: 1024,
+        ..context.limits()
+    };
+    assert_eq!(
+        knotwork::gpu::evaluate_samples(context, &faces, tiny).unwrap(),
+        f64_results
+    );
 }
 
 #[test]
@@ -1742,6 +1854,10 @@ fn chromium_webgpu_runs_the_kernels_within_the_bars() {
             knotwork::gpu::view::ENTRY_POINTS.len()
         )),
         "Tint refuses view.wgsl"
+    );
+    assert!(
+        report.contains("points.wgsl: compiled, its pipeline made"),
+        "Tint refuses points.wgsl"
     );
     // One uploaded weight 2 % off (the w of control point `point` in `file`) must fail.
     let perturb_and_fail = |prefix: String, file: String, point: usize| {

@@ -14,8 +14,8 @@ pub use grid::{
     execute_surfaces_split_f32, tessellate_grid_into,
 };
 pub use trimmed::{
-    TRIMMED_DEFAULT_TOLERANCE_REL, execute_shell, execute_trimmed, mesh_trimmed_faces, shell_plan,
-    trimmed_face_plan,
+    TRIMMED_DEFAULT_TOLERANCE_REL, evaluate_samples, execute_shell, execute_trimmed,
+    mesh_trimmed_faces, mesh_trimmed_faces_with, shell_plan, trimmed_face_plan,
 };
 pub use view::execute_view;
 

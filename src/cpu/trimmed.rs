@@ -1,28 +1,51 @@
-//! Executes the plan of a trimmed face ([`crate::plan::plan_trimmed`]) in f64.
+//! Plans the trimmed faces and shells of a scene ([`crate::plan::plan_trimmed`],
+//! [`crate::plan::plan_shell`]) and executes the plans: vertices evaluated in f64 here, or by
+//! another executor ([`crate::Tessellator::evaluate_face_samples`]), then joined into faces.
 
 use crate::error::{Error, Result};
 use crate::geom::brep::Shell;
 use crate::geom::{SamplingLimits, TrimmedSurface};
 use crate::mesh::{Mesh, MeshPart, TessOptions};
-use crate::plan::{ShellPlan, TrimmedPlan, plan_shell, plan_trimmed_within};
+use crate::plan::{FaceSamples, ShellPlan, TrimmedPlan, plan_shell, plan_trimmed_within};
 use crate::scene::{Geometry, Scene, SceneOptions};
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
 /// The mesh of one trimmed face from its plan: every vertex evaluated on the surface
 /// (position, limit normal), uv its parameters as fractions of the surface's range, one
 /// part (item 0, grid 0 × 0) holding the plan's triangles.
 pub fn execute_trimmed(face: &TrimmedSurface, plan: &TrimmedPlan) -> Mesh {
+    let samples = evaluate_samples(&[FaceSamples {
+        surface: face.surface(),
+        params: &plan.params,
+    }]);
+    trimmed_mesh(face, plan, &samples[0])
+}
+
+/// Positions and unit normals of every face's samples, evaluated in f64 (in parallel): the
+/// CPU executor's part of [`crate::Tessellator::evaluate_face_samples`].
+pub fn evaluate_samples(faces: &[FaceSamples]) -> Vec<Vec<(DVec3, DVec3)>> {
+    faces
+        .iter()
+        .map(|face| {
+            face.params
+                .par_iter()
+                .map(|p| {
+                    let sample = face.surface.evaluate(p.x, p.y);
+                    (sample.position, sample.normal)
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The mesh of a trimmed face from its plan and its vertices' evaluated `samples`.
+fn trimmed_mesh(face: &TrimmedSurface, plan: &TrimmedPlan, samples: &[(DVec3, DVec3)]) -> Mesh {
     let surface = face.surface();
-    let samples: Vec<_> = plan
-        .params
-        .par_iter()
-        .map(|p| surface.evaluate(p.x, p.y))
-        .collect();
     let indices: Vec<u32> = plan.triangles.iter().flatten().copied().collect();
     Mesh {
-        positions: samples.iter().map(|s| s.position).collect(),
-        normals: samples.iter().map(|s| s.normal).collect(),
+        positions: samples.iter().map(|s| s.0).collect(),
+        normals: samples.iter().map(|s| s.1).collect(),
         uvs: plan
             .params
             .iter()
@@ -56,18 +79,34 @@ fn range_fraction(surface: &crate::geom::BSplineSurface, p: DVec2) -> DVec2 {
 /// the control points of every surface and face of the scene.
 pub const TRIMMED_DEFAULT_TOLERANCE_REL: f64 = 1e-3;
 
-/// The trimmed faces of `scene` meshed in f64, in item order (one part each, carrying its
-/// item's index): each planned to its item's options, else `defaults.grid`'s (see
+/// The trimmed faces and shells of `scene` meshed in f64, in item order (one part per face,
+/// carrying its item's index): each planned to its item's options, else `defaults.grid`'s (see
 /// [`TRIMMED_DEFAULT_TOLERANCE_REL`]), faces in parallel. The plans are checked against
 /// `defaults.memory_budget` (with `grid_bytes` already taken by the rest of the scene,
 /// `vertex_bytes` per vertex) before any vertex is evaluated. A face whose plan fails fails
 /// the call, naming the item — or, with `defaults.skip_failed_faces`, is left out. Every
-/// backend runs trimmed faces here until the GPU executes trimmed plans.
+/// executor plans here; [`mesh_trimmed_faces_with`] takes its evaluation of the vertices.
 pub fn mesh_trimmed_faces(
     scene: &Scene,
     defaults: &SceneOptions,
     grid_bytes: u64,
     vertex_bytes: u64,
+) -> Result<Mesh> {
+    mesh_trimmed_faces_with(scene, defaults, grid_bytes, vertex_bytes, &|faces| {
+        Ok(evaluate_samples(faces))
+    })
+}
+
+/// As [`mesh_trimmed_faces`], the planned vertices of every face evaluated by `evaluate`
+/// (one call for the whole scene, faces in item order, a shell's in face order: an
+/// executor's [`crate::Tessellator::evaluate_face_samples`]).
+#[allow(clippy::type_complexity)]
+pub fn mesh_trimmed_faces_with(
+    scene: &Scene,
+    defaults: &SceneOptions,
+    grid_bytes: u64,
+    vertex_bytes: u64,
+    evaluate: &dyn Fn(&[FaceSamples]) -> Result<Vec<Vec<(DVec3, DVec3)>>>,
 ) -> Result<Mesh> {
     let items: Vec<usize> = (0..scene.items.len())
         .filter(|&k| {
@@ -103,11 +142,37 @@ pub fn mesh_trimmed_faces(
             return Err(Error::OverMemoryBudget { needed, budget });
         }
     }
+    let mut faces = Vec::new();
+    for (index, plan) in &plans {
+        match (&scene.items[*index].geometry, plan) {
+            (Geometry::Trimmed(face), ItemPlan::Face(plan)) => faces.push(FaceSamples {
+                surface: face.surface(),
+                params: &plan.params,
+            }),
+            (Geometry::Shell(shell), ItemPlan::Shell(plan)) => {
+                faces.extend(shell_samples(shell, plan))
+            }
+            _ => unreachable!("plans are made per item kind"),
+        }
+    }
+    let evaluated = evaluate(&faces)?;
+    crate::plan::check_item_count(faces.len(), evaluated.len())?;
+    for (face, samples) in faces.iter().zip(&evaluated) {
+        crate::plan::check_item_count(face.params.len(), samples.len())?;
+    }
+    let mut evaluated = evaluated.iter();
     let mut mesh = Mesh::default();
     for (index, plan) in &plans {
         let mut part = match (&scene.items[*index].geometry, plan) {
-            (Geometry::Trimmed(face), ItemPlan::Face(plan)) => execute_trimmed(face, plan),
-            (Geometry::Shell(shell), ItemPlan::Shell(plan)) => execute_shell(shell, plan),
+            (Geometry::Trimmed(face), ItemPlan::Face(plan)) => {
+                trimmed_mesh(face, plan, evaluated.next().expect("one per face"))
+            }
+            (Geometry::Shell(shell), ItemPlan::Shell(plan)) => {
+                let count = plan.faces.iter().filter(|f| f.is_ok()).count();
+                let samples: Vec<&[(DVec3, DVec3)]> =
+                    evaluated.by_ref().take(count).map(Vec::as_slice).collect();
+                shell_mesh(shell, plan, &samples)
+            }
             _ => unreachable!("plans are made per item kind"),
         };
         for p in &mut part.parts {
@@ -193,21 +258,39 @@ pub fn shell_plan(scene: &Scene, defaults: &SceneOptions, index: usize) -> Resul
 /// counter-clockwise seen from outside. One part per face that has a plan (item 0, in face
 /// order); faces without one are left out.
 pub fn execute_shell(shell: &Shell, plan: &ShellPlan) -> Mesh {
+    let evaluated = evaluate_samples(&shell_samples(shell, plan).collect::<Vec<_>>());
+    let samples: Vec<&[(DVec3, DVec3)]> = evaluated.iter().map(Vec::as_slice).collect();
+    shell_mesh(shell, plan, &samples)
+}
+
+/// The samples of the faces of `shell` that have a plan, in face order.
+fn shell_samples<'a>(
+    shell: &'a Shell,
+    plan: &'a ShellPlan,
+) -> impl Iterator<Item = FaceSamples<'a>> + 'a {
+    (shell.faces().iter().zip(&plan.faces)).filter_map(|(face, face_plan)| {
+        let face_plan = face_plan.as_ref().ok()?;
+        Some(FaceSamples {
+            surface: &face.surface,
+            params: &face_plan.params,
+        })
+    })
+}
+
+/// The mesh of a shell from its plan and the evaluated `samples` of its planned faces (in
+/// face order; see [`execute_shell`]).
+fn shell_mesh(shell: &Shell, plan: &ShellPlan, samples: &[&[(DVec3, DVec3)]]) -> Mesh {
     let mut mesh = Mesh::default();
-    for (face, face_plan) in shell.faces().iter().zip(&plan.faces) {
-        let Ok(face_plan) = face_plan else { continue };
+    let planned = (shell.faces().iter().zip(&plan.faces))
+        .filter_map(|(face, face_plan)| Some((face, face_plan.as_ref().ok()?)));
+    for ((face, face_plan), samples) in planned.zip(samples) {
         let surface = &face.surface;
-        let samples: Vec<_> = face_plan
-            .params
-            .par_iter()
-            .map(|p| surface.evaluate(p.x, p.y))
-            .collect();
         let (first_vertex, first_index) = (mesh.positions.len() as u32, mesh.indices.len() as u32);
         let sign = if face.same_sense { 1.0 } else { -1.0 };
         for ((sample, shared), p) in samples.iter().zip(&face_plan.shared).zip(&face_plan.params) {
             mesh.positions
-                .push(shared.map_or(sample.position, |k| plan.points[k as usize]));
-            mesh.normals.push(sample.normal * sign);
+                .push(shared.map_or(sample.0, |k| plan.points[k as usize]));
+            mesh.normals.push(sample.1 * sign);
             mesh.uvs.push(range_fraction(surface, *p));
         }
         for &[a, b, c] in &face_plan.triangles {

@@ -220,7 +220,7 @@ pub struct GpuBatch {
     trimmed: Option<TrimmedFaces>,
 }
 
-/// Trimmed faces, planned and evaluated on the CPU (f64, rounded to f32) and uploaded once:
+/// Trimmed faces and shells, planned on the CPU, evaluated on the GPU and uploaded once:
 /// their mesh, and the box of their surfaces' control points.
 #[derive(Debug)]
 struct TrimmedFaces {
@@ -451,9 +451,9 @@ impl GpuBatch {
     }
 
     /// A batch of every item of `scene`: surfaces, Coons patches and curves, each on its own
-    /// grid or sample count where it asks for one, else on `defaults`. Trimmed faces are
-    /// planned and evaluated on the CPU ([`crate::cpu::mesh_trimmed_faces`]) and uploaded
-    /// once into [`GpuBatch::trimmed_mesh`]; updates and reloads leave them as they are.
+    /// grid or sample count where it asks for one, else on `defaults`. Trimmed faces and
+    /// shells are planned on the CPU, their vertices evaluated on the GPU, and uploaded once
+    /// into [`GpuBatch::trimmed_mesh`]; updates and reloads leave them as they are.
     /// Surfaces are joined along the scene's seams ([`Scene::seams`]) until a reload.
     pub fn from_scene(
         context: &GpuContext,
@@ -1082,8 +1082,10 @@ fn bind_chunks(
         .collect()
 }
 
-/// The trimmed faces of `scene` meshed on the CPU and uploaded (vertex, index, storage and
-/// copy-source usage, like the batch's own outputs); `None` without trimmed faces.
+/// The trimmed faces and shells of `scene` planned on the CPU, their vertices evaluated on
+/// the GPU ([`super::points`]) and read back to be joined into faces (a shell's shared edge
+/// points taken from its plan), then uploaded (vertex, index, storage and copy-source usage,
+/// like the batch's own outputs); `None` without any.
 fn upload_trimmed(
     context: &GpuContext,
     scene: &Scene,
@@ -1102,11 +1104,12 @@ fn upload_trimmed(
     if boxes.is_empty() {
         return Ok(None);
     }
-    let mesh = Mesh32::from(crate::cpu::mesh_trimmed_faces(
+    let mesh = Mesh32::from(crate::cpu::mesh_trimmed_faces_with(
         scene,
         defaults,
         0,
         VERTEX_BYTES,
+        &|faces| super::points::evaluate_samples(context, faces, context.limits()),
     )?);
     let control_box = boxes
         .into_iter()

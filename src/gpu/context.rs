@@ -3,8 +3,9 @@
 
 use super::coons;
 use super::curves;
+use super::points;
 use super::surfaces::{ChunkParams, Limits, PASSES};
-use super::{COONS_WGSL, CURVES_WGSL, TESSELLATE_WGSL};
+use super::{COONS_WGSL, CURVES_WGSL, POINTS_WGSL, TESSELLATE_WGSL};
 use crate::error::{Error, Result};
 use std::num::NonZeroU64;
 
@@ -45,6 +46,9 @@ pub(super) struct Kernels {
     /// coons.wgsl.
     pub coons_layout: wgpu::BindGroupLayout,
     pub coons_pipeline: wgpu::ComputePipeline,
+    /// points.wgsl.
+    pub points_layout: wgpu::BindGroupLayout,
+    pub points_pipeline: wgpu::ComputePipeline,
 }
 
 /// A headless wgpu instance on the primary backends (Vulkan, Metal, DX12, WebGPU), or on
@@ -147,6 +151,22 @@ impl GpuContext {
             });
             let coons_pipeline =
                 compute_pipeline(&device, &coons_module, &coons_layout, coons::ENTRY_POINT);
+            let points_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("knotwork points.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(POINTS_WGSL.into()),
+            });
+            let points_entries = [
+                storage(0, true),
+                storage(1, true),
+                storage(2, true),
+                storage(3, false),
+            ];
+            let points_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("knotwork points"),
+                entries: &points_entries,
+            });
+            let points_pipeline =
+                compute_pipeline(&device, &points_module, &points_layout, points::ENTRY_POINT);
             Kernels {
                 layout,
                 pipelines,
@@ -154,6 +174,8 @@ impl GpuContext {
                 curve_pipeline,
                 coons_layout,
                 coons_pipeline,
+                points_layout,
+                points_pipeline,
             }
         })?;
         Ok(Self {

@@ -33,6 +33,7 @@ pub mod context;
 mod coons;
 mod curves;
 mod export;
+pub(crate) mod points;
 mod readback;
 mod surfaces;
 pub mod tessellator;
@@ -44,6 +45,7 @@ pub use curves::{GpuLines, sample_curves};
 pub use export::{
     ChunkBindings, CoonsChunkInputs, CoonsInputs, CurveChunkInputs, CurveInputs, KernelInputs,
 };
+pub use points::{MAX_POINTS_DEGREE, evaluate_samples};
 pub use surfaces::{Limits, VERTEX_BYTES};
 pub use tessellator::GpuTessellator;
 pub use view::{ViewBatch, ViewFrame, ViewTargets};
@@ -55,6 +57,14 @@ pub const TESSELLATE_WGSL: &str = concat!(
 );
 /// The WGSL source of the curve sampling kernel.
 pub const CURVES_WGSL: &str = include_str!("../../shaders/curves.wgsl");
+/// The WGSL source of the kernel that evaluates surfaces at scattered parameters (trimmed
+/// faces' and shells' vertices), with the shared limit normal and Bezier-cell evaluation
+/// prepended.
+pub const POINTS_WGSL: &str = concat!(
+    include_str!("../../shaders/grid_common.wgsl"),
+    include_str!("../../shaders/bezier_cell.wgsl"),
+    include_str!("../../shaders/points.wgsl")
+);
 /// The WGSL source of the direct Coons kernel (with the shared grid rules prepended).
 pub const COONS_WGSL: &str = concat!(
     include_str!("../../shaders/grid_common.wgsl"),

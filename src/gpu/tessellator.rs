@@ -159,6 +159,14 @@ impl Tessellator for GpuTessellator {
         work.read(pool, &self.context)
     }
 
+    /// On the GPU in f32, relative to each Bezier cell's centre ([`super::points`]).
+    fn evaluate_face_samples(
+        &self,
+        faces: &[crate::plan::FaceSamples],
+    ) -> Result<Vec<Vec<(glam::DVec3, glam::DVec3)>>> {
+        super::points::evaluate_samples(&self.context, faces, self.context.limits())
+    }
+
     fn name(&self) -> String {
         format!("gpu: {}", self.context.adapter_summary())
     }

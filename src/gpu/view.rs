@@ -22,11 +22,12 @@ use crate::geom::degenerate_cross_sq;
 use crate::mesh::Vertex;
 use crate::plan::view::{Rate, VIEW_TOLERANCE_MARGIN, View, ViewPlan};
 use bytemuck::{Pod, Zeroable};
-use glam::DVec4;
+use glam::{DVec3, DVec4};
 
 /// The WGSL source of the view-dependent kernels (with the shared grid rules prepended).
 pub const VIEW_WGSL: &str = concat!(
     include_str!("../../shaders/grid_common.wgsl"),
+    include_str!("../../shaders/bezier_cell.wgsl"),
     include_str!("../../shaders/view.wgsl")
 );
 
@@ -512,37 +513,7 @@ fn pack(plan: &ViewPlan) -> (Vec<u32>, Vec<[f32; 4]>) {
     let mut points = Vec::new();
     for cell in &plan.cells {
         let patch = &cell.patch;
-        let first_point = points.len() as u32;
-        let largest = patch.points.iter().map(|h| h.w).fold(0.0, f64::max);
-        let net: Vec<DVec4> = patch
-            .points
-            .iter()
-            .map(|h| {
-                let w = h.w / largest;
-                ((h.truncate() / h.w - cell.centre) * w).extend(w)
-            })
-            .collect();
-        let (p, q) = (patch.degree_u, patch.degree_v);
-        let at = |i: usize, j: usize| net[j * (p + 1) + i];
-        let mut push = |h: DVec4| points.push(h.as_vec4().to_array());
-        // The net, then its differences along u, along v, and uu, uv, vv, each u fastest.
-        net.iter().for_each(|&h| push(h));
-        for j in 0..=q {
-            (0..p).for_each(|i| push(at(i + 1, j) - at(i, j)));
-        }
-        for j in 0..q {
-            (0..=p).for_each(|i| push(at(i, j + 1) - at(i, j)));
-        }
-        for j in 0..=q {
-            (0..p.saturating_sub(1))
-                .for_each(|i| push(at(i + 2, j) - 2.0 * at(i + 1, j) + at(i, j)));
-        }
-        for j in 0..q {
-            (0..p).for_each(|i| push(at(i + 1, j + 1) - at(i + 1, j) - at(i, j + 1) + at(i, j)));
-        }
-        for j in 0..q.saturating_sub(1) {
-            (0..=p).for_each(|i| push(at(i, j + 2) - 2.0 * at(i, j + 1) + at(i, j)));
-        }
+        let first_point = push_cell_nets(patch, cell.centre, &mut points);
         let degenerate = degenerate_cross_sq(cell.cross_scale, f64::from(f32::EPSILON));
         let f = |x: f64| (x as f32).to_bits();
         let centre = cell.centre.as_vec3();
@@ -582,6 +553,47 @@ fn pack(plan: &ViewPlan) -> (Vec<u32>, Vec<[f32; 4]>) {
         words.extend([cell, corner]);
     }
     (words, points)
+}
+
+/// Appends `patch`'s homogeneous control points relative to `centre` (weights scaled to a
+/// largest of 1), then their first and second differences (formed in f64), in the order
+/// `evaluate_cell` (bezier_cell.wgsl) reads them; returns the index of its first point.
+pub(super) fn push_cell_nets(
+    patch: &crate::geom::BezierPatch,
+    centre: DVec3,
+    points: &mut Vec<[f32; 4]>,
+) -> u32 {
+    let first_point = points.len() as u32;
+    let largest = patch.points.iter().map(|h| h.w).fold(0.0, f64::max);
+    let net: Vec<DVec4> = patch
+        .points
+        .iter()
+        .map(|h| {
+            let w = h.w / largest;
+            ((h.truncate() / h.w - centre) * w).extend(w)
+        })
+        .collect();
+    let (p, q) = (patch.degree_u, patch.degree_v);
+    let at = |i: usize, j: usize| net[j * (p + 1) + i];
+    let mut push = |h: DVec4| points.push(h.as_vec4().to_array());
+    // The net, then its differences along u, along v, and uu, uv, vv, each u fastest.
+    net.iter().for_each(|&h| push(h));
+    for j in 0..=q {
+        (0..p).for_each(|i| push(at(i + 1, j) - at(i, j)));
+    }
+    for j in 0..q {
+        (0..=p).for_each(|i| push(at(i, j + 1) - at(i, j)));
+    }
+    for j in 0..=q {
+        (0..p.saturating_sub(1)).for_each(|i| push(at(i + 2, j) - 2.0 * at(i + 1, j) + at(i, j)));
+    }
+    for j in 0..q {
+        (0..p).for_each(|i| push(at(i + 1, j + 1) - at(i + 1, j) - at(i, j + 1) + at(i, j)));
+    }
+    for j in 0..q.saturating_sub(1) {
+        (0..=p).for_each(|i| push(at(i, j + 2) - 2.0 * at(i, j + 1) + at(i, j)));
+    }
+    first_point
 }
 
 #[cfg(test)]

@@ -30,6 +30,16 @@ use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::Arc;
 
+/// The vertices of one planned face (a trimmed face's, or a shell face's) an executor
+/// evaluates: `surface` at each of `params` (within its range). What comes back per vertex
+/// is its position (model units) and unit normal (S_u × S_v, or its limit where that
+/// vanishes), as [`BSplineSurface::evaluate`] gives them.
+#[derive(Clone, Copy, Debug)]
+pub struct FaceSamples<'a> {
+    pub surface: &'a BSplineSurface,
+    pub params: &'a [glam::DVec2],
+}
+
 /// Where every grid item's vertices and indices go in the output.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct GridLayout {

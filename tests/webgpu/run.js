@@ -24,7 +24,7 @@ const read = (name) => fs.readFileSync(path.join(dir, name));
 
 // In the page: a device, the module (compilation errors are fatal) and one pipeline per
 // entry point, on one bind group layout — the layout knotwork's GpuContext creates.
-async function setUp({ wgsl, entryPoints, curveWgsl, curveEntryPoint, coonsWgsl, coonsEntryPoint, viewWgsl, viewEntryPoints }) {
+async function setUp({ wgsl, entryPoints, curveWgsl, curveEntryPoint, coonsWgsl, coonsEntryPoint, viewWgsl, viewEntryPoints, pointsWgsl, pointsEntryPoint }) {
   const adapter = await navigator.gpu.requestAdapter();
   if (!adapter) throw new Error('no WebGPU adapter');
   const device = await adapter.requestDevice();
@@ -78,6 +78,14 @@ async function setUp({ wgsl, entryPoints, curveWgsl, curveEntryPoint, coonsWgsl,
   for (const entryPoint of viewEntryPoints) {
     await device.createComputePipelineAsync({ layout: 'auto', compute: { module: viewModule, entryPoint } });
   }
+  // points.wgsl (trimmed faces' and shells' vertices): compiled, its pipeline made.
+  const pointsLayout = device.createBindGroupLayout({
+    entries: [storage(0, true), storage(1, true), storage(2, true), storage(3, false)],
+  });
+  await device.createComputePipelineAsync({
+    layout: device.createPipelineLayout({ bindGroupLayouts: [pointsLayout] }),
+    compute: { module: await compile(pointsWgsl), entryPoint: pointsEntryPoint },
+  });
   // Helpers the runners share (each runner is sent to the page on its own).
   const decode = (b64) => Uint8Array.from(atob(b64), (ch) => ch.charCodeAt(0));
   const encode = (bytes) => {
@@ -314,10 +322,13 @@ async function main() {
       coonsEntryPoint: manifest.coons_entry_point,
       viewWgsl: read('view.wgsl').toString('utf8'),
       viewEntryPoints: manifest.view_entry_points,
+      pointsWgsl: read('points.wgsl').toString('utf8'),
+      pointsEntryPoint: manifest.points_entry_point,
     });
     const bars = manifest.bars;
     console.log(`adapter: ${adapter} (Chromium WebGPU)`);
     console.log(`view.wgsl: compiled, ${manifest.view_entry_points.length} pipelines made`);
+    console.log('points.wgsl: compiled, its pipeline made');
     console.log(`bars: position ${bars.position_rel} of the diagonal (+ f32 rounding), normal ${bars.normal} rad (${bars.degenerate_normal} near degenerate points)`);
     let failures = 0;
     const cell = (v) => v.toExponential(3).padStart(11);
