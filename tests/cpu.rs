@@ -2187,6 +2187,90 @@ fn check_trimmed_topology(
     Ok(area)
 }
 
+/// Total length of the edges of `mesh` that only one triangle uses (its open boundary).
+fn open_boundary_length(mesh: &Mesh) -> f64 {
+    let mut uses = std::collections::HashMap::new();
+    for t in mesh.indices.chunks(3) {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *uses.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    (uses.iter())
+        .filter(|&(_, &n)| n == 1)
+        .map(|(&(a, b), _)| mesh.positions[a as usize].distance(mesh.positions[b as usize]))
+        .sum()
+}
+
+/// A loop that crosses the seam of a closed surface (a torus, closed both ways, range
+/// [0, 1]²) is the same region as the two loops either side of the seam: one piece with
+/// the area of both within 0.1 %, whose open boundary is the loop alone — shorter than the
+/// two pieces' by the seam segments they add (twice their length each). Across u = 1 and
+/// across v = 0 (the loop given below the range there).
+#[test]
+fn trimming_loops_may_cross_the_seam_of_a_closed_surface() {
+    let torus = knotwork::geom::shapes::torus(DVec3::ZERO, 3.0, 1.0);
+    let tolerance = 1e-3;
+    let rectangle = |u0: f64, u1: f64, v0: f64, v1: f64| {
+        uv_polygon(&[(u0, v0), (u1, v0), (u1, v1), (u0, v1)].map(glam::DVec2::from))
+    };
+    let face =
+        |l: TrimLoop| TrimmedSurface::try_new(torus.clone(), ParamMap::SAME, Some(l), vec![]);
+    let area = |mesh: &Mesh| -> f64 {
+        (mesh.indices.chunks(3))
+            .map(|t| {
+                let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum()
+    };
+    // (the crossing loop, the two pieces, the seam segment's length on the torus).
+    let cases = [
+        (
+            rectangle(0.9, 1.15, 0.3, 0.5),
+            [
+                rectangle(0.9, 1.0, 0.3, 0.5),
+                rectangle(0.0, 0.15, 0.3, 0.5),
+            ],
+            (torus.point(0.0, 0.3) - torus.point(0.0, 0.5)).length(),
+        ),
+        (
+            rectangle(0.2, 0.4, -0.1, 0.1),
+            [rectangle(0.2, 0.4, 0.9, 1.0), rectangle(0.2, 0.4, 0.0, 0.1)],
+            (torus.point(0.2, 0.0) - torus.point(0.4, 0.0)).length(),
+        ),
+    ];
+    for (crossing, pieces, seam) in cases {
+        let whole = trimmed_mesh(&face(crossing).unwrap(), tolerance);
+        let parts: Vec<Mesh> = (pieces.into_iter())
+            .map(|l| trimmed_mesh(&face(l).unwrap(), tolerance))
+            .collect();
+        let parts_area: f64 = parts.iter().map(area).sum();
+        let whole_area = area(&whole);
+        assert!(
+            (whole_area - parts_area).abs() <= 1e-3 * parts_area,
+            "area {whole_area} against {parts_area}"
+        );
+        let parts_boundary: f64 = parts.iter().map(open_boundary_length).sum();
+        let whole_boundary = open_boundary_length(&whole);
+        // The seam segments are chords of at most the segment's length (two per piece pair).
+        assert!(
+            whole_boundary < parts_boundary - 1.5 * seam,
+            "boundary {whole_boundary} against {parts_boundary} (seam {seam})"
+        );
+        // Every vertex on the torus: |distance from the tube's circle − 1| within rounding.
+        for p in &whole.positions {
+            let off = ((p.truncate().length() - 3.0).hypot(p.z) - 1.0).abs();
+            assert!(off < 1e-12, "{p} off the torus by {off:e}");
+        }
+    }
+    // Wider than a period: still refused, naming the loop.
+    assert!(matches!(
+        face(rectangle(0.1, 1.2, 0.3, 0.5)),
+        Err(Error::InvalidTrimLoop { loop_index: 0, .. })
+    ));
+}
+
 /// A plane 10 × 10 (model units) trimmed to a disc of radius 4 with a square hole of side 2:
 /// the loops' vertices lie on the loops exactly, the mesh covers the region between them
 /// with no gap or overlap (edges used once each way, open only along the loops, uv area

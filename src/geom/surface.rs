@@ -266,6 +266,60 @@ impl BSplineSurface {
         ))
     }
 
+    /// The same surface, closed along v, with its seam moved to v = `c` (strictly inside
+    /// the range): the range becomes [c, c + P] (P its width), the part after `c` followed
+    /// by the part before it shifted by P, joined at the old seam by a knot of multiplicity
+    /// q (C⁰ there, as the closed surface is). `None` unless the knot vector along v is
+    /// clamped, the range is its whole domain, and the first and last rows of control points
+    /// coincide (within 1e-12 of the control box, weights alike): the surface closes on
+    /// itself.
+    pub fn reseamed_v(&self, c: f64) -> Option<Self> {
+        let q = self.degree_v();
+        let (nu, nv) = (self.count_u(), self.count_v());
+        let (start, end) = self.knots_v.domain();
+        if !self.knots_v.is_clamped() || self.range_v != Interval::new(start, end) {
+            return None;
+        }
+        let size = self.control_box_diagonal();
+        let closes = (0..nu).all(|i| {
+            let (a, b) = ((i, 0), (i, nv - 1));
+            self.control_point(a.0, a.1)
+                .distance(self.control_point(b.0, b.1))
+                <= 1e-12 * size
+                && (self.weight(a.0, a.1) - self.weight(b.0, b.1)).abs()
+                    <= 1e-12 * self.weight(a.0, a.1).abs()
+        });
+        if !closes {
+            return None;
+        }
+        let (before, after) = self.split_v(c).ok()?;
+        let period = end - start;
+        // After's knots up to the old end (kept q times), then before's past its start.
+        let (ka, kb) = (after.knots_v.knots(), before.knots_v.knots());
+        let mut knots = ka[..ka.len() - 1].to_vec();
+        knots.extend(kb[q + 1..].iter().map(|k| k + period));
+        let rows = (0..after.count_v())
+            .map(|j| (&after, j))
+            .chain((1..before.count_v()).map(|j| (&before, j)));
+        let (mut points, mut weights) = (Vec::new(), Vec::new());
+        for (part, j) in rows {
+            for i in 0..nu {
+                points.push(part.control_point(i, j));
+                weights.push(part.weight(i, j));
+            }
+        }
+        let knots_v = KnotVector::try_new(q, knots).ok()?;
+        let weights = self.rational.then_some(weights.as_slice());
+        Self::try_new(self.knots_u.clone(), knots_v, &points, weights)
+            .and_then(|s| s.with_range(self.range_u, Interval::new(c, c + period)))
+            .ok()
+    }
+
+    /// [`reseamed_v`](Self::reseamed_v) along u.
+    pub fn reseamed_u(&self, c: f64) -> Option<Self> {
+        self.transposed().reseamed_v(c).map(|s| s.transposed())
+    }
+
     /// The surface with every Cartesian control point moved by the affine map `f` (weights
     /// kept): exact, since rational B-splines are affinely invariant.
     pub fn mapped(&self, f: impl Fn(DVec3) -> DVec3) -> Self {

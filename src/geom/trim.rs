@@ -141,7 +141,8 @@ pub const LOOP_GAP: f64 = 1e-4;
 impl TrimmedSurface {
     /// Validates the loops: each has at least one curve, each curve starts where the one
     /// before ends and the last ends where the first starts (within [`LOOP_GAP`]), and every
-    /// curve's ends lie in the surface's range (within the same). Loop 0 is the outer loop,
+    /// curve's ends lie in the surface's range (within the same) — on a surface closed along
+    /// an axis, after loops that cross its seam have been taken in ([`across_seams`]). Loop 0 is the outer loop,
     /// holes are 1, 2, … in order (also when there is no outer loop). The range is checked at
     /// each curve's knots and 8 points per knot span.
     pub fn try_new(
@@ -150,6 +151,7 @@ impl TrimmedSurface {
         outer: Option<TrimLoop>,
         holes: Vec<TrimLoop>,
     ) -> Result<Self> {
+        let (surface, outer, holes) = across_seams(surface, map, outer, holes);
         let face = TrimmedSurface {
             surface,
             map,
@@ -316,15 +318,101 @@ impl TrimmedSurface {
     /// Points of a loop curve in surface parameters: its ends, its knots and 8 points inside
     /// each knot span (what validation checks against the range).
     fn curve_samples(&self, curve: &BSplineCurve) -> Vec<DVec2> {
-        let breaks = curve.span_breaks();
-        let mut samples = vec![self.curve_point(curve, curve.range().end)];
-        for span in breaks.windows(2) {
-            samples.extend((0..8).map(|k| {
-                self.curve_point(curve, span[0] + (span[1] - span[0]) * f64::from(k) / 8.0)
-            }));
-        }
-        samples
+        curve_samples(self.map, curve)
     }
+}
+
+/// The surface parameters of points of `curve` (its ends, knots and 8 points inside each
+/// knot span) through `map`.
+fn curve_samples(map: ParamMap, curve: &BSplineCurve) -> Vec<DVec2> {
+    let at = |t: f64| map.apply(curve.point(t).truncate());
+    let breaks = curve.span_breaks();
+    let mut samples = vec![at(curve.range().end)];
+    for span in breaks.windows(2) {
+        samples.extend((0..8).map(|k| at(span[0] + (span[1] - span[0]) * f64::from(k) / 8.0)));
+    }
+    samples
+}
+
+/// Loops that cross the seam of a surface closed along an axis, taken in: where a loop
+/// reaches past the range along an axis along which the surface closes on itself
+/// ([`BSplineSurface::reseamed_u`]) and the file's parameter maps affinely onto it, the
+/// surface's seam is moved to a parameter c no loop spans (modulo the period P) and every
+/// loop shifted by the multiple of P that puts it in [c, c + P] — the same region of the
+/// same surface. Anything else is left as given (validation then names the loop that
+/// strays): loops wider than a period, a surface that does not close, an angle map.
+fn across_seams(
+    mut surface: BSplineSurface,
+    map: ParamMap,
+    mut outer: Option<TrimLoop>,
+    mut holes: Vec<TrimLoop>,
+) -> (BSplineSurface, Option<TrimLoop>, Vec<TrimLoop>) {
+    for axis in 0..2 {
+        let range = [surface.range_u(), surface.range_v()][axis];
+        let slack = LOOP_GAP * surface.range_u().width().hypot(surface.range_v().width());
+        // The file's axis that maps onto this one, and how.
+        let axis_map = if axis == 0 { map.u } else { map.v };
+        let file_axis = if map.swap { 1 - axis } else { axis };
+        let AxisMap::Affine { scale, .. } = axis_map else {
+            continue;
+        };
+        let spans: Vec<(f64, f64)> = (outer.iter().chain(&holes))
+            .map(|l| {
+                (l.curves.iter().flat_map(|c| curve_samples(map, c)))
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+                        (lo.min(p[axis]), hi.max(p[axis]))
+                    })
+            })
+            .collect();
+        let strays = spans
+            .iter()
+            .any(|&(lo, hi)| lo < range.start - slack || hi > range.end + slack);
+        let period = range.width();
+        // (A loop with a point that is not a number spans nothing narrower.)
+        let narrower = |&(lo, hi): &(f64, f64)| hi - lo < period - slack;
+        if !strays || !spans.iter().all(narrower) {
+            continue;
+        }
+        // Whether x lies inside a loop's span, modulo the period.
+        let inside = |x: f64| {
+            spans.iter().any(|&(lo, hi)| {
+                let from = (x - lo).rem_euclid(period);
+                from > 0.0 && from < hi - lo
+            })
+        };
+        let Some(cut) = spans
+            .iter()
+            .map(|&(_, hi)| range.start + (hi + 0.5 * slack - range.start).rem_euclid(period))
+            .find(|&c| !inside(c))
+        else {
+            continue;
+        };
+        let reseamed = if cut - range.start <= slack || range.end - cut <= slack {
+            Some(surface.clone())
+        } else if axis == 0 {
+            surface.reseamed_u(cut)
+        } else {
+            surface.reseamed_v(cut)
+        };
+        let Some(reseamed) = reseamed else { continue };
+        let start = [reseamed.range_u(), reseamed.range_v()][axis].start;
+        let shifted = |l: &TrimLoop, &(lo, _): &(f64, f64)| {
+            // The multiple of the period that puts the loop's start at or past the seam.
+            let k = ((start - slack - lo) / period).ceil();
+            let mut shift = glam::DVec3::ZERO;
+            shift[file_axis] = k * period / scale;
+            TrimLoop {
+                curves: l.curves.iter().map(|c| c.mapped(|p| p + shift)).collect(),
+            }
+        };
+        let mut spans = spans.iter();
+        outer = outer.map(|l| shifted(&l, spans.next().expect("one span per loop")));
+        holes = (holes.iter())
+            .map(|l| shifted(l, spans.next().expect("one span per loop")))
+            .collect();
+        surface = reseamed;
+    }
+    (surface, outer, holes)
 }
 
 #[cfg(test)]
