@@ -1958,6 +1958,30 @@ fn the_teapot_meets_each_tolerance_with_second_order_growth() {
     }
 }
 
+/// At the teapot's bottom pole a grid cell joined to a finer neighbour took the pole and
+/// two samples of one meridian in a triangle: on the flat bottom a sliver of no area facing
+/// anywhere (4 at 1e-3 and at 1e-4 of the diagonal). Now the join zips from the pole along
+/// both meridians: no triangle faces against a corner's normal there.
+#[test]
+fn the_teapot_pole_has_no_turned_slivers() {
+    let surfaces = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt"))
+        .unwrap()
+        .surface_list();
+    for tolerance_rel in [1e-3, 1e-4] {
+        let options = TessOptions::DEFAULT.with_tolerance(Tolerance::Relative(tolerance_rel));
+        let mesh = CpuTessellator.tessellate(&surfaces, &options).unwrap();
+        let turned = (mesh.indices.chunks(3))
+            .filter(|t| {
+                let p = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
+                let normal = (p[1] - p[0]).cross(p[2] - p[0]);
+                t.iter()
+                    .any(|&k| normal.dot(mesh.normals[k as usize]) <= 0.0)
+            })
+            .count();
+        assert_eq!(turned, 0, "at {tolerance_rel}: {turned} turned over");
+    }
+}
+
 /// The largest angle (degrees) between the normals at the ends of any triangle edge of
 /// `mesh`, leaving out edges with an end at a vertex where `skip` holds.
 fn largest_edge_turn(mesh: &Mesh, skip: impl Fn(usize) -> bool) -> f64 {

@@ -467,7 +467,11 @@ impl CellGrid {
                         let [c00, c10, c11, c01] = corners;
                         let numbered = [c00, c10, c01, c11];
                         out.extend(cell_triangles(0, 2).map(|v| numbered[v as usize]));
-                    } else {
+                    } else if !zip_from_pole(
+                        corners,
+                        [bottom_extras, right_extras, top_extras, left_extras],
+                        out,
+                    ) {
                         // c00 → bottom → c10 → right → c11, and c00 → left → c01 → top → c11.
                         let mut chain_a = vec![corners[0]];
                         chain_a.extend_from_slice(bottom_extras);
@@ -580,6 +584,58 @@ pub(crate) fn sample_fraction(range: Interval, piece: Interval, s: u32, segments
         (piece.end - range.start) / range.width(),
     );
     ends.lerp(f64::from(s) / f64::from(segments))
+}
+
+/// Triangulates a grid cell's polygon whose corners `corners` (c00, c10, c11, c01) meet in
+/// one vertex on a pole and that has samples (`extras` on the bottom, right, top and left
+/// sides, in increasing u or v) on a side ending at the pole, and returns true; false (and
+/// nothing added) for any other cell. There [`zip_chains`] from c00 would join the pole
+/// with two samples of one such side: three points of one meridian, a sliver of no area
+/// where the meridian is straight (a flat bottom). Instead the chains start at the pole and
+/// run along the two sides that meet there: the first triangle joins the pole with the
+/// first sample of each, so no triangle has three vertices on one side of the cell.
+fn zip_from_pole(corners: [u32; 4], extras: [&[u32]; 4], out: &mut Vec<u32>) -> bool {
+    // The polygon counter-clockwise from c00, corners marked, the pole once.
+    let mut polygon: Vec<(u32, bool)> = Vec::new();
+    for side in 0..4 {
+        polygon.push((corners[side], true));
+        let along: Vec<u32> = if side < 2 {
+            extras[side].to_vec()
+        } else {
+            extras[side].iter().rev().copied().collect()
+        };
+        polygon.extend(along.into_iter().map(|v| (v, false)));
+    }
+    let Some(pole) = (0..4).find(|&k| corners[k] == corners[(k + 1) % 4]) else {
+        return false;
+    };
+    polygon.dedup_by_key(|entry| entry.0);
+    while polygon.len() > 1 && polygon[0].0 == polygon[polygon.len() - 1].0 {
+        polygon.pop();
+    }
+    let start = (polygon.iter())
+        .position(|&(v, _)| v == corners[pole])
+        .expect("the pole is a corner");
+    polygon.rotate_left(start);
+    // After the pole: the first side, a corner X, the far side, a corner Y, the last side.
+    let others: Vec<usize> = (1..polygon.len()).filter(|&k| polygon[k].1).collect();
+    let &[x, y] = others.as_slice() else {
+        return false;
+    };
+    let last = polygon.len() - 1;
+    if x == 1 && y == last {
+        return false;
+    }
+    let index = |k: usize| polygon[k].0;
+    // Counter-clockwise from the pole to the end corner, and clockwise to it.
+    let end = if x >= 2 { x } else { y };
+    let a: Vec<u32> = (0..=end).map(index).collect();
+    let b: Vec<u32> = std::iter::once(0)
+        .chain((end..=last).rev())
+        .map(index)
+        .collect();
+    zip_chains(&a, &b, out);
+    true
 }
 
 /// Triangulates the convex polygon bounded by two chains from its corner c00 to its corner
