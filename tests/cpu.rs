@@ -2293,6 +2293,51 @@ fn trimming_loops_may_cross_the_seam_of_a_closed_surface() {
         face(rectangle(0.1, 1.2, 0.3, 0.5)),
         Err(Error::InvalidTrimLoop { loop_index: 0, .. })
     ));
+    // A surface of revolution whose loops are given in angles (IGES 120): a cylinder of
+    // radius 2 and height 3, the loop from −0.5 to 0.7 rad across its seam at 0 — one
+    // piece of the exact area 2·1.2·(0.8 − 0.2)·3 less the chords' shortfall.
+    let profile = BSplineCurve::try_new(
+        KnotVector::clamped_uniform(1, 2).unwrap(),
+        &[DVec3::new(2.0, 0.0, 0.0), DVec3::new(2.0, 0.0, 3.0)],
+        None,
+    )
+    .unwrap();
+    let cylinder = knotwork::geom::shapes::revolve(
+        &profile,
+        DVec3::ZERO,
+        DVec3::Z,
+        Interval::new(0.0, std::f64::consts::TAU),
+    )
+    .unwrap();
+    let in_angles = ParamMap {
+        swap: false,
+        u: knotwork::geom::AxisMap::Angle {
+            angles: Interval::new(0.0, std::f64::consts::TAU),
+        },
+        v: knotwork::geom::AxisMap::SAME,
+    };
+    let band = TrimmedSurface::try_new(
+        cylinder,
+        in_angles,
+        Some(rectangle(-0.5, 0.7, 0.2, 0.8)),
+        vec![],
+    )
+    .unwrap();
+    let mesh = trimmed_mesh(&band, tolerance);
+    let exact = 2.0 * 1.2 * 0.6 * 3.0;
+    let meshed = area(&mesh);
+    assert!(
+        meshed <= exact && exact - meshed <= 1e-3 * exact,
+        "area {meshed} against {exact}"
+    );
+    // One piece: its open boundary is the loop's four sides (two arcs of 1.2 rad, two
+    // segments of 1.8), no seam segment between.
+    let boundary = open_boundary_length(&mesh);
+    let perimeter = 2.0 * 2.0 * 1.2 + 2.0 * 1.8;
+    assert!(
+        boundary <= perimeter && perimeter - boundary <= 1e-3 * perimeter,
+        "boundary {boundary} against {perimeter}"
+    );
 }
 
 /// A plane 10 × 10 (model units) trimmed to a disc of radius 4 with a square hole of side 2:

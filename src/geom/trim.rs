@@ -11,6 +11,7 @@ use super::shapes::arc_segments;
 use super::{BSplineCurve, BSplineSurface, Interval};
 use crate::error::{Error, Result};
 use glam::DVec2;
+use std::f64::consts::TAU;
 
 /// How one of a file's surface parameters maps onto a parameter of the B-spline form.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -20,7 +21,9 @@ pub enum AxisMap {
     /// An angle (radians, within `angles`) to the parameter on [0, 1] of the arc
     /// [`super::shapes::unit_arc`] builds over `angles`: each rational quadratic segment of
     /// sweep δ, with middle weight cos(δ/2), reaches the angle φ from its middle at
-    /// s = ½·(1 + tan(φ/2) / tan(δ/4)) — inverted exactly, not approximated.
+    /// s = ½·(1 + tan(φ/2) / tan(δ/4)) — inverted exactly, not approximated. Over a whole
+    /// turn the map is periodic (an angle k turns on maps k further: the same point of the
+    /// closed surface); over less, angles are clamped to `angles`.
     Angle { angles: Interval },
 }
 
@@ -36,6 +39,9 @@ impl AxisMap {
         match *self {
             AxisMap::Affine { scale, offset } => scale * t + offset,
             AxisMap::Angle { angles } => {
+                if let Some(turns) = whole_turns(angles, t - angles.start, TAU) {
+                    return turns + self.apply(t - turns * TAU);
+                }
                 let segments = arc_segments(angles.width());
                 let delta = angles.width() / segments as f64;
                 let along = (t.clamp(angles.start, angles.end) - angles.start) / delta;
@@ -53,6 +59,9 @@ impl AxisMap {
         match *self {
             AxisMap::Affine { scale, offset } => (u - offset) / scale,
             AxisMap::Angle { angles } => {
+                if let Some(turns) = whole_turns(angles, u, 1.0) {
+                    return turns * TAU + self.inverse(u - turns);
+                }
                 let segments = arc_segments(angles.width());
                 let delta = angles.width() / segments as f64;
                 let along = u.clamp(0.0, 1.0) * segments as f64;
@@ -63,6 +72,20 @@ impl AxisMap {
             }
         }
     }
+}
+
+/// Whether `angles` sweeps a whole turn (to rounding).
+fn is_whole_turn(angles: Interval) -> bool {
+    (angles.width() - TAU).abs() <= 1e-12 * TAU
+}
+
+/// For an angle map over a whole turn, the turns `offset` (an angle from the sweep's start
+/// over `period`, or a parameter over 1) lies past the first — `None` within it (and for a
+/// sweep of less than a turn), so the map there is the arc's own.
+fn whole_turns(angles: Interval, offset: f64, period: f64) -> Option<f64> {
+    let turns = (offset / period).floor();
+    (is_whole_turn(angles) && turns != 0.0 && offset != period && turns.is_finite())
+        .then_some(turns)
 }
 
 /// A file's (s, t) parameters to the B-spline form's (u, v): `swap` exchanges s and t first,
@@ -336,11 +359,13 @@ fn curve_samples(map: ParamMap, curve: &BSplineCurve) -> Vec<DVec2> {
 
 /// Loops that cross the seam of a surface closed along an axis, taken in: where a loop
 /// reaches past the range along an axis along which the surface closes on itself
-/// ([`BSplineSurface::reseamed_u`]) and the file's parameter maps affinely onto it, the
+/// ([`BSplineSurface::reseamed_u`]) and the file's parameter maps onto it affinely or as an
+/// angle over a whole turn, the
 /// surface's seam is moved to a parameter c no loop spans (modulo the period P) and every
 /// loop shifted by the multiple of P that puts it in [c, c + P] — the same region of the
 /// same surface. Anything else is left as given (validation then names the loop that
-/// strays): loops wider than a period, a surface that does not close, an angle map.
+/// strays): loops wider than a period, a surface that does not close, an angle map over
+/// less than a turn.
 fn across_seams(
     mut surface: BSplineSurface,
     map: ParamMap,
@@ -353,8 +378,12 @@ fn across_seams(
         // The file's axis that maps onto this one, and how.
         let axis_map = if axis == 0 { map.u } else { map.v };
         let file_axis = if map.swap { 1 - axis } else { axis };
-        let AxisMap::Affine { scale, .. } = axis_map else {
-            continue;
+        // The file's parameter over one period of the surface's.
+        let period = [surface.range_u(), surface.range_v()][axis].width();
+        let file_period = match axis_map {
+            AxisMap::Affine { scale, .. } => period / scale,
+            AxisMap::Angle { angles } if is_whole_turn(angles) && period == 1.0 => TAU,
+            AxisMap::Angle { .. } => continue,
         };
         let spans: Vec<(f64, f64)> = (outer.iter().chain(&holes))
             .map(|l| {
@@ -367,7 +396,6 @@ fn across_seams(
         let strays = spans
             .iter()
             .any(|&(lo, hi)| lo < range.start - slack || hi > range.end + slack);
-        let period = range.width();
         // (A loop with a point that is not a number spans nothing narrower.)
         let narrower = |&(lo, hi): &(f64, f64)| hi - lo < period - slack;
         if !strays || !spans.iter().all(narrower) {
@@ -400,7 +428,7 @@ fn across_seams(
             // The multiple of the period that puts the loop's start at or past the seam.
             let k = ((start - slack - lo) / period).ceil();
             let mut shift = glam::DVec3::ZERO;
-            shift[file_axis] = k * period / scale;
+            shift[file_axis] = k * file_period;
             TrimLoop {
                 curves: l.curves.iter().map(|c| c.mapped(|p| p + shift)).collect(),
             }
