@@ -372,6 +372,16 @@ fn across_seams(
     mut outer: Option<TrimLoop>,
     mut holes: Vec<TrimLoop>,
 ) -> (BSplineSurface, Option<TrimLoop>, Vec<TrimLoop>) {
+    // Each loop's points in surface parameters, sampled once: a shift along one axis leaves
+    // the other's spans as they were.
+    let samples: Vec<Vec<DVec2>> = (outer.iter().chain(&holes))
+        .map(|l| {
+            l.curves
+                .iter()
+                .flat_map(|c| curve_samples(map, c))
+                .collect()
+        })
+        .collect();
     for axis in 0..2 {
         let range = [surface.range_u(), surface.range_v()][axis];
         let slack = LOOP_GAP * surface.range_u().width().hypot(surface.range_v().width());
@@ -385,12 +395,11 @@ fn across_seams(
             AxisMap::Angle { angles } if is_whole_turn(angles) && period == 1.0 => TAU,
             AxisMap::Angle { .. } => continue,
         };
-        let spans: Vec<(f64, f64)> = (outer.iter().chain(&holes))
-            .map(|l| {
-                (l.curves.iter().flat_map(|c| curve_samples(map, c)))
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
-                        (lo.min(p[axis]), hi.max(p[axis]))
-                    })
+        let spans: Vec<(f64, f64)> = (samples.iter())
+            .map(|points| {
+                (points.iter()).fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+                    (lo.min(p[axis]), hi.max(p[axis]))
+                })
             })
             .collect();
         let strays = spans

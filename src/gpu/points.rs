@@ -41,6 +41,8 @@ struct FaceCells {
     patches: Vec<BezierPatch>,
     /// Cells per row of the cut.
     columns: usize,
+    /// Where each row of cells ends along v.
+    row_ends: Vec<f64>,
     /// Each cell's centre (the middle of its control points' box), model units.
     centres: Vec<DVec3>,
     cross_scale: f64,
@@ -54,6 +56,9 @@ impl FaceCells {
             .iter()
             .take_while(|p| p.range_v == first_row)
             .count();
+        let row_ends = (patches.iter().step_by(columns))
+            .map(|p| p.range_v.end)
+            .collect();
         let centres = patches
             .iter()
             .map(|patch| {
@@ -70,6 +75,7 @@ impl FaceCells {
         FaceCells {
             patches,
             columns,
+            row_ends,
             centres,
             cross_scale: surface.cross_scale(),
         }
@@ -78,14 +84,10 @@ impl FaceCells {
     /// The cell holding the parameters `p` (the later one on a break) and `p` in its local
     /// parameters, clamped to [0, 1]².
     fn locate(&self, p: DVec2) -> (usize, DVec2) {
-        let rows = self.patches.len() / self.columns;
         let column = self.patches[..self.columns]
             .partition_point(|c| c.range_u.end <= p.x)
             .min(self.columns - 1);
-        let mut row = 0;
-        while row + 1 < rows && self.patches[row * self.columns].range_v.end <= p.y {
-            row += 1;
-        }
+        let row = (self.row_ends.partition_point(|&end| end <= p.y)).min(self.row_ends.len() - 1);
         let cell = row * self.columns + column;
         let patch = &self.patches[cell];
         let local = DVec2::new(
