@@ -1927,7 +1927,8 @@ proptest! {
 /// The teapot at tolerances 1e-2, 1e-3 and 1e-4 (model units; the teapot is about 7 across):
 /// within each, the measured deviation a fair share of it (the bound is not loose by
 /// orders), and triangles growing about tenfold per tenfold (the bound is second order:
-/// segments grow as 1/√tolerance in each direction).
+/// segments grow as 1/√tolerance in each direction). At 1e-3 at most 74 000 triangles:
+/// 0.8× the 92 602 of Open CASCADE's BRepMesh at the same deflection.
 #[test]
 fn the_teapot_meets_each_tolerance_with_second_order_growth() {
     let scene = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt")).unwrap();
@@ -1949,6 +1950,7 @@ fn the_teapot_meets_each_tolerance_with_second_order_growth() {
         );
         triangles.push(mesh.indices.len() as f64 / 3.0);
     }
+    assert!(triangles[1] <= 74_000.0, "{} triangles at 1e-3", triangles[1]);
     for pair in triangles.windows(2) {
         let growth = pair[1] / pair[0];
         assert!(

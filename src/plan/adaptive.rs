@@ -20,15 +20,23 @@ use rayon::prelude::*;
 pub const MAX_CELL_SEGMENTS: u32 = 1 << 14;
 
 /// Segments a cell is meant to hold along each direction: a knot span that needs n gets
-/// n / SEGMENTS_PER_CELL cells. The bound of a smaller cell follows the curvature where it
-/// is, not its largest value over the span, so the flat parts of a span are not sampled at
-/// the rate of its bends (and extreme weights, whose bound is loose over a wide cell, are
-/// bounded over narrow ones); smaller cells than this add more joining triangles than they
-/// save. (The teapot at 1e-3: 2 → 84 800 triangles, 4 → 73 320, 6 → 74 136.)
+/// n / SEGMENTS_PER_CELL cells (n estimated from the span's [`PROBE_PIECES`]). The bound of
+/// a smaller cell follows the curvature where it is, not its largest value over the span,
+/// so the flat parts of a span are not sampled at the rate of its bends (and extreme
+/// weights, whose bound is loose over a wide cell, are bounded over narrow ones); smaller
+/// cells than this add more joining triangles than they save. (The teapot at 1e-3: 3 →
+/// 75 450 triangles, 4 → 73 836, 5 → 75 070, 6 → 75 918.)
 pub const SEGMENTS_PER_CELL: usize = 4;
 
 /// Most cells a knot span is cut into along each direction.
 pub const MAX_CELLS_PER_SPAN: usize = 32;
+
+/// Pieces a knot span is cut into along each direction (at most) to estimate how many
+/// cells it needs: the sum of its pieces' rates, each bounded as a cell is. (The bound of a
+/// whole span overstates them, a rational span's several times over: by it the 32×32
+/// surface's cells at 1e-4 of its diagonal were 340 272 and held 1.4 grid cells each; by
+/// the pieces' sums 93 310, 4.5 each, and 959 811 triangles where there were 972 491.)
+const PROBE_PIECES: usize = 4;
 
 /// One cell of a surface's adaptive sampling: a rectangle of its parameters and the grid
 /// segments along each direction.
@@ -111,6 +119,19 @@ pub fn surface_cells(
         .iter()
         .map(|patch| (column_of(patch).unwrap(), row_of(patch).unwrap()))
         .collect();
+    // A piece of a span, bounded as a cell is: the cheap bound first — a cell it already
+    // allows as one grid cell cannot be sampled more coarsely, and the quotient bound of a
+    // rational piece (products of its polynomials) is most of the work.
+    let bound_piece = |piece: &BezierPatch, u: Interval, v: Interval| {
+        let cheap = piece.with_normal_rates(piece.magnitude_bound(), limits);
+        match (effort, segments_of(cheap, u, v)) {
+            (BoundEffort::Magnitudes, segments) | (_, segments @ (1, 1)) => (cheap, segments),
+            _ => {
+                let bound = piece.tightened(cheap);
+                (bound, segments_of(bound, u, v))
+            }
+        }
+    };
     let span_rates: Vec<(u32, u32)> = patches
         .par_iter()
         .map(|patch| {
@@ -125,7 +146,29 @@ pub fn surface_cells(
             if limits.max_angle.is_finite() {
                 (bound.normal_u, bound.normal_v) = patch.normal_rate_estimate();
             }
-            segments_of(bound, clipped_u, clipped_v)
+            let (n_u, n_v) = segments_of(bound, clipped_u, clipped_v);
+            // The whole span's bound overstates what its cells need: its pieces, bounded
+            // as cells are, tell what their sum needs along each direction.
+            let probes = |n: u32| cells_for(n).min(PROBE_PIECES);
+            let (p_u, p_v) = (probes(n_u), probes(n_v));
+            if p_u * p_v == 1 {
+                return (n_u, n_v);
+            }
+            let (across_u, across_v) = (
+                pieces(patch.range_u, clipped_u, p_u),
+                pieces(patch.range_v, clipped_v, p_v),
+            );
+            let (mut rows_u, mut columns_v) = (vec![0u32; p_v], vec![0u32; p_u]);
+            for (a, &(u0, u1, u)) in across_u.iter().enumerate() {
+                let strip = patch.restricted_u(u0, u1);
+                for (b, &(v0, v1, v)) in across_v.iter().enumerate() {
+                    let (_, (m_u, m_v)) = bound_piece(&strip.restricted_v(v0, v1), u, v);
+                    rows_u[b] += m_u;
+                    columns_v[a] += m_v;
+                }
+            }
+            let most = |sums: Vec<u32>| sums.into_iter().max().unwrap_or(1);
+            (most(rows_u).min(n_u), most(columns_v).min(n_v))
         })
         .collect();
     for (&(n_u, n_v), &(c, r)) in span_rates.iter().zip(&placed) {
@@ -134,23 +177,12 @@ pub fn surface_cells(
     }
     // Every cell along each direction: (the span's fractions it covers, its interval).
     let cut = |spans: &[Interval], counts: &[usize], range: Interval| {
-        let mut cells: Vec<Vec<(f64, f64, Interval)>> = Vec::with_capacity(spans.len());
-        for (&span, &count) in spans.iter().zip(counts) {
-            let clipped = overlap(span, range).expect("only overlapping spans are kept");
-            let fraction = |t: f64| (t - span.start) / span.width();
-            cells.push(
-                (0..count)
-                    .map(|k| {
-                        let piece = Interval::new(
-                            clipped.lerp(k as f64 / count as f64),
-                            clipped.lerp((k + 1) as f64 / count as f64),
-                        );
-                        (fraction(piece.start), fraction(piece.end), piece)
-                    })
-                    .collect(),
-            );
-        }
-        cells
+        (spans.iter().zip(counts))
+            .map(|(&span, &count)| {
+                let clipped = overlap(span, range).expect("only overlapping spans are kept");
+                pieces(span, clipped, count)
+            })
+            .collect::<Vec<_>>()
     };
     let along_u = cut(&span_columns, &cells_u, range_u);
     let along_v = cut(&span_rows, &cells_v, range_v);
@@ -175,20 +207,7 @@ pub fn surface_cells(
             for (a, &(u0, u1, u)) in along_u[c].iter().enumerate() {
                 let strip = patch.restricted_u(u0, u1);
                 for (b, &(v0, v1, v)) in along_v[r].iter().enumerate() {
-                    let piece = strip.restricted_v(v0, v1);
-                    // The cheap bound first: a cell it already allows as one grid cell
-                    // cannot be sampled more coarsely, and the quotient bound of a rational
-                    // piece (products of its polynomials) is most of the work.
-                    let cheap = piece.with_normal_rates(piece.magnitude_bound(), limits);
-                    let (bound, segments) = match (effort, segments_of(cheap, u, v)) {
-                        (BoundEffort::Magnitudes, segments) | (_, segments @ (1, 1)) => {
-                            (cheap, segments)
-                        }
-                        _ => {
-                            let bound = piece.tightened(cheap);
-                            (bound, segments_of(bound, u, v))
-                        }
-                    };
+                    let (bound, segments) = bound_piece(&strip.restricted_v(v0, v1), u, v);
                     if segments.0.max(segments.1) >= MAX_CELL_SEGMENTS {
                         return Err(Error::ToleranceTooFine {
                             tolerance: limits.tolerance,
@@ -221,6 +240,21 @@ pub fn surface_cells(
         cells,
         limits,
     })
+}
+
+/// `clipped` (a part of `span`) cut into `count` equal pieces: each piece's start and end
+/// as fractions of `span`, and its interval.
+fn pieces(span: Interval, clipped: Interval, count: usize) -> Vec<(f64, f64, Interval)> {
+    let fraction = |t: f64| (t - span.start) / span.width();
+    (0..count)
+        .map(|k| {
+            let piece = Interval::new(
+                clipped.lerp(k as f64 / count as f64),
+                clipped.lerp((k + 1) as f64 / count as f64),
+            );
+            (fraction(piece.start), fraction(piece.end), piece)
+        })
+        .collect()
 }
 
 impl CellGrid {
