@@ -1950,7 +1950,11 @@ fn the_teapot_meets_each_tolerance_with_second_order_growth() {
         );
         triangles.push(mesh.indices.len() as f64 / 3.0);
     }
-    assert!(triangles[1] <= 74_000.0, "{} triangles at 1e-3", triangles[1]);
+    assert!(
+        triangles[1] <= 74_000.0,
+        "{} triangles at 1e-3",
+        triangles[1]
+    );
     for pair in triangles.windows(2) {
         let growth = pair[1] / pair[0];
         assert!(

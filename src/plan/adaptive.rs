@@ -38,6 +38,10 @@ pub const MAX_CELLS_PER_SPAN: usize = 32;
 /// the pieces' sums 93 310, 4.5 each, and 959 811 triangles where there were 972 491.)
 const PROBE_PIECES: usize = 4;
 
+/// Cells whose triangles one task makes (whole rows of cells; a surface with more is
+/// joined in parallel bands).
+const CELLS_PER_BAND: usize = 1024;
+
 /// One cell of a surface's adaptive sampling: a rectangle of its parameters and the grid
 /// segments along each direction.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -399,9 +403,36 @@ impl CellGrid {
         }
     }
 
-    /// [`CellGrid::push_triangles`] before the pole triangles are dropped.
+    /// [`CellGrid::push_triangles`] before the pole triangles are dropped: bands of cell rows
+    /// in parallel (a file may be one large surface), appended in order.
     fn push_cell_triangles(
         &self,
+        vertices: &CellVertices,
+        external: &[Vec<(f64, u32)>; 4],
+        out: &mut Vec<u32>,
+    ) {
+        let rows_per_band = CELLS_PER_BAND.div_ceil(self.columns);
+        if self.rows <= rows_per_band {
+            return self.push_band(0..self.rows, vertices, external, out);
+        }
+        let bands: Vec<Vec<u32>> = (0..self.rows.div_ceil(rows_per_band))
+            .into_par_iter()
+            .map(|band| {
+                let rows = band * rows_per_band..((band + 1) * rows_per_band).min(self.rows);
+                let mut triangles = Vec::new();
+                self.push_band(rows, vertices, external, &mut triangles);
+                triangles
+            })
+            .collect();
+        for band in bands {
+            out.extend_from_slice(&band);
+        }
+    }
+
+    /// The triangles of the cells in rows `rows`, appended to `out`.
+    fn push_band(
+        &self,
+        rows: std::ops::Range<usize>,
         vertices: &CellVertices,
         external: &[Vec<(f64, u32)>; 4],
         out: &mut Vec<u32>,
@@ -414,7 +445,9 @@ impl CellGrid {
             self.cells[0].range_v.start,
             self.cells[self.cells.len() - 1].range_v.end,
         );
-        for (k, cell) in self.cells.iter().enumerate() {
+        let band = rows.start * self.columns..rows.end * self.columns;
+        for (k, cell) in self.cells[band.clone()].iter().enumerate() {
+            let k = band.start + k;
             let (a, b) = (k % self.columns, k / self.columns);
             let (n_u, n_v) = cell.segments;
             let row = n_u + 1;
@@ -428,8 +461,13 @@ impl CellGrid {
             let extras = |side: Side| -> Vec<Vec<u32>> {
                 let along_u = matches!(side, Side::Bottom | Side::Top);
                 let n = if along_u { n_u } else { n_v };
+                let neighbour = self.neighbour_segments(a, b, side);
+                // None (most cells): every sample of the neighbour's edge is one of ours.
+                if neighbour.map_or(external[side as usize].is_empty(), |m| n % m == 0) {
+                    return Vec::new();
+                }
                 let mut by_segment = vec![Vec::new(); n as usize];
-                let Some(m) = self.neighbour_segments(a, b, side) else {
+                let Some(m) = neighbour else {
                     let (range, piece) = if along_u {
                         (range_u, cell.range_u)
                     } else {
@@ -473,15 +511,15 @@ impl CellGrid {
                         out.extend_from_slice(&cell_triangles(local(i, j), row));
                         continue;
                     }
-                    let bottom_extras: &[u32] = if j == 0 { &on_bottom[i as usize] } else { &[] };
+                    let bottom_extras = if j == 0 { segment(&on_bottom, i) } else { &[] };
                     let top_extras: &[u32] = if j + 1 == n_v {
-                        &on_top[i as usize]
+                        segment(&on_top, i)
                     } else {
                         &[]
                     };
-                    let left_extras: &[u32] = if i == 0 { &on_left[j as usize] } else { &[] };
+                    let left_extras = if i == 0 { segment(&on_left, j) } else { &[] };
                     let right_extras: &[u32] = if i + 1 == n_u {
-                        &on_right[j as usize]
+                        segment(&on_right, j)
                     } else {
                         &[]
                     };
@@ -523,6 +561,11 @@ impl CellGrid {
             }
         }
     }
+}
+
+/// The extra samples on segment `k` of a cell's side (none where the side has none).
+fn segment(extras: &[Vec<u32>], k: u32) -> &[u32] {
+    extras.get(k as usize).map_or(&[], Vec::as_slice)
 }
 
 /// Where the vertices of a [`CellGrid`]'s cells are (see [`CellGrid::vertices`]).

@@ -24,7 +24,7 @@ use tables::AxisCache;
 
 use crate::error::{Error, Result};
 use crate::geom::patches::CoonsPatch;
-use crate::geom::{BSplineCurve, BSplineSurface, SamplingLimits};
+use crate::geom::{BSplineCurve, BSplineSurface, Interval, KnotVector, SamplingLimits};
 use crate::mesh::{MeshPart, TessOptions, Tolerance};
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -346,24 +346,47 @@ fn cell_samples(
     cells: &CellGrid,
     part: &MeshPart,
 ) -> Vec<SurfaceSamples> {
+    // Cells of one column (row) share their column (row) tables where their rates agree:
+    // each distinct table made once, in parallel.
+    let tables = |keys: Vec<(usize, u32)>,
+                  knots: &KnotVector,
+                  range: Interval,
+                  piece: &(dyn Fn(usize) -> Interval + Sync)| {
+        let mut keys = keys;
+        keys.sort_unstable();
+        keys.dedup();
+        keys.into_par_iter()
+            .map(|(at, n)| {
+                let table = AxisSamples::uniform_over(knots, range, piece(at), n);
+                ((at, n), Arc::new(table))
+            })
+            .collect::<HashMap<(usize, u32), Arc<AxisSamples>>>()
+    };
+    let placed = |k: usize| (k % cells.columns, k / cells.columns);
+    let columns = tables(
+        (cells.cells.iter().enumerate())
+            .map(|(k, cell)| (placed(k).0, cell.segments.0))
+            .collect(),
+        surface.knots_u(),
+        surface.range_u(),
+        &|a| cells.cells[a].range_u,
+    );
+    let rows = tables(
+        (cells.cells.iter().enumerate())
+            .map(|(k, cell)| (placed(k).1, cell.segments.1))
+            .collect(),
+        surface.knots_v(),
+        surface.range_v(),
+        &|b| cells.cells[b * cells.columns].range_v,
+    );
     let mut first_vertex = part.first_vertex;
-    // Cells of one column (row) share their column (row) tables where their rates agree.
-    let mut columns: HashMap<(usize, u32), Arc<AxisSamples>> = HashMap::new();
-    let mut rows: HashMap<(usize, u32), Arc<AxisSamples>> = HashMap::new();
-    let axis =
-        |tables: &mut HashMap<(usize, u32), Arc<AxisSamples>>, at, knots, range, piece, n| {
-            tables
-                .entry((at, n))
-                .or_insert_with(|| Arc::new(AxisSamples::uniform_over(knots, range, piece, n)))
-                .clone()
-        };
     cells
         .cells
         .iter()
         .enumerate()
         .map(|(k, cell)| {
             let (n_u, n_v) = cell.segments;
-            let (a, b) = (k % cells.columns, k / cells.columns);
+            let (a, b) = placed(k);
             let samples = SurfaceSamples {
                 surface: index,
                 part: MeshPart {
@@ -375,22 +398,8 @@ fn cell_samples(
                     first_index: part.first_index,
                     index_count: 0,
                 },
-                columns: axis(
-                    &mut columns,
-                    a,
-                    surface.knots_u(),
-                    surface.range_u(),
-                    cell.range_u,
-                    n_u,
-                ),
-                rows: axis(
-                    &mut rows,
-                    b,
-                    surface.knots_v(),
-                    surface.range_v(),
-                    cell.range_v,
-                    n_v,
-                ),
+                columns: columns[&(a, n_u)].clone(),
+                rows: rows[&(b, n_v)].clone(),
             };
             first_vertex += (n_u + 1) * (n_v + 1);
             samples
