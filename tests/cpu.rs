@@ -1890,17 +1890,8 @@ proptest! {
         // Rounding of the f64 evaluation, far below any tolerance tested.
         let rounding = 1e-12 * surface.control_box_diagonal();
         prop_assert!(worst <= tolerance + rounding, "deviation {worst:e} over tolerance {tolerance:e}");
-        let mut directed = std::collections::HashSet::new();
-        let mut used = vec![false; mesh.positions.len()];
-        for t in mesh.indices.chunks(3) {
-            let [a, b, c] = [0, 1, 2].map(|k| mesh.uvs[t[k] as usize]);
-            prop_assert!((b - a).perp_dot(c - a) > 0.0, "triangle {t:?} not counter-clockwise in uv");
-            for k in 0..3 {
-                used[t[k] as usize] = true;
-                prop_assert!(directed.insert((t[k], t[(k + 1) % 3])), "edge {:?} used twice one way", (t[k], t[(k + 1) % 3]));
-            }
-        }
-        prop_assert!(used.iter().all(|&u| u), "unused vertices");
+        let crack_free = joined_without_cracks(&mesh);
+        prop_assert!(crack_free.is_ok(), "{}", crack_free.unwrap_err());
         // With a longest edge too (a tenth of the control box), both hold.
         let max_edge = 0.1 * surface.control_box_diagonal();
         let both = CpuTessellator
@@ -1914,14 +1905,63 @@ proptest! {
                 prop_assert!(edge.length() <= max_edge * (1.0 + 1e-12), "edge {} > {max_edge}", edge.length());
             }
         }
-        for &(a, b) in &directed {
-            if !directed.contains(&(b, a)) {
-                let (p, q) = (mesh.uvs[a as usize], mesh.uvs[b as usize]);
-                let on_side = (p.x == q.x && (p.x == 0.0 || p.x == 1.0)) || (p.y == q.y && (p.y == 0.0 || p.y == 1.0));
-                prop_assert!(on_side, "open edge {p} – {q} inside the range");
+    }
+}
+
+/// Whether the adaptive mesh of one surface is joined without a crack: every triangle
+/// counter-clockwise in uv, every edge used at most once each way (no T-junction, one
+/// orientation), those used once on the boundary of the parameter range, every vertex used.
+fn joined_without_cracks(mesh: &Mesh) -> Result<(), String> {
+    let mut directed = std::collections::HashSet::new();
+    let mut used = vec![false; mesh.positions.len()];
+    for t in mesh.indices.chunks(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| mesh.uvs[t[k] as usize]);
+        if (b - a).perp_dot(c - a) <= 0.0 {
+            return Err(format!("triangle {t:?} not counter-clockwise in uv"));
+        }
+        for k in 0..3 {
+            used[t[k] as usize] = true;
+            let edge = (t[k], t[(k + 1) % 3]);
+            if !directed.insert(edge) {
+                return Err(format!("edge {edge:?} used twice one way"));
             }
         }
     }
+    if !used.iter().all(|&u| u) {
+        return Err("unused vertices".into());
+    }
+    for &(a, b) in &directed {
+        if !directed.contains(&(b, a)) {
+            let (p, q) = (mesh.uvs[a as usize], mesh.uvs[b as usize]);
+            let on_side = (p.x == q.x && (p.x == 0.0 || p.x == 1.0))
+                || (p.y == q.y && (p.y == 0.0 || p.y == 1.0));
+            if !on_side {
+                return Err(format!("open edge {p} – {q} inside the range"));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// One surface of many cells (the 32×32 surface at 1e-3 of its diagonal: 13 520 cells, so
+/// its triangles are joined in parallel bands of cell rows) is joined without a crack
+/// across the bands, and within its tolerance.
+#[test]
+fn a_surface_joined_in_bands_has_no_cracks() {
+    let surfaces = knotwork::io::read_scene(std::path::Path::new("data/peer_bicubic_32x32.obj"))
+        .unwrap()
+        .surface_list();
+    let tolerance = 1e-3 * surfaces[0].control_box_diagonal();
+    let options = TessOptions::DEFAULT.with_tolerance(Tolerance::Absolute(tolerance));
+    let mesh = CpuTessellator.tessellate(&surfaces, &options).unwrap();
+    assert!(
+        mesh.indices.len() / 3 > 100_000,
+        "{} triangles",
+        mesh.indices.len() / 3
+    );
+    joined_without_cracks(&mesh).unwrap();
+    let worst = worst_deviation(&surfaces, &mesh);
+    assert!(worst <= tolerance, "{worst:e} > {tolerance:e}");
 }
 
 /// The teapot at tolerances 1e-2, 1e-3 and 1e-4 (model units; the teapot is about 7 across):

@@ -171,7 +171,7 @@ pub fn surface_cells(
                     columns_v[a] += m_v;
                 }
             }
-            let most = |sums: Vec<u32>| sums.into_iter().max().unwrap_or(1);
+            let most = |sums: Vec<u32>| sums.into_iter().max().expect("at least one piece");
             (most(rows_u).min(n_u), most(columns_v).min(n_v))
         })
         .collect();

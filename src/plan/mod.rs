@@ -346,39 +346,9 @@ fn cell_samples(
     cells: &CellGrid,
     part: &MeshPart,
 ) -> Vec<SurfaceSamples> {
-    // Cells of one column (row) share their column (row) tables where their rates agree:
-    // each distinct table made once, in parallel.
-    let tables = |keys: Vec<(usize, u32)>,
-                  knots: &KnotVector,
-                  range: Interval,
-                  piece: &(dyn Fn(usize) -> Interval + Sync)| {
-        let mut keys = keys;
-        keys.sort_unstable();
-        keys.dedup();
-        keys.into_par_iter()
-            .map(|(at, n)| {
-                let table = AxisSamples::uniform_over(knots, range, piece(at), n);
-                ((at, n), Arc::new(table))
-            })
-            .collect::<HashMap<(usize, u32), Arc<AxisSamples>>>()
-    };
+    let columns = axis_tables(cells, false, surface.knots_u(), surface.range_u());
+    let rows = axis_tables(cells, true, surface.knots_v(), surface.range_v());
     let placed = |k: usize| (k % cells.columns, k / cells.columns);
-    let columns = tables(
-        (cells.cells.iter().enumerate())
-            .map(|(k, cell)| (placed(k).0, cell.segments.0))
-            .collect(),
-        surface.knots_u(),
-        surface.range_u(),
-        &|a| cells.cells[a].range_u,
-    );
-    let rows = tables(
-        (cells.cells.iter().enumerate())
-            .map(|(k, cell)| (placed(k).1, cell.segments.1))
-            .collect(),
-        surface.knots_v(),
-        surface.range_v(),
-        &|b| cells.cells[b * cells.columns].range_v,
-    );
     let mut first_vertex = part.first_vertex;
     cells
         .cells
@@ -403,6 +373,35 @@ fn cell_samples(
             };
             first_vertex += (n_u + 1) * (n_v + 1);
             samples
+        })
+        .collect()
+}
+
+/// The tables of `cells` along u (or v where `along_v`), by (column or row, segments):
+/// cells of one column (row) share their table where their rates agree, each distinct
+/// table made once, in parallel.
+fn axis_tables(
+    cells: &CellGrid,
+    along_v: bool,
+    knots: &KnotVector,
+    range: Interval,
+) -> HashMap<(usize, u32), Arc<AxisSamples>> {
+    let mut keys: Vec<(usize, u32)> = (cells.cells.iter().enumerate())
+        .map(|(k, cell)| match along_v {
+            false => (k % cells.columns, cell.segments.0),
+            true => (k / cells.columns, cell.segments.1),
+        })
+        .collect();
+    keys.sort_unstable();
+    keys.dedup();
+    keys.into_par_iter()
+        .map(|(at, n)| {
+            let piece = match along_v {
+                false => cells.cells[at].range_u,
+                true => cells.cells[at * cells.columns].range_v,
+            };
+            let table = AxisSamples::uniform_over(knots, range, piece, n);
+            ((at, n), Arc::new(table))
         })
         .collect()
 }
