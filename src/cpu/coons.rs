@@ -28,7 +28,6 @@ pub fn execute_coons(plan: &CoonsPlan, patches: &[CoonsPatch], mesh: &mut Mesh) 
     fill_grids(
         &plan.layout,
         &plan.layout.parts,
-        None,
         &jobs,
         mesh,
         |&(patch, samples), positions, normals, uvs| {

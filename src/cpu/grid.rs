@@ -11,12 +11,13 @@ use super::lanes::Avx2;
 use super::lanes::{F64x4, Portable};
 use crate::error::{Error, Result};
 use crate::geom::{BSplineSurface, degenerate_cross_sq};
-use crate::mesh::{GridMesh, Mesh, Mesh32, MeshPart, SplitMesh32, TessOptions, Vertex};
+use crate::mesh::{Mesh, Mesh32, MeshPart, SplitMesh32, TessOptions, Vertex};
 use crate::plan::{
     AxisSamples, GridLayout, GridRows, SurfacePlan, SurfaceSamples, check_item_count, row_triangles,
 };
 use glam::{DVec2, DVec3, DVec4};
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// Tessellates every surface on its own grid (`options[k]` for surface k) into `mesh`,
 /// replacing its contents but reusing its buffers (see [`Mesh`] for the layout).
@@ -29,14 +30,38 @@ pub fn tessellate_grid_into(
 }
 
 /// Executes `plan` (made for `surfaces`) into `mesh`, replacing its contents but reusing its
-/// buffers. Where the plan joins cells itself, the cell grids' copies of the vertices they
-/// share are dropped (the triangles use one of each).
+/// buffers. Where the plan joins cells itself, only the vertices its triangles use are
+/// evaluated (see [`UsedVertices`]).
 pub fn execute_surfaces(
     plan: &SurfacePlan,
     surfaces: &[BSplineSurface],
     mesh: &mut Mesh,
 ) -> Result<()> {
     check_item_count(plan.surface_count(), surfaces.len())?;
+    if let Some(triangles) = &plan.triangles {
+        let used = UsedVertices::new(plan, triangles, &mut mesh.indices);
+        let count = used.count();
+        mesh.positions.resize(count, DVec3::ZERO);
+        mesh.normals.resize(count, DVec3::ZERO);
+        mesh.uvs.resize(count, DVec2::ZERO);
+        let (mut positions, mut normals, mut uvs) = (
+            &mut mesh.positions[..],
+            &mut mesh.normals[..],
+            &mut mesh.uvs[..],
+        );
+        let rows = used.rows(plan, |n| {
+            (
+                take_front(&mut positions, n),
+                take_front(&mut normals, n),
+                take_front(&mut uvs, n),
+            )
+        });
+        evaluate_used_rows(surfaces, &used, rows, |(p, n, u), k, vertex| {
+            (p[k], n[k], u[k]) = vertex;
+        });
+        mesh.parts = used.parts;
+        return Ok(());
+    }
     let jobs: Vec<_> = plan
         .items
         .iter()
@@ -46,7 +71,6 @@ pub fn execute_surfaces(
     fill_grids(
         &plan.layout,
         &grids,
-        plan.triangles.as_deref(),
         &jobs,
         mesh,
         |(surface, samples), positions, normals, uvs| {
@@ -54,9 +78,6 @@ pub fn execute_surfaces(
             fill_uvs(&samples.columns, &samples.rows, uvs);
         },
     );
-    if plan.triangles.is_some() {
-        mesh.drop_unused_vertices();
-    }
     Ok(())
 }
 
@@ -68,6 +89,21 @@ pub fn execute_surfaces_f32(
     mesh: &mut Mesh32,
 ) -> Result<()> {
     check_item_count(plan.surface_count(), surfaces.len())?;
+    if let Some(triangles) = &plan.triangles {
+        let used = UsedVertices::new(plan, triangles, &mut mesh.indices);
+        mesh.vertices.resize(used.count(), Vertex::default());
+        let mut vertices = &mut mesh.vertices[..];
+        let rows = used.rows(plan, |n| take_front(&mut vertices, n));
+        evaluate_used_rows(surfaces, &used, rows, |row, k, (p, n, uv)| {
+            row[k] = Vertex {
+                position: p.as_vec3().to_array(),
+                normal: n.as_vec3().to_array(),
+                uv: uv.as_vec2().to_array(),
+            };
+        });
+        mesh.parts = used.parts;
+        return Ok(());
+    }
     let layout = &plan.layout;
     mesh.vertices
         .resize(layout.vertex_count as usize, Vertex::default());
@@ -75,21 +111,145 @@ pub fn execute_surfaces_f32(
     mesh.parts.clone_from(&layout.parts);
     execute_rows_f32(plan, surfaces, &whole_grids(plan), &mut mesh.vertices)?;
     let grids: Vec<MeshPart> = plan.items.iter().map(|item| item.part).collect();
-    write_indices(&grids, plan.triangles.as_deref(), &mut mesh.indices);
-    if plan.triangles.is_some() {
-        mesh.drop_unused_vertices();
-    }
+    fill_grid_indices(&grids, &mut mesh.indices);
     Ok(())
+}
+
+/// The vertices of a plan that joins its cells itself ([`SurfacePlan::triangles`]) which
+/// its triangles use: where cells meet, each cell's grid has the vertices of the common
+/// edge, and the triangles use one copy of each. Only those are evaluated, into a mesh
+/// without the others (in the plan's vertex order).
+struct UsedVertices {
+    used: Vec<bool>,
+    /// Used vertices before each vertex of the plan, and last, all of them: where a used
+    /// vertex goes.
+    before: Vec<u32>,
+    /// The plan's parts over the used vertices.
+    parts: Vec<MeshPart>,
+}
+
+impl UsedVertices {
+    /// The used vertices of `plan` (whose triangles are `triangles`), and its triangles
+    /// renumbered over them into `indices` (replacing what it holds).
+    fn new(plan: &SurfacePlan, triangles: &[u32], indices: &mut Vec<u32>) -> Self {
+        let layout = &plan.layout;
+        let mut used = vec![false; layout.vertex_count as usize];
+        for &v in triangles {
+            used[v as usize] = true;
+        }
+        let mut before = Vec::with_capacity(used.len() + 1);
+        let mut count = 0u32;
+        for &is_used in &used {
+            before.push(count);
+            count += u32::from(is_used);
+        }
+        before.push(count);
+        indices.resize(triangles.len(), 0);
+        (indices.par_iter_mut().zip(triangles)).for_each(|(new, &old)| *new = before[old as usize]);
+        let parts = (layout.parts.iter())
+            .map(|part| {
+                let first = before[part.first_vertex as usize];
+                MeshPart {
+                    first_vertex: first,
+                    vertex_count: before[(part.first_vertex + part.vertex_count) as usize] - first,
+                    ..*part
+                }
+            })
+            .collect();
+        UsedVertices {
+            used,
+            before,
+            parts,
+        }
+    }
+
+    /// Used vertices.
+    fn count(&self) -> usize {
+        *self.before.last().expect("one entry more than vertices") as usize
+    }
+
+    /// Every row of the plan's grids that has a used vertex: its columns from the first
+    /// used to the last, and their destination, `take(n)` handing out the next n used
+    /// vertices' worth in order.
+    fn rows<'p, Out>(
+        &self,
+        plan: &'p SurfacePlan,
+        mut take: impl FnMut(usize) -> Out,
+    ) -> Vec<(UsedRow<'p>, Out)> {
+        let mut rows = Vec::new();
+        for samples in &plan.items {
+            let width = samples.part.grid_u as usize;
+            for j in 0..samples.part.grid_v as usize {
+                let first = samples.part.first_vertex as usize + j * width;
+                let row = &self.used[first..first + width];
+                let Some(start) = row.iter().position(|&u| u) else {
+                    continue;
+                };
+                let end = width - row.iter().rev().position(|&u| u).expect("one is used");
+                let kept = (self.before[first + end] - self.before[first + start]) as usize;
+                let row = UsedRow {
+                    samples,
+                    j,
+                    wanted: start..end,
+                    first,
+                };
+                rows.push((row, take(kept)));
+            }
+        }
+        rows
+    }
+}
+
+/// Columns `wanted` of row `j` of a grid of a plan, whose column 0 is the plan's vertex
+/// `first`.
+struct UsedRow<'p> {
+    samples: &'p SurfaceSamples,
+    j: usize,
+    wanted: Range<usize>,
+    first: usize,
+}
+
+/// Evaluates the used vertices of `rows` in f64, rows in parallel (each into per-thread
+/// scratch), and hands each to `write` with its row's destination, its place among the
+/// row's used vertices and its (position, normal, uv).
+fn evaluate_used_rows<Out: Send>(
+    surfaces: &[BSplineSurface],
+    used: &UsedVertices,
+    rows: Vec<(UsedRow, Out)>,
+    write: impl Fn(&mut Out, usize, (DVec3, DVec3, DVec2)) + Sync,
+) {
+    let fma = has_fma();
+    rows.into_par_iter().for_each_init(
+        || (RowScratch::new(0), Vec::new(), Vec::new()),
+        |(scratch, positions, normals), (row, mut out)| {
+            let surface = &surfaces[row.samples.surface];
+            let (columns, rows) = (&row.samples.columns, &row.samples.rows);
+            scratch.fit(surface.count_u());
+            let wanted = row.wanted.clone();
+            positions.resize(wanted.len(), DVec3::ZERO);
+            normals.resize(wanted.len(), DVec3::ZERO);
+            let all = (&**columns, wanted.clone());
+            evaluate_row(surface, all, rows, row.j, fma, scratch, positions, normals);
+            let v = rows.fractions()[row.j];
+            let mut k = 0;
+            for (i, (&position, &normal)) in wanted.zip(positions.iter().zip(normals.iter())) {
+                if used.used[row.first + i] {
+                    let uv = DVec2::new(columns.fractions()[i], v);
+                    write(&mut out, k, (position, normal, uv));
+                    k += 1;
+                }
+            }
+        },
+    );
 }
 
 /// Lays out `mesh` by `layout` (its parts), fills the vertices of `grids[k]` (consecutive
 /// vertex ranges from 0) with `fill(&items[k], positions, normals, uvs)`, in parallel, and
-/// writes the triangles: `triangles` where the plan has them, else each grid's by the cell
-/// rule. The mesh's buffers are reused; its polylines are left alone.
+/// writes each grid's triangles by the cell rule. The mesh's buffers are reused; its
+/// polylines are left alone.
 pub(crate) fn fill_grids<T: Sync>(
     layout: &GridLayout,
     grids: &[MeshPart],
-    triangles: Option<&[u32]>,
     items: &[T],
     mesh: &mut Mesh,
     fill: impl Fn(&T, &mut [DVec3], &mut [DVec3], &mut [DVec2]) + Sync,
@@ -110,16 +270,14 @@ pub(crate) fn fill_grids<T: Sync>(
         .zip(uvs)
         .zip(items)
         .for_each(|(((positions, normals), uvs), item)| fill(item, positions, normals, uvs));
-    write_indices(grids, triangles, &mut mesh.indices);
+    fill_grid_indices(grids, &mut mesh.indices);
 }
 
-/// The plan's `triangles` into `indices`, or where it has none, every grid's by the cell
-/// rule.
-fn write_indices(grids: &[MeshPart], triangles: Option<&[u32]>, indices: &mut [u32]) {
-    match triangles {
-        Some(triangles) => indices.copy_from_slice(triangles),
-        None => fill_grid_indices(grids, indices),
-    }
+/// The first `n` elements of `slice`, which keeps the rest.
+fn take_front<'a, T>(slice: &mut &'a mut [T], n: usize) -> &'a mut [T] {
+    let (front, rest) = std::mem::take(slice).split_at_mut(n);
+    *slice = rest;
+    front
 }
 
 /// `values` cut into one slice per part (its vertex range), in order.
@@ -235,7 +393,7 @@ fn evaluate_tables(
     let evaluate = |scratch: &mut RowScratch, (j, (row_positions, row_normals))| {
         evaluate_row(
             surface,
-            columns,
+            (columns, 0..nu),
             rows,
             j,
             fma,
@@ -274,9 +432,7 @@ pub fn execute_rows_f32(
     mut vertices: &mut [Vertex],
 ) -> Result<()> {
     let rows = rows_of(plan, surfaces, runs, vertices.len(), |count| {
-        let row;
-        (row, vertices) = std::mem::take(&mut vertices).split_at_mut(count);
-        row
+        take_front(&mut vertices, count)
     })?;
     evaluate_rows_f32(plan, surfaces, rows, |row, evaluated| {
         for (vertex, (position, normal, uv)) in row.iter_mut().zip(evaluated.rounded()) {
@@ -316,11 +472,11 @@ pub fn execute_surfaces_split_f32(
         &mut mesh.uvs[..],
     );
     let rows = rows_of(plan, surfaces, &whole_grids(plan), count, |n| {
-        let (p, n_, u);
-        (p, positions) = std::mem::take(&mut positions).split_at_mut(n);
-        (n_, normals) = std::mem::take(&mut normals).split_at_mut(n);
-        (u, uvs) = std::mem::take(&mut uvs).split_at_mut(n);
-        (p, n_, u)
+        (
+            take_front(&mut positions, n),
+            take_front(&mut normals, n),
+            take_front(&mut uvs, n),
+        )
     })?;
     evaluate_rows_f32(plan, surfaces, rows, |(p, n, u), evaluated| {
         for (k, (position, normal, uv)) in evaluated.rounded().enumerate() {
@@ -328,7 +484,7 @@ pub fn execute_surfaces_split_f32(
         }
     });
     let grids: Vec<MeshPart> = plan.items.iter().map(|item| item.part).collect();
-    write_indices(&grids, None, &mut mesh.indices);
+    fill_grid_indices(&grids, &mut mesh.indices);
     Ok(())
 }
 
@@ -389,7 +545,8 @@ fn evaluate_rows_f32<Out: Send>(
             scratch.fit(surface.count_u());
             positions.resize(columns.len(), DVec3::ZERO);
             normals.resize(columns.len(), DVec3::ZERO);
-            evaluate_row(surface, columns, rows, j, fma, scratch, positions, normals);
+            let all = (&**columns, 0..columns.len());
+            evaluate_row(surface, all, rows, j, fma, scratch, positions, normals);
             let row = RowF64 {
                 positions,
                 normals,
@@ -427,7 +584,7 @@ impl RowF64<'_> {
 #[allow(clippy::too_many_arguments)]
 fn evaluate_row(
     surface: &BSplineSurface,
-    columns: &AxisSamples,
+    (columns, wanted): (&AxisSamples, Range<usize>),
     rows: &AxisSamples,
     j: usize,
     fma: bool,
@@ -439,6 +596,7 @@ fn evaluate_row(
     let row = Row {
         surface,
         columns,
+        wanted,
         v: rows.params()[j],
         scratch,
     };
@@ -502,10 +660,12 @@ const KERNEL_NORMAL_ROUNDING: f64 = 1e-12;
 const ROUNDING_RATIO_SQ: f64 =
     (f64::EPSILON / KERNEL_NORMAL_ROUNDING) * (f64::EPSILON / KERNEL_NORMAL_ROUNDING);
 
-/// One grid row ready for the u contraction.
+/// One grid row ready for the u contraction: its columns `wanted` (of `columns`) are
+/// evaluated, column `wanted.start` into element 0 of the outputs.
 struct Row<'a> {
     surface: &'a BSplineSurface,
     columns: &'a AxisSamples,
+    wanted: Range<usize>,
     v: f64,
     scratch: &'a RowScratch,
 }
@@ -530,8 +690,9 @@ impl Row<'_> {
         let p = self.surface.degree_u();
         let stride = self.columns.stride();
         let (values, derivatives) = (self.columns.table(0), self.columns.table(1));
+        let first = self.wanted.start;
         for run in self.columns.runs() {
-            let (span, start, end) = (run.span, run.start, run.end);
+            let (span, start, end) = (run.span, run.start.max(first), run.end.min(self.wanted.end));
             for i0 in (start..end).step_by(LANES) {
                 // Homogeneous value A, ∂u A and ∂v A, component by component, four vertices wide.
                 let mut acc = [V::splat(0.0); 12];
@@ -594,8 +755,8 @@ impl Row<'_> {
                 let len_sq = len_sq.to_array();
                 for l in 0..LANES.min(end - i0) {
                     let i = i0 + l;
-                    positions[i] = origin + DVec3::new(x[l], y[l], z[l]);
-                    normals[i] = if len_sq[l] > limit[l] && len_sq[l] > rounding[l] {
+                    positions[i - first] = origin + DVec3::new(x[l], y[l], z[l]);
+                    normals[i - first] = if len_sq[l] > limit[l] && len_sq[l] > rounding[l] {
                         DVec3::new(nx[l], ny[l], nz[l])
                     } else {
                         self.surface
@@ -658,6 +819,7 @@ mod tests {
             let row = Row {
                 surface: &surface,
                 columns: &columns,
+                wanted: 0..23,
                 v: rows.params()[j],
                 scratch: &scratch,
             };

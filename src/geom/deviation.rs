@@ -204,8 +204,11 @@ impl DerivativeBound {
             .saturating_mul(4)
             .saturating_add(16)
             .min(max_segments);
+        // The v-segments never drop below those of h → 0 (fewer u-spacing leaves more room
+        // along v), so once n_u times them reaches the best product no larger n_u is better.
+        let fewest_v = u64::from(rows_for(0.0).unwrap_or(1));
         for n_u in least_u..=last_u {
-            if u64::from(n_u) >= best_cells {
+            if u64::from(n_u) * fewest_v >= best_cells {
                 break;
             }
             if let Some(n_v) = rows_for(width_u / f64::from(n_u)) {
@@ -258,13 +261,25 @@ impl BezierPatch {
     pub fn magnitude_bound(&self) -> DerivativeBound {
         let (p, q) = (self.degree_u, self.degree_v);
         let row = p + 1;
-        let (centre, radius) =
-            box_centre_and_radius(self.points.iter().map(|h| h.truncate() / h.w));
-        // (w·(P − C), w) of control point (i, j).
-        let at = |i: usize, j: usize| {
-            let h = self.points[j * row + i];
-            (h.truncate() - h.w * centre).extend(h.w)
+        // (w·(P − C), w) of every control point, formed once (on the stack for a bicubic
+        // patch): the stencils below read each several times.
+        let mut on_stack = [DVec4::ZERO; 16];
+        let mut on_heap = Vec::new();
+        let relative: &mut [DVec4] = match self.points.len() {
+            n if n <= on_stack.len() => &mut on_stack[..n],
+            n => {
+                on_heap.resize(n, DVec4::ZERO);
+                &mut on_heap
+            }
         };
+        for (r, h) in relative.iter_mut().zip(&self.points) {
+            *r = (h.truncate() / h.w).extend(h.w);
+        }
+        let (centre, radius) = box_centre_and_radius(relative.iter().map(|r| r.truncate()));
+        for (r, h) in relative.iter_mut().zip(&self.points) {
+            *r = (h.truncate() - h.w * centre).extend(h.w);
+        }
+        let at = |i: usize, j: usize| relative[j * row + i];
         // The largest |vector part| and |weight| of a difference stencil over the net.
         fn largest(
             columns: usize,
@@ -436,14 +451,18 @@ impl BezierPatch {
                 .collect::<Option<Vec<_>>>()
                 .map(|pairs| pairs.into_iter().unzip())
         };
-        let (weights, differences, degree, along, across) =
-            if let (1, Some((w, d))) = (q, rows(p, &|i| at(i, 0), &|i| at(i, 1))) {
-                (w, d, p, self.range_u.width(), self.range_v.width())
-            } else if let (1, Some((w, d))) = (p, rows(q, &|j| at(0, j), &|j| at(1, j))) {
-                (w, d, q, self.range_v.width(), self.range_u.width())
-            } else {
-                return None;
-            };
+        // (The degree is checked first: the rows are only gathered for a ruled patch.)
+        let (weights, differences, degree, along, across) = if q == 1
+            && let Some((w, d)) = rows(p, &|i| at(i, 0), &|i| at(i, 1))
+        {
+            (w, d, p, self.range_u.width(), self.range_v.width())
+        } else if p == 1
+            && let Some((w, d)) = rows(q, &|j| at(0, j), &|j| at(1, j))
+        {
+            (w, d, q, self.range_v.width(), self.range_u.width())
+        } else {
+            return None;
+        };
         let (centre, radius) = box_centre_and_radius(differences.iter().copied());
         let scale = degree as f64 / along;
         let (mut d_first, mut w_first) = (0.0f64, 0.0f64);
@@ -477,19 +496,27 @@ impl BezierPatch {
 
     /// [`restricted_u`](Self::restricted_u) along v.
     pub fn restricted_v(&self, from: f64, to: f64) -> BezierPatch {
+        let mut piece = BezierPatch {
+            points: Vec::with_capacity(self.points.len()),
+            ..*self
+        };
+        self.restrict_v_into(from, to, &mut piece);
+        piece
+    }
+
+    /// [`restricted_v`](Self::restricted_v) into `piece`, reusing its storage (cells
+    /// along one strip are bounded one after another without an allocation each).
+    pub fn restrict_v_into(&self, from: f64, to: f64, piece: &mut BezierPatch) {
         let row = self.degree_u + 1;
-        let mut points = self.points.clone();
+        piece.points.clear();
+        piece.points.extend_from_slice(&self.points);
         for first in 0..row {
-            restrict_in_place(&mut points, first, row, self.degree_v + 1, from, to);
+            restrict_in_place(&mut piece.points, first, row, self.degree_v + 1, from, to);
         }
         let r = self.range_v;
-        BezierPatch {
-            degree_u: self.degree_u,
-            degree_v: self.degree_v,
-            points,
-            range_u: self.range_u,
-            range_v: super::Interval::new(r.lerp(from), r.lerp(to)),
-        }
+        (piece.degree_u, piece.degree_v) = (self.degree_u, self.degree_v);
+        piece.range_u = self.range_u;
+        piece.range_v = super::Interval::new(r.lerp(from), r.lerp(to));
     }
 }
 

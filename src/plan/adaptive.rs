@@ -165,8 +165,10 @@ pub fn surface_cells(
             let (mut rows_u, mut columns_v) = (vec![0u32; p_v], vec![0u32; p_u]);
             for (a, &(u0, u1, u)) in across_u.iter().enumerate() {
                 let strip = patch.restricted_u(u0, u1);
+                let mut piece = strip.clone();
                 for (b, &(v0, v1, v)) in across_v.iter().enumerate() {
-                    let (_, (m_u, m_v)) = bound_piece(&strip.restricted_v(v0, v1), u, v);
+                    strip.restrict_v_into(v0, v1, &mut piece);
+                    let (_, (m_u, m_v)) = bound_piece(&piece, u, v);
                     rows_u[b] += m_u;
                     columns_v[a] += m_v;
                 }
@@ -210,8 +212,10 @@ pub fn surface_cells(
             let mut own = Vec::with_capacity(along_u[c].len() * along_v[r].len());
             for (a, &(u0, u1, u)) in along_u[c].iter().enumerate() {
                 let strip = patch.restricted_u(u0, u1);
+                let mut piece = strip.clone();
                 for (b, &(v0, v1, v)) in along_v[r].iter().enumerate() {
-                    let (bound, segments) = bound_piece(&strip.restricted_v(v0, v1), u, v);
+                    strip.restrict_v_into(v0, v1, &mut piece);
+                    let (bound, segments) = bound_piece(&piece, u, v);
                     if segments.0.max(segments.1) >= MAX_CELL_SEGMENTS {
                         return Err(Error::ToleranceTooFine {
                             tolerance: limits.tolerance,
@@ -271,21 +275,23 @@ impl CellGrid {
     /// neighbouring cell adds to a cell's edge (n_other − gcd(n, n_other) along an edge
     /// where this cell has n segments and its neighbour n_other).
     pub fn triangle_count(&self) -> u64 {
-        let mut count = 0u64;
-        for b in 0..self.rows {
-            for a in 0..self.columns {
-                let (n_u, n_v) = self.cells[b * self.columns + a].segments;
-                count += 2 * u64::from(n_u) * u64::from(n_v);
-                for (side, n) in [
-                    (Side::Bottom, n_u),
-                    (Side::Top, n_u),
-                    (Side::Left, n_v),
-                    (Side::Right, n_v),
-                ] {
-                    if let Some(m) = self.neighbour_segments(a, b, side) {
-                        count += u64::from(m - gcd(m, n));
-                    }
-                }
+        (0..self.cells.len())
+            .map(|k| self.cell_triangle_count(k % self.columns, k / self.columns))
+            .sum()
+    }
+
+    /// The triangles of [`CellGrid::triangle_count`] that cell (a, b) makes.
+    fn cell_triangle_count(&self, a: usize, b: usize) -> u64 {
+        let (n_u, n_v) = self.segments(a, b);
+        let mut count = 2 * u64::from(n_u) * u64::from(n_v);
+        for (side, n) in [
+            (Side::Bottom, n_u),
+            (Side::Top, n_u),
+            (Side::Left, n_v),
+            (Side::Right, n_v),
+        ] {
+            if let Some(m) = self.neighbour_segments(a, b, side) {
+                count += u64::from(m - gcd(m, n));
             }
         }
         count
@@ -419,7 +425,12 @@ impl CellGrid {
             .into_par_iter()
             .map(|band| {
                 let rows = band * rows_per_band..((band + 1) * rows_per_band).min(self.rows);
-                let mut triangles = Vec::new();
+                // Exact but for the samples of seams on the surface's sides.
+                let cells = rows.start * self.columns..rows.end * self.columns;
+                let made: u64 = (cells
+                    .map(|k| self.cell_triangle_count(k % self.columns, k / self.columns)))
+                .sum();
+                let mut triangles = Vec::with_capacity(3 * made as usize);
                 self.push_band(rows, vertices, external, &mut triangles);
                 triangles
             })
@@ -446,27 +457,54 @@ impl CellGrid {
             self.cells[self.cells.len() - 1].range_v.end,
         );
         let band = rows.start * self.columns..rows.end * self.columns;
+        // Reused from cell to cell: the indices of the cell's boundary vertices, and the
+        // samples its sides lack.
+        let mut ring = Vec::new();
+        let mut lacking: [SideExtras; 4] = Default::default();
         for (k, cell) in self.cells[band.clone()].iter().enumerate() {
             let k = band.start + k;
             let (a, b) = (k % self.columns, k / self.columns);
             let (n_u, n_v) = cell.segments;
             let row = n_u + 1;
             let local = |i: u32, j: u32| vertices.vertex(a, b, i, j);
-            let index = |i: u32, j: u32| vertices.index(a, b, i, j);
+            // The one index of each boundary vertex (see CellVertices::index), found once:
+            // the bottom and top rows, then the left and right columns.
+            ring.clear();
+            for j in [0, n_v] {
+                ring.extend((0..=n_u).map(|i| vertices.index(a, b, i, j)));
+            }
+            for i in [0, n_u] {
+                ring.extend((0..=n_v).map(|j| vertices.index(a, b, i, j)));
+            }
+            let index = |i: u32, j: u32| -> u32 {
+                let (i_, j_, r) = (i as usize, j as usize, row as usize);
+                if j == 0 {
+                    ring[i_]
+                } else if j == n_v {
+                    ring[r + i_]
+                } else if i == 0 {
+                    ring[2 * r + j_]
+                } else if i == n_u {
+                    ring[2 * r + n_v as usize + 1 + j_]
+                } else {
+                    local(i, j)
+                }
+            };
             // The samples strictly inside each of this cell's edges that it does not have,
-            // grouped by the segment of this cell they fall in (increasing u or v): from the
+            // by the segment of this cell they fall in (increasing u or v): from the
             // neighbouring cell — its own (left and below: earlier cells own theirs; right and
             // above: the sample is not this cell's, so it is the neighbour's) — or on the
             // surface's side, from the seam.
-            let extras = |side: Side| -> Vec<Vec<u32>> {
+            for side in [Side::Bottom, Side::Right, Side::Top, Side::Left] {
                 let along_u = matches!(side, Side::Bottom | Side::Top);
                 let n = if along_u { n_u } else { n_v };
+                let extras = &mut lacking[side as usize];
                 let neighbour = self.neighbour_segments(a, b, side);
                 // None (most cells): every sample of the neighbour's edge is one of ours.
                 if neighbour.map_or(external[side as usize].is_empty(), |m| n % m == 0) {
-                    return Vec::new();
+                    extras.clear();
+                    continue;
                 }
-                let mut by_segment = vec![Vec::new(); n as usize];
                 let Some(m) = neighbour else {
                     let (range, piece) = if along_u {
                         (range_u, cell.range_u)
@@ -475,22 +513,26 @@ impl CellGrid {
                     };
                     let ends = [0, n].map(|s| sample_fraction(range, piece, s, n));
                     let mut segment = 0;
-                    for &(f, vertex) in &external[side as usize] {
-                        if f <= ends[0] || f >= ends[1] {
-                            continue;
-                        }
-                        while segment + 1 < n && f >= sample_fraction(range, piece, segment + 1, n)
-                        {
-                            segment += 1;
-                        }
-                        by_segment[segment as usize].push(vertex);
-                    }
-                    return by_segment;
+                    let inside = external[side as usize]
+                        .iter()
+                        .filter(|&&(f, _)| f > ends[0] && f < ends[1]);
+                    extras.fill(
+                        n,
+                        inside.map(|&(f, vertex)| {
+                            while segment + 1 < n
+                                && f >= sample_fraction(range, piece, segment + 1, n)
+                            {
+                                segment += 1;
+                            }
+                            (segment, vertex)
+                        }),
+                    );
+                    continue;
                 };
-                for s in 1..m {
+                let lacked = (1..m).filter_map(|s| {
                     let scaled = u64::from(s) * u64::from(n);
                     if scaled.is_multiple_of(u64::from(m)) {
-                        continue;
+                        return None;
                     }
                     let index = match side {
                         Side::Bottom => vertices.vertex(a, b - 1, s, self.segments(a, b - 1).1),
@@ -498,12 +540,11 @@ impl CellGrid {
                         Side::Left => vertices.vertex(a - 1, b, self.segments(a - 1, b).0, s),
                         Side::Right => vertices.vertex(a + 1, b, 0, s),
                     };
-                    by_segment[(scaled / u64::from(m)) as usize].push(index);
-                }
-                by_segment
-            };
-            let [on_bottom, on_right, on_top, on_left] =
-                [Side::Bottom, Side::Right, Side::Top, Side::Left].map(extras);
+                    Some(((scaled / u64::from(m)) as u32, index))
+                });
+                extras.fill(n, lacked);
+            }
+            let [on_bottom, on_right, on_top, on_left] = &lacking;
             for j in 0..n_v {
                 let edge_row = j == 0 || j + 1 == n_v;
                 for i in 0..n_u {
@@ -511,15 +552,11 @@ impl CellGrid {
                         out.extend_from_slice(&cell_triangles(local(i, j), row));
                         continue;
                     }
-                    let bottom_extras = if j == 0 { segment(&on_bottom, i) } else { &[] };
-                    let top_extras: &[u32] = if j + 1 == n_v {
-                        segment(&on_top, i)
-                    } else {
-                        &[]
-                    };
-                    let left_extras = if i == 0 { segment(&on_left, j) } else { &[] };
+                    let bottom_extras = if j == 0 { on_bottom.segment(i) } else { &[] };
+                    let top_extras: &[u32] = if j + 1 == n_v { on_top.segment(i) } else { &[] };
+                    let left_extras = if i == 0 { on_left.segment(j) } else { &[] };
                     let right_extras: &[u32] = if i + 1 == n_u {
-                        segment(&on_right, j)
+                        on_right.segment(j)
                     } else {
                         &[]
                     };
@@ -563,9 +600,45 @@ impl CellGrid {
     }
 }
 
-/// The extra samples on segment `k` of a cell's side (none where the side has none).
-fn segment(extras: &[Vec<u32>], k: u32) -> &[u32] {
-    extras.get(k as usize).map_or(&[], Vec::as_slice)
+/// The samples one side of a cell lacks (vertex indices, in increasing u or v), grouped by
+/// the segment of the side they fall in: segment k's are `vertices[starts[k]..starts[k +
+/// 1]]`. Empty where the side lacks none.
+#[derive(Default)]
+struct SideExtras {
+    vertices: Vec<u32>,
+    starts: Vec<u32>,
+}
+
+impl SideExtras {
+    /// None lacking.
+    fn clear(&mut self) {
+        self.vertices.clear();
+        self.starts.clear();
+    }
+
+    /// Replaces the contents by `lacked` — (segment < `segments`, vertex), segments not
+    /// decreasing — on a side of `segments` segments.
+    fn fill(&mut self, segments: u32, lacked: impl Iterator<Item = (u32, u32)>) {
+        self.clear();
+        self.starts.push(0);
+        for (segment, vertex) in lacked {
+            while self.starts.len() <= segment as usize {
+                self.starts.push(self.vertices.len() as u32);
+            }
+            self.vertices.push(vertex);
+        }
+        while self.starts.len() <= segments as usize {
+            self.starts.push(self.vertices.len() as u32);
+        }
+    }
+
+    /// The samples lacked on segment `k` (none where the side lacks none).
+    fn segment(&self, k: u32) -> &[u32] {
+        match self.starts.get(k as usize..k as usize + 2) {
+            Some(&[start, end]) => &self.vertices[start as usize..end as usize],
+            _ => &[],
+        }
+    }
 }
 
 /// Where the vertices of a [`CellGrid`]'s cells are (see [`CellGrid::vertices`]).
@@ -582,7 +655,7 @@ impl CellVertices<'_> {
     }
 
     /// Vertex (i, j) of cell (a, b)'s own grid.
-    fn vertex(&self, a: usize, b: usize, i: u32, j: u32) -> u32 {
+    pub(crate) fn vertex(&self, a: usize, b: usize, i: u32, j: u32) -> u32 {
         let k = b * self.grid.columns + a;
         self.bases[k] + j * (self.grid.cells[k].segments.0 + 1) + i
     }

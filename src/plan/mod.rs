@@ -197,7 +197,7 @@ impl SurfacePlan {
                         (Sampling::Cells(cells), _, Some(vertices)) => {
                             triangles.reserve(part.index_count as usize);
                             cells.push_triangles(vertices, external, &mut triangles);
-                            (cell_samples(index, surface, cells, part), triangles)
+                            (cell_samples(index, surface, vertices, part), triangles)
                         }
                         _ => unreachable!("grids have samples, cells their vertices"),
                     }
@@ -206,8 +206,9 @@ impl SurfacePlan {
             .collect();
         let made: Vec<u64> = planned.iter().map(|(_, t)| t.len() as u64 / 3).collect();
         let layout = layout_of(&sampling, &made)?;
-        let mut items = Vec::with_capacity(planned.iter().map(|(i, _)| i.len()).sum());
-        let mut triangles = joined.then(|| Vec::with_capacity(layout.index_count as usize));
+        let item_count = planned.iter().map(|(i, _)| i.len()).sum();
+        let mut items = Vec::new();
+        let mut triangles = joined.then(Vec::new);
         for (((mut surface_items, surface_triangles), part), sampling) in
             planned.into_iter().zip(&layout.parts).zip(&sampling)
         {
@@ -218,9 +219,9 @@ impl SurfacePlan {
                     Sampling::Cells(_) => item.part.first_index = part.first_index,
                 }
             }
-            items.extend(surface_items);
+            append(&mut items, surface_items, item_count);
             if let Some(triangles) = &mut triangles {
-                triangles.extend_from_slice(&surface_triangles);
+                append(triangles, surface_triangles, layout.index_count as usize);
             }
         }
         // Each seam vertex both sides have is used from its first surface.
@@ -320,6 +321,17 @@ impl SurfacePlan {
     }
 }
 
+/// `more` after the elements of `all`, which holds `total` at the end: moved, not copied,
+/// while `all` is empty (one large surface is most files' work).
+fn append<T>(all: &mut Vec<T>, mut more: Vec<T>, total: usize) {
+    if all.is_empty() {
+        more.reserve(total - more.len());
+        *all = more;
+    } else {
+        all.extend(more);
+    }
+}
+
 /// Consecutive rows of one grid of a plan: `grid` indexes [`SurfacePlan::items`], `rows` are
 /// whole rows of it (row j holds its vertices j·grid_u .. (j + 1)·grid_u, u fastest).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -338,41 +350,35 @@ pub fn row_triangles(part: &MeshPart, j: u32, indices: &mut [u32]) {
     }
 }
 
-/// The grids of the cells of surface `index`, their vertices one after another from the
-/// first of its `part`.
+/// The grids of the cells of surface `index`, each at the first of its `vertices` (the
+/// cells' grids one after another from the first vertex of its `part`).
 fn cell_samples(
     index: usize,
     surface: &BSplineSurface,
-    cells: &CellGrid,
+    vertices: &adaptive::CellVertices,
     part: &MeshPart,
 ) -> Vec<SurfaceSamples> {
+    let cells = vertices.grid();
     let columns = axis_tables(cells, false, surface.knots_u(), surface.range_u());
     let rows = axis_tables(cells, true, surface.knots_v(), surface.range_v());
-    let placed = |k: usize| (k % cells.columns, k / cells.columns);
-    let mut first_vertex = part.first_vertex;
-    cells
-        .cells
-        .iter()
-        .enumerate()
+    (cells.cells.par_iter().enumerate())
         .map(|(k, cell)| {
             let (n_u, n_v) = cell.segments;
-            let (a, b) = placed(k);
-            let samples = SurfaceSamples {
+            let (a, b) = (k % cells.columns, k / cells.columns);
+            SurfaceSamples {
                 surface: index,
                 part: MeshPart {
                     item: index as u32,
                     grid_u: n_u + 1,
                     grid_v: n_v + 1,
-                    first_vertex,
+                    first_vertex: vertices.vertex(a, b, 0, 0),
                     vertex_count: (n_u + 1) * (n_v + 1),
                     first_index: part.first_index,
                     index_count: 0,
                 },
                 columns: columns[&(a, n_u)].clone(),
                 rows: rows[&(b, n_v)].clone(),
-            };
-            first_vertex += (n_u + 1) * (n_v + 1);
-            samples
+            }
         })
         .collect()
 }
