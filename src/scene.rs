@@ -474,7 +474,9 @@ pub trait Tessellator {
     /// index ([`crate::MeshPart::item`], [`Polyline::item`]).
     fn tessellate_scene(&self, scene: &Scene, defaults: &SceneOptions) -> Result<Mesh> {
         let defaults = &fit_triangle_budget(scene, defaults)?;
-        let grid_bytes = check_memory(scene, defaults, F64_VERTEX_BYTES)?;
+        let surfaces = scene.surface_list();
+        let sampled = surface_sampling(scene, &surfaces, defaults)?;
+        let grid_bytes = check_memory(scene, defaults, &sampled.layout, F64_VERTEX_BYTES)?;
         let trimmed = crate::cpu::mesh_trimmed_faces_with(
             scene,
             defaults,
@@ -483,12 +485,8 @@ pub trait Tessellator {
             &|faces| self.evaluate_face_samples(faces),
         )?;
         let mut mesh = Mesh::default();
-        let surfaces = scene.surface_list();
-        self.execute_surfaces(
-            &surface_plan(scene, &surfaces, defaults)?,
-            &surfaces,
-            &mut mesh,
-        )?;
+        let plan = SurfacePlan::from_sampling(&surfaces, sampled, &scene.surface_seams()?)?;
+        self.execute_surfaces(&plan, &surfaces, &mut mesh)?;
         let (coons, polylines) = patches_and_curves(self, scene, defaults)?;
         mesh.append(coons)?;
         mesh.append(trimmed)?;
@@ -502,7 +500,9 @@ pub trait Tessellator {
     fn tessellate_scene_f32(&self, scene: &Scene, defaults: &SceneOptions) -> Result<Mesh32> {
         let defaults = &fit_triangle_budget(scene, defaults)?;
         let vertex_bytes = size_of::<crate::Vertex>() as u64;
-        let grid_bytes = check_memory(scene, defaults, vertex_bytes)?;
+        let surfaces = scene.surface_list();
+        let sampled = surface_sampling(scene, &surfaces, defaults)?;
+        let grid_bytes = check_memory(scene, defaults, &sampled.layout, vertex_bytes)?;
         let trimmed = crate::cpu::mesh_trimmed_faces_with(
             scene,
             defaults,
@@ -511,8 +511,7 @@ pub trait Tessellator {
             &|faces| self.evaluate_face_samples(faces),
         )?;
         let mut mesh = Mesh32::default();
-        let surfaces = scene.surface_list();
-        let plan = surface_plan(scene, &surfaces, defaults)?;
+        let plan = SurfacePlan::from_sampling(&surfaces, sampled, &scene.surface_seams()?)?;
         self.execute_surfaces_f32(&plan, &surfaces, &mut mesh)?;
         let (coons, polylines) = patches_and_curves(self, scene, defaults)?;
         mesh.append(Mesh32::from(coons))?;
@@ -535,9 +534,15 @@ pub trait Tessellator {
             return Ok(self.tessellate_scene_f32(scene, defaults)?.into());
         }
         let defaults = &fit_triangle_budget(scene, defaults)?;
-        check_memory(scene, defaults, size_of::<crate::Vertex>() as u64)?;
         let surfaces = scene.surface_list();
-        let plan = surface_plan(scene, &surfaces, defaults)?;
+        let sampled = surface_sampling(scene, &surfaces, defaults)?;
+        check_memory(
+            scene,
+            defaults,
+            &sampled.layout,
+            size_of::<crate::Vertex>() as u64,
+        )?;
+        let plan = SurfacePlan::from_sampling(&surfaces, sampled, &scene.surface_seams()?)?;
         let mut mesh = SplitMesh32::default();
         self.execute_surfaces_split_f32(&plan, &surfaces, &mut mesh)?;
         Ok(mesh)
@@ -552,6 +557,20 @@ pub fn surface_plan(
     defaults: &SceneOptions,
 ) -> Result<SurfacePlan> {
     SurfacePlan::with_seams(
+        surfaces,
+        &scene.surface_grids(defaults.grid),
+        &scene.surface_seams()?,
+    )
+}
+
+/// How `scene`'s `surfaces` (its [`Scene::surface_list`]) are sampled under `defaults`
+/// ([`SurfacePlan::sample`]), joined along the scene's seams.
+fn surface_sampling(
+    scene: &Scene,
+    surfaces: &[BSplineSurface],
+    defaults: &SceneOptions,
+) -> Result<crate::plan::SurfaceSampling> {
+    SurfacePlan::sample(
         surfaces,
         &scene.surface_grids(defaults.grid),
         &scene.surface_seams()?,
@@ -612,7 +631,18 @@ pub fn default_memory_budget() -> u64 {
 /// Bytes the mesh of `scene` takes at `vertex_bytes` per vertex (with its u32 indices and its
 /// f64 polylines), from the layout alone.
 pub fn scene_mesh_bytes(scene: &Scene, defaults: &SceneOptions, vertex_bytes: u64) -> Result<u64> {
-    let (surfaces, coons) = grid_layouts(scene, defaults)?;
+    let surfaces = surface_sampling(scene, &scene.surface_list(), defaults)?.layout;
+    mesh_bytes(scene, defaults, &surfaces, vertex_bytes)
+}
+
+/// [`scene_mesh_bytes`] with the surfaces' layout given.
+fn mesh_bytes(
+    scene: &Scene,
+    defaults: &SceneOptions,
+    surfaces: &crate::plan::GridLayout,
+    vertex_bytes: u64,
+) -> Result<u64> {
+    let coons = coons_layout(scene, defaults)?;
     let vertices = surfaces.vertex_count + coons.vertex_count;
     let indices = surfaces.index_count + coons.index_count;
     if vertices > u64::from(u32::MAX) || indices > u64::from(u32::MAX) {
@@ -626,28 +656,20 @@ pub fn scene_mesh_bytes(scene: &Scene, defaults: &SceneOptions, vertex_bytes: u6
     Ok(vertices * vertex_bytes + indices * 4 + samples * 48)
 }
 
-/// The layouts of `scene`'s surfaces and of its Coons patches under `defaults`.
-fn grid_layouts(
-    scene: &Scene,
-    defaults: &SceneOptions,
-) -> Result<(crate::plan::GridLayout, crate::plan::GridLayout)> {
-    let surfaces = SurfacePlan::layout_only(
-        &scene.surface_list(),
-        &scene.surface_grids(defaults.grid),
-        &scene.surface_seams()?,
-    )?;
-    let coons = crate::plan::GridLayout::new(
+/// The layout of `scene`'s Coons patches under `defaults`.
+fn coons_layout(scene: &Scene, defaults: &SceneOptions) -> Result<crate::plan::GridLayout> {
+    crate::plan::GridLayout::new(
         scene.coons_patches().count(),
         &scene.coons_grids(defaults.grid),
-    )?;
-    Ok((surfaces, coons))
+    )
 }
 
 /// The triangles of `scene`'s mesh under `defaults`, from the plans alone (nothing is
 /// evaluated): its surfaces' and Coons patches' layouts and its trimmed faces' plans (a
 /// face that fails to plan counts nothing where `defaults.skip_failed_faces` leaves it out).
 pub fn scene_triangles(scene: &Scene, defaults: &SceneOptions) -> Result<u64> {
-    let (surfaces, coons) = grid_layouts(scene, defaults)?;
+    let surfaces = surface_sampling(scene, &scene.surface_list(), defaults)?.layout;
+    let coons = coons_layout(scene, defaults)?;
     let faces: Vec<usize> = (0..scene.items.len())
         .filter(|&k| {
             matches!(
@@ -747,13 +769,19 @@ pub fn fit_triangle_budget(scene: &Scene, defaults: &SceneOptions) -> Result<Sce
     Ok(at(fit))
 }
 
-/// Refuses a scene whose grids and curves would take more than the budget of `defaults`;
-/// returns the bytes they take (0 with no budget), which trimmed faces add to once planned.
-fn check_memory(scene: &Scene, defaults: &SceneOptions, vertex_bytes: u64) -> Result<u64> {
+/// Refuses a scene whose grids and curves would take more than the budget of `defaults`
+/// (its surfaces laid out as `surfaces`); returns the bytes they take (0 with no budget),
+/// which trimmed faces add to once planned.
+fn check_memory(
+    scene: &Scene,
+    defaults: &SceneOptions,
+    surfaces: &crate::plan::GridLayout,
+    vertex_bytes: u64,
+) -> Result<u64> {
     let Some(budget) = defaults.memory_budget else {
         return Ok(0);
     };
-    let needed = scene_mesh_bytes(scene, defaults, vertex_bytes)?;
+    let needed = mesh_bytes(scene, defaults, surfaces, vertex_bytes)?;
     if needed > budget {
         return Err(crate::Error::OverMemoryBudget { needed, budget });
     }

@@ -142,7 +142,33 @@ impl SurfacePlan {
         options: &[TessOptions],
         seams: &[Seam],
     ) -> Result<Self> {
+        Self::from_sampling(surfaces, Self::sample(surfaces, options, seams)?, seams)
+    }
+
+    /// The first step of [`SurfacePlan::with_seams`]: how each surface is sampled (its
+    /// grid, or its cells with their bounds — most of the planning's work) and the layout
+    /// that gives (triangles before poles drop theirs: an upper bound), without triangles
+    /// or tables — what a memory check needs before the plan is made.
+    pub fn sample(
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        seams: &[Seam],
+    ) -> Result<SurfaceSampling> {
         let sampling = surface_sampling(surfaces, options)?;
+        let joined = SeamSamples::new(surfaces, &sampling, seams)?;
+        let layout = layout_of(&sampling, &joined.triangles())?;
+        Ok(SurfaceSampling { sampling, layout })
+    }
+
+    /// The rest of [`SurfacePlan::with_seams`]: the plan of `sampled`, made by
+    /// [`SurfacePlan::sample`] for the same `surfaces` and `seams`.
+    pub fn from_sampling(
+        surfaces: &[BSplineSurface],
+        sampled: SurfaceSampling,
+        seams: &[Seam],
+    ) -> Result<Self> {
+        check_item_count(sampled.sampling.len(), surfaces.len())?;
+        let sampling = sampled.sampling;
         let seams = SeamSamples::new(surfaces, &sampling, seams)?;
         // Vertices are laid out now; triangles once they are made (poles drop some).
         let layout = layout_of(&sampling, &seams.triangles())?;
@@ -239,18 +265,6 @@ impl SurfacePlan {
             items,
             triangles,
         })
-    }
-
-    /// The layout [`SurfacePlan::with_seams`] gives these surfaces, without its tables and
-    /// triangles: what a memory check needs.
-    pub fn layout_only(
-        surfaces: &[BSplineSurface],
-        options: &[TessOptions],
-        seams: &[Seam],
-    ) -> Result<GridLayout> {
-        let sampling = surface_sampling(surfaces, options)?;
-        let seams = SeamSamples::new(surfaces, &sampling, seams)?;
-        layout_of(&sampling, &seams.triangles())
     }
 
     /// Number of surfaces planned.
@@ -498,7 +512,17 @@ impl<'a> SeamSamples<'a> {
     }
 }
 
+/// How each surface of a plan is sampled, before its triangles and tables are made (see
+/// [`SurfacePlan::sample`]).
+#[derive(Debug)]
+pub struct SurfaceSampling {
+    sampling: Vec<Sampling>,
+    /// The plan's layout, its triangles counted before poles drop theirs (an upper bound).
+    pub layout: GridLayout,
+}
+
 /// How one surface is sampled.
+#[derive(Debug)]
 enum Sampling {
     /// One grid of this many vertices along u and v, evenly spaced.
     Grid(u32, u32),
