@@ -485,7 +485,7 @@ pub trait Tessellator {
             &|faces| self.evaluate_face_samples(faces),
         )?;
         let mut mesh = Mesh::default();
-        let plan = SurfacePlan::from_sampling(&surfaces, sampled, &scene.surface_seams()?)?;
+        let plan = SurfacePlan::from_sampling(&surfaces, sampled)?;
         self.execute_surfaces(&plan, &surfaces, &mut mesh)?;
         let (coons, polylines) = patches_and_curves(self, scene, defaults)?;
         mesh.append(coons)?;
@@ -511,7 +511,7 @@ pub trait Tessellator {
             &|faces| self.evaluate_face_samples(faces),
         )?;
         let mut mesh = Mesh32::default();
-        let plan = SurfacePlan::from_sampling(&surfaces, sampled, &scene.surface_seams()?)?;
+        let plan = SurfacePlan::from_sampling(&surfaces, sampled)?;
         self.execute_surfaces_f32(&plan, &surfaces, &mut mesh)?;
         let (coons, polylines) = patches_and_curves(self, scene, defaults)?;
         mesh.append(Mesh32::from(coons))?;
@@ -542,7 +542,7 @@ pub trait Tessellator {
             &sampled.layout,
             size_of::<crate::Vertex>() as u64,
         )?;
-        let plan = SurfacePlan::from_sampling(&surfaces, sampled, &scene.surface_seams()?)?;
+        let plan = SurfacePlan::from_sampling(&surfaces, sampled)?;
         let mut mesh = SplitMesh32::default();
         self.execute_surfaces_split_f32(&plan, &surfaces, &mut mesh)?;
         Ok(mesh)

@@ -136,7 +136,9 @@ pub fn surface_cells(
             }
         }
     };
-    let span_rates: Vec<(u32, u32)> = patches
+    // Each span's rates, and its probe pieces' bounds where it was cut into more than one
+    // (p_u × p_v of them, u fastest).
+    let span_rates: Vec<SpanRates> = patches
         .par_iter()
         .map(|patch| {
             let clipped_u = overlap(patch.range_u, range_u).unwrap();
@@ -156,28 +158,44 @@ pub fn surface_cells(
             let probes = |n: u32| cells_for(n).min(PROBE_PIECES);
             let (p_u, p_v) = (probes(n_u), probes(n_v));
             if p_u * p_v == 1 {
-                return (n_u, n_v);
+                return SpanRates {
+                    rates: (n_u, n_v),
+                    probes: (1, 1),
+                    bounded: Vec::new(),
+                };
             }
             let (across_u, across_v) = (
                 pieces(patch.range_u, clipped_u, p_u),
                 pieces(patch.range_v, clipped_v, p_v),
             );
             let (mut rows_u, mut columns_v) = (vec![0u32; p_v], vec![0u32; p_u]);
+            let mut bounded = vec![(DerivativeBound::default(), (0, 0)); p_u * p_v];
             for (a, &(u0, u1, u)) in across_u.iter().enumerate() {
                 let strip = patch.restricted_u(u0, u1);
                 let mut piece = strip.clone();
                 for (b, &(v0, v1, v)) in across_v.iter().enumerate() {
                     strip.restrict_v_into(v0, v1, &mut piece);
-                    let (_, (m_u, m_v)) = bound_piece(&piece, u, v);
+                    let (bound, (m_u, m_v)) = bound_piece(&piece, u, v);
+                    bounded[b * p_u + a] = (bound, (m_u, m_v));
                     rows_u[b] += m_u;
                     columns_v[a] += m_v;
                 }
             }
             let most = |sums: Vec<u32>| sums.into_iter().max().expect("at least one piece");
-            (most(rows_u).min(n_u), most(columns_v).min(n_v))
+            SpanRates {
+                rates: (most(rows_u).min(n_u), most(columns_v).min(n_v)),
+                probes: (p_u, p_v),
+                bounded,
+            }
         })
         .collect();
-    for (&(n_u, n_v), &(c, r)) in span_rates.iter().zip(&placed) {
+    for (
+        &SpanRates {
+            rates: (n_u, n_v), ..
+        },
+        &(c, r),
+    ) in span_rates.iter().zip(&placed)
+    {
         cells_u[c] = cells_u[c].max(cells_for(n_u));
         cells_v[r] = cells_v[r].max(cells_for(n_v));
     }
@@ -208,14 +226,29 @@ pub fn surface_cells(
     let bounded: Vec<Vec<(usize, Cell)>> = patches
         .par_iter()
         .zip(&placed)
-        .map(|(patch, &(c, r))| {
-            let mut own = Vec::with_capacity(along_u[c].len() * along_v[r].len());
+        .zip(&span_rates)
+        .map(|((patch, &(c, r)), span)| {
+            let (count_u, count_v) = (along_u[c].len(), along_v[r].len());
+            let mut own = Vec::with_capacity(count_u * count_v);
+            // Cells cut as the span's probes were are those pieces: their bounds are known
+            // (the same restriction of the same patch).
+            let probed = (span.probes == (count_u, count_v) && !span.bounded.is_empty())
+                .then_some(&span.bounded);
             for (a, &(u0, u1, u)) in along_u[c].iter().enumerate() {
-                let strip = patch.restricted_u(u0, u1);
-                let mut piece = strip.clone();
+                // The column's strip (and a piece reused along it), cut where needed.
+                let mut cut: Option<(BezierPatch, BezierPatch)> = None;
                 for (b, &(v0, v1, v)) in along_v[r].iter().enumerate() {
-                    strip.restrict_v_into(v0, v1, &mut piece);
-                    let (bound, segments) = bound_piece(&piece, u, v);
+                    let (bound, segments) = match probed {
+                        Some(probes) => probes[b * count_u + a],
+                        None => {
+                            let (strip, piece) = cut.get_or_insert_with(|| {
+                                let strip = patch.restricted_u(u0, u1);
+                                (strip.clone(), strip)
+                            });
+                            strip.restrict_v_into(v0, v1, piece);
+                            bound_piece(piece, u, v)
+                        }
+                    };
                     if segments.0.max(segments.1) >= MAX_CELL_SEGMENTS {
                         return Err(Error::ToleranceTooFine {
                             tolerance: limits.tolerance,
@@ -248,6 +281,16 @@ pub fn surface_cells(
         cells,
         limits,
     })
+}
+
+/// What the probes of one knot span found (see [`PROBE_PIECES`]).
+struct SpanRates {
+    /// Segments the span needs along u and v.
+    rates: (u32, u32),
+    /// Probe pieces along u and v ((1, 1): the span was not probed).
+    probes: (usize, usize),
+    /// Each probe piece's bound and segments, u fastest (empty where not probed).
+    bounded: Vec<(DerivativeBound, (u32, u32))>,
 }
 
 /// `clipped` (a part of `span`) cut into `count` equal pieces: each piece's start and end
@@ -290,7 +333,7 @@ impl CellGrid {
             (Side::Left, n_v),
             (Side::Right, n_v),
         ] {
-            if let Some(m) = self.neighbour_segments(a, b, side) {
+            if let Some(m) = self.neighbour_segments(a, b, side).filter(|&m| m != n) {
                 count += u64::from(m - gcd(m, n));
             }
         }
@@ -457,10 +500,11 @@ impl CellGrid {
             self.cells[self.cells.len() - 1].range_v.end,
         );
         let band = rows.start * self.columns..rows.end * self.columns;
-        // Reused from cell to cell: the indices of the cell's boundary vertices, and the
-        // samples its sides lack.
+        // Reused from cell to cell: the indices of the cell's boundary vertices, the
+        // samples its sides lack, and the two chains a grid cell with extras is zipped from.
         let mut ring = Vec::new();
         let mut lacking: [SideExtras; 4] = Default::default();
+        let mut chains: [Vec<u32>; 2] = Default::default();
         for (k, cell) in self.cells[band.clone()].iter().enumerate() {
             let k = band.start + k;
             let (a, b) = (k % self.columns, k / self.columns);
@@ -582,17 +626,20 @@ impl CellGrid {
                         out,
                     ) {
                         // c00 → bottom → c10 → right → c11, and c00 → left → c01 → top → c11.
-                        let mut chain_a = vec![corners[0]];
+                        let [chain_a, chain_b] = &mut chains;
+                        chain_a.clear();
+                        chain_a.push(corners[0]);
                         chain_a.extend_from_slice(bottom_extras);
                         chain_a.push(corners[1]);
                         chain_a.extend_from_slice(right_extras);
                         chain_a.push(corners[2]);
-                        let mut chain_b = vec![corners[0]];
+                        chain_b.clear();
+                        chain_b.push(corners[0]);
                         chain_b.extend_from_slice(left_extras);
                         chain_b.push(corners[3]);
                         chain_b.extend_from_slice(top_extras);
                         chain_b.push(corners[2]);
-                        zip_chains(&chain_a, &chain_b, out);
+                        zip_chains(chain_a, chain_b, out);
                     }
                 }
             }
@@ -652,6 +699,11 @@ impl CellVertices<'_> {
     /// The cells these vertices belong to.
     pub(crate) fn grid(&self) -> &CellGrid {
         self.grid
+    }
+
+    /// The sides of the surface collapsed to a pole (Bottom, Right, Top, Left).
+    pub(crate) fn poles(&self) -> [bool; 4] {
+        self.poles
     }
 
     /// Vertex (i, j) of cell (a, b)'s own grid.
@@ -745,20 +797,20 @@ pub(crate) fn sample_fraction(range: Interval, piece: Interval, s: u32, segments
 /// run along the two sides that meet there: the first triangle joins the pole with the
 /// first sample of each, so no triangle has three vertices on one side of the cell.
 fn zip_from_pole(corners: [u32; 4], extras: [&[u32]; 4], out: &mut Vec<u32>) -> bool {
+    let Some(pole) = (0..4).find(|&k| corners[k] == corners[(k + 1) % 4]) else {
+        return false;
+    };
     // The polygon counter-clockwise from c00, corners marked, the pole once.
     let mut polygon: Vec<(u32, bool)> = Vec::new();
     for side in 0..4 {
         polygon.push((corners[side], true));
-        let along: Vec<u32> = if side < 2 {
-            extras[side].to_vec()
+        let along = extras[side].iter().map(|&v| (v, false));
+        if side < 2 {
+            polygon.extend(along);
         } else {
-            extras[side].iter().rev().copied().collect()
-        };
-        polygon.extend(along.into_iter().map(|v| (v, false)));
+            polygon.extend(along.rev());
+        }
     }
-    let Some(pole) = (0..4).find(|&k| corners[k] == corners[(k + 1) % 4]) else {
-        return false;
-    };
     polygon.dedup_by_key(|entry| entry.0);
     while polygon.len() > 1 && polygon[0].0 == polygon[polygon.len() - 1].0 {
         polygon.pop();

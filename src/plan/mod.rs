@@ -142,7 +142,7 @@ impl SurfacePlan {
         options: &[TessOptions],
         seams: &[Seam],
     ) -> Result<Self> {
-        Self::from_sampling(surfaces, Self::sample(surfaces, options, seams)?, seams)
+        Self::from_sampling(surfaces, Self::sample(surfaces, options, seams)?)
     }
 
     /// The first step of [`SurfacePlan::with_seams`]: how each surface is sampled (its
@@ -155,23 +155,45 @@ impl SurfacePlan {
         seams: &[Seam],
     ) -> Result<SurfaceSampling> {
         let sampling = surface_sampling(surfaces, options)?;
-        let joined = SeamSamples::new(surfaces, &sampling, seams)?;
-        let layout = layout_of(&sampling, &joined.triangles())?;
-        Ok(SurfaceSampling { sampling, layout })
+        let SeamSamples {
+            vertices,
+            external,
+            same,
+            triangles,
+        } = SeamSamples::new(surfaces, &sampling, seams)?;
+        let layout = layout_of(&sampling, &triangles)?;
+        let poles = (vertices.iter())
+            .map(|v| v.as_ref().map_or([false; 4], |v| v.poles()))
+            .collect();
+        drop(vertices);
+        Ok(SurfaceSampling {
+            sampling,
+            layout,
+            poles,
+            external,
+            same,
+        })
     }
 
     /// The rest of [`SurfacePlan::with_seams`]: the plan of `sampled`, made by
-    /// [`SurfacePlan::sample`] for the same `surfaces` and `seams`.
-    pub fn from_sampling(
-        surfaces: &[BSplineSurface],
-        sampled: SurfaceSampling,
-        seams: &[Seam],
-    ) -> Result<Self> {
+    /// [`SurfacePlan::sample`] for the same `surfaces`.
+    pub fn from_sampling(surfaces: &[BSplineSurface], sampled: SurfaceSampling) -> Result<Self> {
         check_item_count(sampled.sampling.len(), surfaces.len())?;
-        let sampling = sampled.sampling;
-        let seams = SeamSamples::new(surfaces, &sampling, seams)?;
+        let SurfaceSampling {
+            sampling,
+            layout,
+            poles,
+            external,
+            same,
+        } = sampled;
         // Vertices are laid out now; triangles once they are made (poles drop some).
-        let layout = layout_of(&sampling, &seams.triangles())?;
+        let vertices: Vec<Option<adaptive::CellVertices>> = (sampling.iter().zip(&layout.parts))
+            .zip(&poles)
+            .map(|((sampling, part), &poles)| match sampling {
+                Sampling::Cells(cells) => Some(cells.vertices(part.first_vertex, poles)),
+                Sampling::Grid(..) => None,
+            })
+            .collect();
         let joined = sampling.iter().any(|s| matches!(s, Sampling::Cells(_)));
         // Grids share their tables through one cache; cells are planned surface by surface
         // in parallel.
@@ -191,9 +213,6 @@ impl SurfacePlan {
                 Sampling::Cells(_) => None,
             })
             .collect();
-        let vertices = seams.vertices;
-        let external = seams.external;
-        let same = seams.same;
         let planned: Vec<(Vec<SurfaceSamples>, Vec<u32>)> = surfaces
             .par_iter()
             .zip(&sampling)
@@ -433,6 +452,10 @@ struct SeamSamples<'a> {
     vertices: Vec<Option<adaptive::CellVertices<'a>>>,
     external: Vec<[Vec<(f64, u32)>; 4]>,
     same: Vec<(u32, u32)>,
+    /// Triangles of each adaptive surface before its poles drop theirs (an upper bound:
+    /// what a memory check may count on): its cells' joins and one per sample its seams
+    /// add.
+    triangles: Vec<u64>,
 }
 
 impl<'a> SeamSamples<'a> {
@@ -489,26 +512,15 @@ impl<'a> SeamSamples<'a> {
             external[seam.first.0][seam.first.1 as usize] = first_lacks;
             external[seam.second.0][seam.second.1 as usize] = second_lacks;
         }
+        let triangles = (own_triangles.iter().zip(&external))
+            .map(|(own, sides)| own + sides.iter().map(|s| s.len() as u64).sum::<u64>())
+            .collect();
         Ok(SeamSamples {
             vertices,
             external,
             same,
+            triangles,
         })
-    }
-
-    /// Triangles of each adaptive surface before its poles drop theirs (an upper bound:
-    /// what a memory check may count on): its cells' joins and one per sample its seams
-    /// add.
-    fn triangles(&self) -> Vec<u64> {
-        self.vertices
-            .iter()
-            .zip(&self.external)
-            .map(|(vertices, sides)| {
-                vertices.as_ref().map_or(0, |v| {
-                    v.grid().triangle_count() + sides.iter().map(|s| s.len() as u64).sum::<u64>()
-                })
-            })
-            .collect()
     }
 }
 
@@ -519,6 +531,11 @@ pub struct SurfaceSampling {
     sampling: Vec<Sampling>,
     /// The plan's layout, its triangles counted before poles drop theirs (an upper bound).
     pub layout: GridLayout,
+    /// What the seams found ([`SeamSamples`]), per surface: the sides collapsed to a pole,
+    /// the samples each side lacks from its seam partner; and the vertex pairs that are one.
+    poles: Vec<[bool; 4]>,
+    external: Vec<[Vec<(f64, u32)>; 4]>,
+    same: Vec<(u32, u32)>,
 }
 
 /// How one surface is sampled.
