@@ -4,6 +4,11 @@ use super::piecewise::{de_casteljau, refine_to_bezier};
 use super::{BSplineCurve, BSplineSurface, Interval, KnotVector};
 use crate::error::Result;
 use glam::{DVec3, DVec4};
+use rayon::prelude::*;
+
+/// Control polygons one task of [`BSplineSurface::bezier_patches`] refines at least (a
+/// surface of fewer rows is refined on the calling thread).
+const PARALLEL_POLYGONS: usize = 8;
 
 /// A Bezier curve of `degree` (degree + 1 points) on [0, 1], as a clamped B-spline.
 pub fn bezier_curve(
@@ -107,14 +112,19 @@ impl BSplineSurface {
         let (p, q) = (self.degree_u(), self.degree_v());
         let (nu, nv) = (self.count_u(), self.count_v());
         let pts = super::LocalPoints::absolute(self.homogeneous_points(), self.origin());
-        // Along u, one row (fixed j) at a time.
+        // Along u, one row (fixed j) at a time; rows (then columns) in parallel where a
+        // surface has enough of them to be worth a task.
         let rows: Vec<(Vec<f64>, Vec<DVec4>)> = (0..nv)
+            .into_par_iter()
+            .with_min_len(PARALLEL_POLYGONS)
             .map(|j| refine_to_bezier(p, self.knots_u().knots(), &pts[j * nu..(j + 1) * nu]))
             .collect();
         let breaks_u = rows[0].0.clone();
         let nu2 = rows[0].1.len();
         // Along v, one column (fixed i) of the refined rows at a time.
         let columns: Vec<(Vec<f64>, Vec<DVec4>)> = (0..nu2)
+            .into_par_iter()
+            .with_min_len(PARALLEL_POLYGONS)
             .map(|i| {
                 let column: Vec<DVec4> = rows.iter().map(|(_, r)| r[i]).collect();
                 refine_to_bezier(q, self.knots_v().knots(), &column)

@@ -32,11 +32,12 @@ pub struct SpanRun {
 #[derive(Clone, Debug, PartialEq)]
 pub struct AxisSamples {
     degree: usize,
-    params: Vec<f64>,
-    fractions: Vec<f64>,
+    samples: usize,
+    /// One allocation for all the numbers (a plan holds many small tables): the params,
+    /// the fractions, then the basis tables of orders 0, 1, 2 — `(degree + 1) × stride`
+    /// each, the d-th derivative of N_(span−p+k) at sample i at `k * stride + i`.
+    values: Vec<f64>,
     spans: Vec<usize>,
-    /// `basis[d][k * stride + i]`: the d-th derivative of N_(span−p+k) at sample i.
-    basis: [Vec<f64>; 3],
     runs: Vec<SpanRun>,
     /// The cubic Bezier form of each run's span, for degree ≤ [`BEZIER_DEGREE`].
     bezier: Option<Vec<BezierSegment>>,
@@ -62,30 +63,30 @@ impl AxisSamples {
         let samples = segments as usize + 1;
         let p = knots.degree();
         let stride = samples + ROW_PADDING;
+        let table_len = (p + 1) * stride;
         let mut table = AxisSamples {
             degree: p,
-            params: Vec::with_capacity(samples),
-            fractions: Vec::with_capacity(samples),
+            samples,
+            values: vec![0.0; 2 * samples + 3 * table_len],
             spans: Vec::with_capacity(samples),
-            basis: std::array::from_fn(|_| vec![0.0; (p + 1) * stride]),
             runs: Vec::new(),
             bezier: None,
         };
+        let (params, rest) = table.values.split_at_mut(samples);
+        let (fractions, basis) = rest.split_at_mut(samples);
         let mut ders: BasisDers = [[0.0; MAX_ORDER]; 3];
         for i in 0..samples {
             let at = i as f64 / f64::from(segments);
             let t = piece.lerp(at);
             let span = knots.find_span(t);
             basis_ders(knots, span, t, 2, &mut ders);
-            for (table, row) in table.basis.iter_mut().zip(&ders) {
+            for (table, row) in basis.chunks_exact_mut(table_len).zip(&ders) {
                 for (k, &value) in row[..=p].iter().enumerate() {
                     table[k * stride + i] = value;
                 }
             }
-            table.params.push(t);
-            table
-                .fractions
-                .push(sample_fraction(range, piece, i as u32, segments));
+            params[i] = t;
+            fractions[i] = sample_fraction(range, piece, i as u32, segments);
             table.spans.push(span);
             match table.runs.last_mut() {
                 Some(run) if run.span == span => run.end = i + 1,
@@ -108,12 +109,12 @@ impl AxisSamples {
 
     /// Number of samples.
     pub fn len(&self) -> usize {
-        self.params.len()
+        self.samples
     }
 
     /// Always false: a direction has two samples at least.
     pub fn is_empty(&self) -> bool {
-        self.params.is_empty()
+        self.samples == 0
     }
 
     /// Degree of the basis.
@@ -123,12 +124,12 @@ impl AxisSamples {
 
     /// Parameter of each sample.
     pub fn params(&self) -> &[f64] {
-        &self.params
+        &self.values[..self.samples]
     }
 
     /// Each sample's fraction of the range, i / (len − 1): its uv coordinate.
     pub fn fractions(&self) -> &[f64] {
-        &self.fractions
+        &self.values[self.samples..2 * self.samples]
     }
 
     /// Knot span of each sample (never decreasing).
@@ -155,7 +156,9 @@ impl AxisSamples {
 
     /// The rows of [`AxisSamples::row`] for k = 0..=degree, one after another.
     pub fn table(&self, order: usize) -> &[f64] {
-        &self.basis[order]
+        let table_len = (self.degree + 1) * self.stride();
+        let start = 2 * self.samples + order * table_len;
+        &self.values[start..start + table_len]
     }
 
     /// The cubic Bezier form of each run's knot span (one segment per entry of
