@@ -121,11 +121,42 @@ fn corner_uv(
         .expect("candidates")
 }
 
+/// Which sides of `surface`'s range are collapsed to one point (a pole): v = 0, v = 1,
+/// u = 0, u = 1.
+fn collapsed_sides(surface: &BSplineSurface) -> [bool; 4] {
+    let (ru, rv) = (surface.range_u(), surface.range_v());
+    let at = |u: f64, v: f64| surface.point(ru.lerp(u), rv.lerp(v));
+    let rounding = 1e-9 * surface.control_box_diagonal();
+    let collapsed =
+        |points: [DVec3; 3]| points.iter().all(|q| (*q - points[0]).length() <= rounding);
+    let along = [0.0, 0.5, 1.0];
+    [
+        collapsed(along.map(|u| at(u, 0.0))),
+        collapsed(along.map(|u| at(u, 1.0))),
+        collapsed(along.map(|v| at(0.0, v))),
+        collapsed(along.map(|v| at(1.0, v))),
+    ]
+}
+
+/// Whether `uv` lies on a side in `collapsed` (see [`collapsed_sides`]), and if so whether
+/// that side runs along u (v fixed) — or along v.
+fn pole_side(collapsed: [bool; 4], uv: glam::DVec2) -> Option<bool> {
+    if (uv.y == 0.0 && collapsed[0]) || (uv.y == 1.0 && collapsed[1]) {
+        Some(true)
+    } else if (uv.x == 0.0 && collapsed[2]) || (uv.x == 1.0 && collapsed[3]) {
+        Some(false)
+    } else {
+        None
+    }
+}
+
 /// The largest distance, over every triangle of `mesh` (part k from `surfaces[k]`), between a
 /// point of the triangle and the surface at the same parameter — at its centroid and its edge
 /// midpoints, the parameter interpolated from the vertices' uv like the position (a vertex
-/// of another part, on a seam, at its uv on this part's surface). What an adaptive plan's
-/// tolerance bounds (distance to the surface itself is never larger).
+/// of another part, on a seam, at its uv on this part's surface; a pole's one vertex at the
+/// u (or v) of the others, weighted as they are: each edge from a pole runs along the
+/// other end's meridian). What an adaptive plan's tolerance bounds (distance to the
+/// surface itself is never larger).
 pub fn worst_deviation(surfaces: &[BSplineSurface], mesh: &knotwork::Mesh) -> f64 {
     const AT: [[f64; 3]; 4] = [
         [1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0],
@@ -137,6 +168,7 @@ pub fn worst_deviation(surfaces: &[BSplineSurface], mesh: &knotwork::Mesh) -> f6
     for part in &mesh.parts {
         let surface = &surfaces[part.item as usize];
         let (ru, rv) = (surface.range_u(), surface.range_v());
+        let poles = collapsed_sides(surface);
         let first = part.first_index as usize;
         for t in mesh.indices[first..first + part.index_count as usize].chunks(3) {
             for l in AT {
@@ -155,16 +187,38 @@ pub fn worst_deviation(surfaces: &[BSplineSurface], mesh: &knotwork::Mesh) -> f6
                         if own(v) && !on_side {
                             return vertex_uv;
                         }
+                        // The other corners that say where the triangle is (not a pole,
+                        // whose one uv is any point of its side).
                         let others: Vec<glam::DVec2> = (0..3)
                             .filter(|&j| j != k && own(t[j]))
                             .map(|j| mesh.uvs[t[j] as usize])
+                            .filter(|&uv| pole_side(poles, uv).is_none())
                             .collect();
                         corner_uv(surface, vertex_uv, mesh.positions[v as usize], &others)
                     })
                     .collect();
                 for (k, &weight) in l.iter().enumerate() {
                     let position = mesh.positions[t[k] as usize];
-                    let vertex_uv = corners[k];
+                    // A pole's fan triangle maps each edge from the pole to a curve of the
+                    // other end's u (or v): the pole's free coordinate follows the others'.
+                    let vertex_uv = match pole_side(poles, corners[k]) {
+                        Some(along_u) => {
+                            let rest: f64 = (0..3).filter(|&j| j != k).map(|j| l[j]).sum();
+                            let follow = |c: fn(glam::DVec2) -> f64| {
+                                (0..3)
+                                    .filter(|&j| j != k)
+                                    .map(|j| l[j] * c(corners[j]))
+                                    .sum::<f64>()
+                                    / rest
+                            };
+                            match (rest > 0.0, along_u) {
+                                (false, _) => corners[k],
+                                (true, true) => glam::DVec2::new(follow(|c| c.x), corners[k].y),
+                                (true, false) => glam::DVec2::new(corners[k].x, follow(|c| c.y)),
+                            }
+                        }
+                        None => corners[k],
+                    };
                     p += weight * position;
                     uv += weight * vertex_uv;
                 }
