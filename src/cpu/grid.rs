@@ -219,28 +219,30 @@ fn evaluate_used_rows<Out: Send>(
     write: impl Fn(&mut Out, usize, (DVec3, DVec3, DVec2)) + Sync,
 ) {
     let fma = has_fma();
-    rows.into_par_iter().for_each_init(
-        || (RowScratch::new(0), Vec::new(), Vec::new()),
-        |(scratch, positions, normals), (row, mut out)| {
-            let surface = &surfaces[row.samples.surface];
-            let (columns, rows) = (&row.samples.columns, &row.samples.rows);
-            scratch.fit(surface.count_u());
-            let wanted = row.wanted.clone();
-            positions.resize(wanted.len(), DVec3::ZERO);
-            normals.resize(wanted.len(), DVec3::ZERO);
-            let all = (&**columns, wanted.clone());
-            evaluate_row(surface, all, rows, row.j, fma, scratch, positions, normals);
-            let v = rows.fractions()[row.j];
-            let mut k = 0;
-            for (i, (&position, &normal)) in wanted.zip(positions.iter().zip(normals.iter())) {
-                if used.used[row.first + i] {
-                    let uv = DVec2::new(columns.fractions()[i], v);
-                    write(&mut out, k, (position, normal, uv));
-                    k += 1;
+    rows.into_par_iter()
+        .with_min_len(ROWS_PER_TASK)
+        .for_each_init(
+            || (RowScratch::new(0), Vec::new(), Vec::new()),
+            |(scratch, positions, normals), (row, mut out)| {
+                let surface = &surfaces[row.samples.surface];
+                let (columns, rows) = (&row.samples.columns, &row.samples.rows);
+                scratch.fit(surface.count_u());
+                let wanted = row.wanted.clone();
+                positions.resize(wanted.len(), DVec3::ZERO);
+                normals.resize(wanted.len(), DVec3::ZERO);
+                let all = (&**columns, wanted.clone());
+                evaluate_row(surface, all, rows, row.j, fma, scratch, positions, normals);
+                let v = rows.fractions()[row.j];
+                let mut k = 0;
+                for (i, (&position, &normal)) in wanted.zip(positions.iter().zip(normals.iter())) {
+                    if used.used[row.first + i] {
+                        let uv = DVec2::new(columns.fractions()[i], v);
+                        write(&mut out, k, (position, normal, uv));
+                        k += 1;
+                    }
                 }
-            }
-        },
-    );
+            },
+        );
 }
 
 /// Lays out `mesh` by `layout` (its parts), fills the vertices of `grids[k]` (consecutive
@@ -380,6 +382,10 @@ pub fn evaluate_grid_into(
 /// an adaptive plan's cells hold a few dozen each and are already spread over the cores,
 /// and splitting them again costs more (task and scratch set-up) than it saves.
 const PARALLEL_ROWS_FROM_VERTICES: usize = 4096;
+
+/// Fewest used rows one task of an adaptive plan's evaluation takes: a cell's row holds a
+/// few vertices, less work than a task's set-up (its scratch) where each were a task.
+const ROWS_PER_TASK: usize = 16;
 
 fn evaluate_tables(
     surface: &BSplineSurface,

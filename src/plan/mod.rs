@@ -30,6 +30,12 @@ use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::Arc;
 
+/// Fewest cells whose grids one task describes, and fewest axis tables one task makes: a
+/// surface of few cells (a file of many small patches) is planned on one thread, not
+/// split into tasks smaller than their hand-over.
+const CELLS_PER_TASK: usize = 64;
+const TABLES_PER_TASK: usize = 8;
+
 /// The vertices of one planned face (a trimmed face's, or a shell face's) an executor
 /// evaluates: `surface` at each of `params` (within its range). What comes back per vertex
 /// is its position (model units) and unit normal (S_u × S_v, or its limit where that
@@ -395,6 +401,7 @@ fn cell_samples(
     let columns = axis_tables(cells, false, surface.knots_u(), surface.range_u());
     let rows = axis_tables(cells, true, surface.knots_v(), surface.range_v());
     (cells.cells.par_iter().enumerate())
+        .with_min_len(CELLS_PER_TASK)
         .map(|(k, cell)| {
             let (n_u, n_v) = cell.segments;
             let (a, b) = (k % cells.columns, k / cells.columns);
@@ -434,6 +441,7 @@ fn axis_tables(
     keys.sort_unstable();
     keys.dedup();
     keys.into_par_iter()
+        .with_min_len(TABLES_PER_TASK)
         .map(|(at, n)| {
             let piece = match along_v {
                 false => cells.cells[at].range_u,
