@@ -286,17 +286,22 @@ impl BezierPatch {
             rows: usize,
             stencil: impl Fn(usize, usize) -> DVec4,
         ) -> (f64, f64) {
-            let mut most = (0.0f64, 0.0f64);
+            // Plain comparisons: the same as f64::max on these (never NaN-first) values,
+            // without its NaN handling in the innermost loop of the planner.
+            let (mut vector, mut weight) = (0.0f64, 0.0f64);
             for j in 0..rows {
                 for i in 0..columns {
                     let d = stencil(i, j);
-                    most = (
-                        most.0.max(d.truncate().length_squared()),
-                        most.1.max(d.w.abs()),
-                    );
+                    let (v, w) = (d.truncate().length_squared(), d.w.abs());
+                    if v > vector {
+                        vector = v;
+                    }
+                    if w > weight {
+                        weight = w;
+                    }
                 }
             }
-            (most.0.sqrt(), most.1)
+            (vector.sqrt(), weight)
         }
         let first_u = largest(p, q + 1, |i, j| at(i + 1, j) - at(i, j));
         let first_v = largest(p + 1, q, |i, j| at(i, j + 1) - at(i, j));

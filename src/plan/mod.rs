@@ -27,7 +27,6 @@ use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface, Interval, KnotVector, SamplingLimits};
 use crate::mesh::{MeshPart, TessOptions, Tolerance};
 use rayon::prelude::*;
-use std::collections::HashMap;
 use std::sync::Arc;
 
 /// Fewest cells whose grids one task describes, and fewest axis tables one task makes: a
@@ -416,22 +415,22 @@ fn cell_samples(
                     first_index: part.first_index,
                     index_count: 0,
                 },
-                columns: columns[&(a, n_u)].clone(),
-                rows: rows[&(b, n_v)].clone(),
+                columns: table_of(&columns, (a, n_u)),
+                rows: table_of(&rows, (b, n_v)),
             }
         })
         .collect()
 }
 
-/// The tables of `cells` along u (or v where `along_v`), by (column or row, segments):
-/// cells of one column (row) share their table where their rates agree, each distinct
-/// table made once, in parallel.
+/// The tables of `cells` along u (or v where `along_v`), by (column or row, segments), in
+/// increasing order: cells of one column (row) share their table where their rates agree,
+/// each distinct table made once, in parallel.
 fn axis_tables(
     cells: &CellGrid,
     along_v: bool,
     knots: &KnotVector,
     range: Interval,
-) -> HashMap<(usize, u32), Arc<AxisSamples>> {
+) -> Vec<((usize, u32), Arc<AxisSamples>)> {
     let mut keys: Vec<(usize, u32)> = (cells.cells.iter().enumerate())
         .map(|(k, cell)| match along_v {
             false => (k % cells.columns, cell.segments.0),
@@ -451,6 +450,12 @@ fn axis_tables(
             ((at, n), Arc::new(table))
         })
         .collect()
+}
+
+/// The table of `key` (column or row, segments) among `tables` from [`axis_tables`].
+fn table_of(tables: &[((usize, u32), Arc<AxisSamples>)], key: (usize, u32)) -> Arc<AxisSamples> {
+    let at = tables.binary_search_by_key(&key, |entry| entry.0);
+    tables[at.expect("every cell's key has a table")].1.clone()
 }
 
 /// The seams of a plan (see [`seams`]): where each adaptive surface's cell grids'
