@@ -177,11 +177,7 @@ fn bench_adaptive(c: &mut Criterion) {
     let mut group = c.benchmark_group("cpu_adaptive");
     group.sample_size(10);
     for (name, surfaces) in &models {
-        let (low, high) = surfaces.iter().map(BSplineSurface::control_box).fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(low, high), (a, b)| (low.min(a), high.max(b)),
-        );
-        let diagonal = (high - low).length();
+        let diagonal = common::model_diagonal(surfaces);
         for relative in [1e-2, 1e-3, 1e-4] {
             let tolerance = relative * diagonal;
             let options = TessOptions::DEFAULT.with_tolerance(Tolerance::Absolute(tolerance));

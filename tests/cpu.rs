@@ -1973,11 +1973,7 @@ fn the_ducky_meets_its_tolerance_at_its_poles_and_seam() {
     let surfaces = knotwork::io::read_scene(std::path::Path::new("data/ducky.obj"))
         .unwrap()
         .surface_list();
-    let (low, high) = surfaces.iter().map(BSplineSurface::control_box).fold(
-        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-        |(low, high), (a, b)| (low.min(a), high.max(b)),
-    );
-    let diagonal = (high - low).length();
+    let diagonal = common::model_diagonal(&surfaces);
     for relative in [1e-2, 1e-3] {
         let tolerance = relative * diagonal;
         let options = TessOptions::DEFAULT.with_tolerance(Tolerance::Absolute(tolerance));

@@ -1982,11 +1982,7 @@ fn view_frames_follow_the_view_and_are_the_plans_meshes() {
     let surfaces = knotwork::io::read_scene(std::path::Path::new("data/teapot.bpt"))
         .unwrap()
         .surface_list();
-    let (low, high) = surfaces.iter().map(BSplineSurface::control_box).fold(
-        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-        |(low, high), (a, b)| (low.min(a), high.max(b)),
-    );
-    let diagonal = (high - low).length();
+    let diagonal = common::model_diagonal(&surfaces);
     let plan = ViewPlan::new(&surfaces, ViewOptions::default()).unwrap();
     assert_eq!(plan.unlinked_seams, 0, "every seam of the teapot lines up");
     let batch = ViewBatch::new(context, &plan).unwrap();

@@ -81,6 +81,16 @@ pub fn naive_point(s: &BSplineSurface, u: f64, v: f64) -> DVec3 {
     sum.truncate() / sum.w
 }
 
+/// The diagonal of the box around all of `surfaces`' control points (what a relative
+/// tolerance is taken of).
+pub fn model_diagonal(surfaces: &[BSplineSurface]) -> f64 {
+    let (low, high) = surfaces.iter().map(BSplineSurface::control_box).fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(low, high), (a, b)| (low.min(a), high.max(b)),
+    );
+    (high - low).length()
+}
+
 /// Angle between two directions, in radians (robust near 0).
 pub fn angle(a: DVec3, b: DVec3) -> f64 {
     a.cross(b).length().atan2(a.dot(b))
