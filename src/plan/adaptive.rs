@@ -160,7 +160,7 @@ pub fn surface_cells(
             if p_u * p_v == 1 {
                 return SpanRates {
                     rates: (n_u, n_v),
-                    probes: (1, 1),
+                    probes: (0, 0),
                     bounded: Vec::new(),
                 };
             }
@@ -232,8 +232,7 @@ pub fn surface_cells(
             let mut own = Vec::with_capacity(count_u * count_v);
             // Cells cut as the span's probes were are those pieces: their bounds are known
             // (the same restriction of the same patch).
-            let probed = (span.probes == (count_u, count_v) && !span.bounded.is_empty())
-                .then_some(&span.bounded);
+            let probed = (span.probes == (count_u, count_v)).then_some(&span.bounded);
             for (a, &(u0, u1, u)) in along_u[c].iter().enumerate() {
                 // The column's strip (and a piece reused along it), cut where needed.
                 let mut cut: Option<(BezierPatch, BezierPatch)> = None;
@@ -287,7 +286,7 @@ pub fn surface_cells(
 struct SpanRates {
     /// Segments the span needs along u and v.
     rates: (u32, u32),
-    /// Probe pieces along u and v ((1, 1): the span was not probed).
+    /// Probe pieces along u and v ((0, 0): the span was not probed, being one cell's worth).
     probes: (usize, usize),
     /// Each probe piece's bound and segments, u fastest (empty where not probed).
     bounded: Vec<(DerivativeBound, (u32, u32))>,
