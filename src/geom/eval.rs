@@ -610,3 +610,34 @@ impl CoonsPatch {
         cross_scale(self.size(), 1.0, 1.0)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::KnotVector;
+
+    /// The degeneracy scale follows |S_u × S_v| under any reparametrisation: a flat bilinear
+    /// square (|S_u × S_v| = side² / (w_u·w_v), diagonal² = 2·side²) stands at half its
+    /// `cross_scale` over every domain, square or not, wide or narrow — so the degeneracy
+    /// rule decides alike for the same surface with rescaled knots.
+    #[test]
+    fn cross_scale_follows_the_cross_product_under_reparametrisation() {
+        let side = 3.0;
+        let corners = [
+            DVec3::ZERO,
+            DVec3::new(side, 0.0, 0.0),
+            DVec3::new(0.0, side, 0.0),
+            DVec3::new(side, side, 0.0),
+        ];
+        for (w_u, w_v) in [(1.0, 1.0), (2.0, 0.5), (0.001, 1000.0), (7.0, 1e-4)] {
+            let knots = |w: f64| KnotVector::try_new(1, vec![0.0, 0.0, w, w]).unwrap();
+            let surface = BSplineSurface::try_new(knots(w_u), knots(w_v), &corners, None).unwrap();
+            let sample = surface.evaluate(0.5 * w_u, 0.5 * w_v);
+            let ratio = sample.du.cross(sample.dv).length() / surface.cross_scale();
+            assert!(
+                (ratio - 0.5).abs() < 1e-14,
+                "domain {w_u} × {w_v}: |S_u × S_v| / cross_scale = {ratio}, not 1/2"
+            );
+        }
+    }
+}
