@@ -11,23 +11,13 @@ use super::lanes::Avx2;
 use super::lanes::{F64x4, Portable};
 use crate::error::{Error, Result};
 use crate::geom::{BSplineSurface, degenerate_cross_sq};
-use crate::mesh::{Mesh, Mesh32, MeshPart, SplitMesh32, TessOptions, Vertex};
+use crate::mesh::{Mesh, Mesh32, MeshPart, SplitMesh32, Vertex};
 use crate::plan::{
     AxisSamples, GridLayout, GridRows, SurfacePlan, SurfaceSamples, check_item_count, row_triangles,
 };
 use glam::{DVec2, DVec3, DVec4};
 use rayon::prelude::*;
 use std::ops::Range;
-
-/// Tessellates every surface on its own grid (`options[k]` for surface k) into `mesh`,
-/// replacing its contents but reusing its buffers (see [`Mesh`] for the layout).
-pub fn tessellate_grid_into(
-    surfaces: &[BSplineSurface],
-    options: &[TessOptions],
-    mesh: &mut Mesh,
-) -> Result<()> {
-    execute_surfaces(&SurfacePlan::new(surfaces, options)?, surfaces, mesh)
-}
 
 /// Executes `plan` (made for `surfaces`) into `mesh`, replacing its contents but reusing its
 /// buffers. Where the plan joins cells itself, only the vertices its triangles use are
@@ -351,7 +341,8 @@ const _: () = assert!(crate::plan::ROW_PADDING >= LANES - 1);
 /// Evaluates `surface` on a grid of `grid_u` × `grid_v` vertices — uniform in parameter over
 /// its range, vertex (i, j) at j·grid_u + i — into positions and unit normals, in parallel
 /// over rows. For callers that keep their own topology and only need the attributes (a
-/// renderer re-evaluating moved control points); [`tessellate_grid_into`] builds on it.
+/// renderer re-evaluating moved control points; [`crate::Tessellator::tessellate_into`] meshes
+/// with topology).
 /// Both slices must hold exactly grid_u·grid_v elements.
 pub fn evaluate_grid_into(
     surface: &BSplineSurface,

@@ -11,7 +11,7 @@ pub use crate::geom::SurfaceSample;
 pub use coons::{execute_coons, tessellate_coons_into};
 pub use grid::{
     evaluate_grid_into, execute_rows_f32, execute_surfaces, execute_surfaces_f32,
-    execute_surfaces_split_f32, tessellate_grid_into,
+    execute_surfaces_split_f32,
 };
 pub use trimmed::{
     TRIMMED_DEFAULT_TOLERANCE_REL, evaluate_samples, execute_shell, execute_trimmed,
