@@ -554,6 +554,21 @@ fn evaluate_grid_and_reused_meshes_match_fresh_tessellation() {
     let tiny = knotwork::cpu::evaluate_grid_into(&teapot[3], 1, 35, &mut positions, &mut normals)
         .unwrap_err();
     assert!(matches!(tiny, Error::GridTooSmall { nu: 1, nv: 35 }));
+    let flat = knotwork::cpu::evaluate_grid_into(&teapot[3], 35, 1, &mut positions, &mut normals)
+        .unwrap_err();
+    assert!(matches!(flat, Error::GridTooSmall { nu: 35, nv: 1 }));
+    // Two vertices each way is the smallest grid: the patch's corners.
+    let (mut corners, mut corner_normals) = (vec![DVec3::ZERO; 4], vec![DVec3::ZERO; 4]);
+    knotwork::cpu::evaluate_grid_into(&teapot[3], 2, 2, &mut corners, &mut corner_normals).unwrap();
+    let (range_u, range_v) = (teapot[3].range_u(), teapot[3].range_v());
+    for (k, corner) in corners.iter().enumerate() {
+        let (u, v) = (range_u.lerp((k % 2) as f64), range_v.lerp((k / 2) as f64));
+        let expected = teapot[3].evaluate(u, v).position;
+        assert!(
+            corner.distance(expected) <= 1e-12 * expected.length().max(1.0),
+            "corner {k}"
+        );
+    }
 }
 
 // ---------------------------------------------------------------- errors
