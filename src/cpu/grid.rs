@@ -670,16 +670,18 @@ struct Row<'a> {
 impl Row<'_> {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fn evaluate_avx2_fma(&self, positions: &mut [DVec3], normals: &mut [DVec3]) {
-        self.evaluate::<Avx2>(positions, normals);
+    fn evaluate_avx2_fma(&self, positions: &mut [DVec3], normals: &mut [DVec3]) -> usize {
+        self.evaluate::<Avx2>(positions, normals)
     }
 
     /// Writes the positions and unit normals of the row, four vertices of one knot span at a
     /// time with the accumulators in registers; vertices where S_u × S_v vanishes, or where
     /// the quotient rule's rounding would turn the normal by more than
-    /// [`KERNEL_NORMAL_ROUNDING`], take the normal of [`BSplineSurface::evaluate`].
+    /// [`KERNEL_NORMAL_ROUNDING`], take the normal of [`BSplineSurface::evaluate`]. Returns
+    /// how many did.
     #[inline(always)]
-    fn evaluate<V: F64x4>(&self, positions: &mut [DVec3], normals: &mut [DVec3]) {
+    fn evaluate<V: F64x4>(&self, positions: &mut [DVec3], normals: &mut [DVec3]) -> usize {
+        let mut handed_over = 0;
         let threshold = degenerate_cross_sq(self.surface.cross_scale(), f64::EPSILON);
         // The control points are relative to it: the quotient rule cancels on the model's
         // size, and the origin is added last.
@@ -756,6 +758,7 @@ impl Row<'_> {
                     normals[i - first] = if len_sq[l] > limit[l] && len_sq[l] > rounding[l] {
                         DVec3::new(nx[l], ny[l], nz[l])
                     } else {
+                        handed_over += 1;
                         self.surface
                             .evaluate(self.columns.params()[i], self.v)
                             .normal
@@ -763,6 +766,7 @@ impl Row<'_> {
                 }
             }
         }
+        handed_over
     }
 }
 
@@ -826,14 +830,21 @@ mod tests {
                 vec![DVec3::ZERO; 23],
                 vec![DVec3::ZERO; 23],
             );
-            row.evaluate::<Portable>(&mut p1, &mut n1);
+            // A regular surface at moderate weights: every normal is the kernels' own, none
+            // handed to point evaluation (which would hide a wrong S_u or S_v).
+            assert_eq!(row.evaluate::<Portable>(&mut p1, &mut n1), 0, "row {j}");
             // SAFETY: has_fma() was checked above.
-            unsafe { row.evaluate_avx2_fma(&mut p2, &mut n2) };
+            assert_eq!(
+                unsafe { row.evaluate_avx2_fma(&mut p2, &mut n2) },
+                0,
+                "row {j}"
+            );
             for i in 0..23 {
                 assert!((p1[i] - p2[i]).length() <= 1e-14 * size, "position {i},{j}");
                 assert!((n1[i] - n2[i]).length() <= 1e-12, "normal {i},{j}");
                 let exact = surface.evaluate(columns.params()[i], rows.params()[j]);
                 assert!((p1[i] - exact.position).length() <= 1e-13 * size);
+                assert!((n1[i] - exact.normal).length() <= 1e-12, "normal {i},{j}");
             }
         }
     }
