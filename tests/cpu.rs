@@ -3104,6 +3104,17 @@ fn view_frames_stay_within_their_pixel_tolerance() {
                     "{path}: every cell meets the tolerance"
                 );
                 let mesh = knotwork::cpu::execute_view(&plan, &surfaces, &rates).unwrap();
+                // One part holding the whole frame.
+                assert_eq!(mesh.parts.len(), 1, "{path}");
+                assert_eq!(mesh.parts[0].vertex_count as usize, mesh.positions.len());
+                assert_eq!(mesh.parts[0].index_count as usize, mesh.indices.len());
+                let fewer = &surfaces[..surfaces.len() - 1];
+                let mismatch = knotwork::cpu::execute_view(&plan, fewer, &rates).unwrap_err();
+                assert!(
+                    matches!(mismatch, Error::PlanMismatch { planned, given }
+                        if planned == surfaces.len() && given == fewer.len()),
+                    "{path}: {mismatch}"
+                );
                 let layout = plan.layout(&rates);
                 let (mut worst, mut measured) = (0.0f64, 0usize);
                 for (c, corners) in plan.placed_triangles(&rates, &layout) {
