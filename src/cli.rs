@@ -34,6 +34,25 @@ impl Cli {
     }
 }
 
+/// A hint for the commonest slip: a file named where the subcommand goes (`knotwork
+/// teapot.bpt -o teapot.obj`). `Some` when clap rejected an unknown subcommand that looks
+/// like a path (it has an extension or exists), `None` for any other error.
+pub fn missing_subcommand_tip(error: &clap::Error) -> Option<String> {
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    if error.kind() != ErrorKind::InvalidSubcommand {
+        return None;
+    }
+    let Some(ContextValue::String(word)) = error.get(ContextKind::InvalidSubcommand) else {
+        return None;
+    };
+    let path = std::path::Path::new(word);
+    (path.extension().is_some() || path.exists()).then(|| {
+        format!(
+            "tip: to mesh '{word}', name the subcommand first: knotwork tessellate {word} -o OUTPUT"
+        )
+    })
+}
+
 /// The subcommands.
 #[derive(Subcommand)]
 pub enum Command {
@@ -432,6 +451,28 @@ mod tests {
             panic!("not a render command")
         };
         assert_eq!((view.azimuth, view.elevation), (-90.0, 50.0));
+    }
+
+    /// A file where the subcommand goes gets a tip naming `tessellate`; a misspelt
+    /// subcommand gets clap's own suggestion only.
+    #[test]
+    fn a_file_in_place_of_the_subcommand_gets_a_tip() {
+        let error = Cli::try_parse_args(["knotwork", "teapot.bpt", "-o", "t.obj"])
+            .err()
+            .expect("a file is not a subcommand");
+        let tip = missing_subcommand_tip(&error).expect("a tip for a file name");
+        assert!(
+            tip.contains("knotwork tessellate teapot.bpt -o OUTPUT"),
+            "{tip}"
+        );
+        let error = Cli::try_parse_args(["knotwork", "tesselate", "a.bpt", "-o", "a.obj"])
+            .err()
+            .expect("a misspelt subcommand");
+        assert_eq!(missing_subcommand_tip(&error), None);
+        let error = Cli::try_parse_args(["knotwork", "render", "a.bpt"])
+            .err()
+            .expect("render needs -o");
+        assert_eq!(missing_subcommand_tip(&error), None);
     }
 
     /// Triangle budgets read as users write them; fractions, zero and words are refused.

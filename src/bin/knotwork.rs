@@ -1,6 +1,5 @@
 //! The knotwork command line: parse arguments into a command, then run it.
 
-use clap::Parser;
 use knotwork::backend::Backend;
 use knotwork::cli::{Cli, Command, Job};
 use knotwork::io::SceneFormat;
@@ -81,7 +80,18 @@ fn quiet_driver_runtime_dir() {
 fn main() -> ExitCode {
     #[cfg(unix)]
     quiet_driver_runtime_dir();
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse_args(std::env::args_os()) {
+        Ok(cli) => cli,
+        Err(error) => {
+            // clap's message (or --help, --version) as clap prints it, then a tip for a
+            // file given where the subcommand goes; clap's exit status either way.
+            let _ = error.print();
+            if let Some(tip) = knotwork::cli::missing_subcommand_tip(&error) {
+                eprintln!("\n{tip}");
+            }
+            return ExitCode::from(u8::try_from(error.exit_code()).unwrap_or(2));
+        }
+    };
     let result = match cli.command {
         Command::Tessellate {
             inputs,

@@ -21,7 +21,7 @@ use std::ops::Range;
 
 /// Executes `plan` (made for `surfaces`) into `mesh`, replacing its contents but reusing its
 /// buffers. Where the plan joins cells itself, only the vertices its triangles use are
-/// evaluated (see [`UsedVertices`]).
+/// evaluated.
 pub fn execute_surfaces(
     plan: &SurfacePlan,
     surfaces: &[BSplineSurface],
