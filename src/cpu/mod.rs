@@ -57,14 +57,37 @@ pub fn execute_curves(plan: &CurvePlan, curves: &[BSplineCurve]) -> Result<Vec<P
         .collect())
 }
 
+/// The executors run on a thread of rayon's pool (`rayon::scope`), so that their parallel
+/// steps start there rather than each being handed over from the caller's thread.
 impl Tessellator for CpuTessellator {
+    /// Plan and execution on one thread of the pool: one hand-over for both.
+    fn tessellate_each_into(
+        &self,
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        mesh: &mut Mesh,
+    ) -> Result<()> {
+        rayon::scope(|_| execute_surfaces(&SurfacePlan::new(surfaces, options)?, surfaces, mesh))
+    }
+
+    fn tessellate_each_into_f32(
+        &self,
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        mesh: &mut Mesh32,
+    ) -> Result<()> {
+        rayon::scope(|_| {
+            execute_surfaces_f32(&SurfacePlan::new(surfaces, options)?, surfaces, mesh)
+        })
+    }
+
     fn execute_surfaces(
         &self,
         plan: &SurfacePlan,
         surfaces: &[BSplineSurface],
         mesh: &mut Mesh,
     ) -> Result<()> {
-        execute_surfaces(plan, surfaces, mesh)
+        rayon::scope(|_| execute_surfaces(plan, surfaces, mesh))
     }
 
     fn execute_surfaces_f32(
@@ -73,7 +96,7 @@ impl Tessellator for CpuTessellator {
         surfaces: &[BSplineSurface],
         mesh: &mut Mesh32,
     ) -> Result<()> {
-        execute_surfaces_f32(plan, surfaces, mesh)
+        rayon::scope(|_| execute_surfaces_f32(plan, surfaces, mesh))
     }
 
     fn execute_surfaces_split_f32(
@@ -82,7 +105,7 @@ impl Tessellator for CpuTessellator {
         surfaces: &[BSplineSurface],
         mesh: &mut SplitMesh32,
     ) -> Result<()> {
-        execute_surfaces_split_f32(plan, surfaces, mesh)
+        rayon::scope(|_| execute_surfaces_split_f32(plan, surfaces, mesh))
     }
 
     fn tessellate_coons_into(

@@ -147,7 +147,7 @@ impl SurfacePlan {
         options: &[TessOptions],
         seams: &[Seam],
     ) -> Result<Self> {
-        Self::from_sampling(surfaces, Self::sample(surfaces, options, seams)?)
+        rayon::scope(|_| Self::from_sampling(surfaces, Self::sample(surfaces, options, seams)?))
     }
 
     /// The first step of [`SurfacePlan::with_seams`]: how each surface is sampled (its
@@ -155,6 +155,17 @@ impl SurfacePlan {
     /// that gives (triangles before poles drop theirs: an upper bound), without triangles
     /// or tables — what a memory check needs before the plan is made.
     pub fn sample(
+        surfaces: &[BSplineSurface],
+        options: &[TessOptions],
+        seams: &[Seam],
+    ) -> Result<SurfaceSampling> {
+        rayon::scope(|_| Self::sample_on_pool(surfaces, options, seams))
+    }
+
+    /// [`SurfacePlan::sample`], called on a thread of rayon's pool: its parallel steps start
+    /// there instead of each being handed to the pool and waited for (a wake-up and a wait
+    /// per step, a quarter of the time of a plan of 1 500 triangles).
+    fn sample_on_pool(
         surfaces: &[BSplineSurface],
         options: &[TessOptions],
         seams: &[Seam],
@@ -183,6 +194,15 @@ impl SurfacePlan {
     /// The rest of [`SurfacePlan::with_seams`]: the plan of `sampled`, made by
     /// [`SurfacePlan::sample`] for the same `surfaces`.
     pub fn from_sampling(surfaces: &[BSplineSurface], sampled: SurfaceSampling) -> Result<Self> {
+        rayon::scope(|_| Self::from_sampling_on_pool(surfaces, sampled))
+    }
+
+    /// [`SurfacePlan::from_sampling`] on a thread of rayon's pool (see
+    /// [`SurfacePlan::sample_on_pool`]).
+    fn from_sampling_on_pool(
+        surfaces: &[BSplineSurface],
+        sampled: SurfaceSampling,
+    ) -> Result<Self> {
         check_item_count(sampled.sampling.len(), surfaces.len())?;
         let SurfaceSampling {
             sampling,
