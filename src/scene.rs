@@ -7,7 +7,7 @@ use crate::error::{Error, Result};
 use crate::geom::brep::Shell;
 use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface, TrimmedSurface};
-use crate::mesh::{GridMesh, Mesh, Mesh32, Polyline, SplitMesh32, TessOptions};
+use crate::mesh::{F64_VERTEX_BYTES, GridMesh, Mesh, Mesh32, Polyline, SplitMesh32, TessOptions};
 use crate::plan::{GridRows, Seam, SurfacePlan, SurfaceSide};
 use rayon::prelude::*;
 
@@ -576,9 +576,6 @@ fn surface_sampling(
         &scene.surface_seams()?,
     )
 }
-
-/// Bytes per vertex of an f64 [`Mesh`]: position, normal (3 × f64 each), uv (2 × f64).
-const F64_VERTEX_BYTES: u64 = 64;
 
 /// Why each trimmed face or shell face of `scene` that has no part among `items` (the
 /// parts' item indices of its mesh, tessellated with `defaults` and

@@ -3044,6 +3044,33 @@ fn ruled_rational_patches_bound_their_twist_by_the_rows_difference() {
     }
 }
 
+/// Trimmed faces and shells are held to the memory budget with their triangles: what they
+/// need is their mesh's vertices (64 bytes each in f64) and triangles (12 bytes each). A
+/// budget of exactly that meshes them as without one; a byte less is refused, naming both.
+#[test]
+fn trimmed_faces_and_shells_fit_the_memory_budget_to_the_byte() {
+    use knotwork::SceneOptions;
+    for path in ["data/single_rounded_cube.iges", "data/abc-0000.step"] {
+        let scene = knotwork::io::read_scene(std::path::Path::new(path)).unwrap();
+        let unbounded = CpuTessellator
+            .tessellate_scene(&scene, &SceneOptions::default())
+            .unwrap();
+        let needed = 64 * unbounded.positions.len() as u64 + 4 * unbounded.indices.len() as u64;
+        let within = |budget| SceneOptions {
+            memory_budget: Some(budget),
+            ..SceneOptions::default()
+        };
+        let fitted = CpuTessellator.tessellate_scene(&scene, &within(needed));
+        assert_eq!(fitted.unwrap(), unbounded, "{path}");
+        match CpuTessellator.tessellate_scene(&scene, &within(needed - 1)) {
+            Err(Error::OverMemoryBudget { needed: n, budget }) => {
+                assert_eq!((n, budget), (needed, needed - 1), "{path}")
+            }
+            other => panic!("{path}: {other:?}"),
+        }
+    }
+}
+
 // ---------------------------------------------------------------- view-dependent frames
 
 /// View-dependent frames at the rates the kernels decide (computed on the host in the

@@ -5,7 +5,7 @@
 use crate::error::{Error, Result};
 use crate::geom::brep::Shell;
 use crate::geom::{SamplingLimits, TrimmedSurface};
-use crate::mesh::{Mesh, MeshPart, TessOptions};
+use crate::mesh::{F64_VERTEX_BYTES, Mesh, MeshPart, TessOptions};
 use crate::plan::{FaceSamples, ShellPlan, TrimmedPlan, plan_shell, plan_trimmed_within};
 use crate::scene::{Geometry, Scene, SceneOptions};
 use glam::{DVec2, DVec3};
@@ -331,9 +331,6 @@ pub fn trimmed_face_plan(
         F64_VERTEX_BYTES,
     )
 }
-
-/// Bytes per vertex of an f64 mesh (position, normal, uv).
-const F64_VERTEX_BYTES: u64 = 64;
 
 /// The plan of item `index`, relative tolerances taken of `diagonal` (the scene's, computed
 /// once per scene).
