@@ -5106,6 +5106,107 @@ fn step_folded_face(gap: f64, pcurves: bool) -> String {
     w.surface_model(&[face], "folded")
 }
 
+/// A STEP sheet whose one plane face is the square [0, 4]² with two square holes that
+/// cross ([1, 2.5]² and [2, 3.5]²): each loop is valid alone, and only the face's planning
+/// finds the crossing.
+fn step_face_with_crossing_holes() -> String {
+    let mut w = StepWriter::default();
+    let bound = |w: &mut StepWriter, low: f64, high: f64, outer: bool| {
+        let corners = [(low, low), (high, low), (high, high), (low, high)]
+            .map(|(x, y)| DVec3::new(x, y, 0.0));
+        let vertices = corners.map(|p| w.vertex(p));
+        // Holes run clockwise about the face's normal (+z), the outer loop counter-clockwise.
+        let order: Vec<usize> = if outer {
+            vec![0, 1, 2, 3]
+        } else {
+            vec![0, 3, 2, 1]
+        };
+        let edges: Vec<String> = (0..4)
+            .map(|k| {
+                let (a, b) = (order[k], order[(k + 1) % 4]);
+                let (start, end) = (corners[a], corners[b]);
+                let origin = w.point(start);
+                let direction = w.direction((end - start).normalize());
+                let length = (end - start).length();
+                let vector = w.add(format!("VECTOR('',{direction},{length:?})"));
+                let line = w.add(format!("LINE('',{origin},{vector})"));
+                let edge = w.add(format!(
+                    "EDGE_CURVE('',{},{},{line},.T.)",
+                    vertices[a], vertices[b]
+                ));
+                w.add(format!("ORIENTED_EDGE('',*,*,{edge},.T.)"))
+            })
+            .collect();
+        let edge_loop = w.add(format!("EDGE_LOOP('',({}))", edges.join(",")));
+        let kind = if outer {
+            "FACE_OUTER_BOUND"
+        } else {
+            "FACE_BOUND"
+        };
+        w.add(format!("{kind}('',{edge_loop},.T.)"))
+    };
+    let outer = bound(&mut w, 0.0, 4.0, true);
+    let holes = [
+        bound(&mut w, 1.0, 2.5, false),
+        bound(&mut w, 2.0, 3.5, false),
+    ];
+    let plane_at = w.placement(DVec3::ZERO, DVec3::Z, DVec3::X);
+    let plane = w.add(format!("PLANE('',{plane_at})"));
+    let face = w.add(format!(
+        "ADVANCED_FACE('',({outer},{},{}),{plane},.T.)",
+        holes[0], holes[1]
+    ));
+    w.surface_model(&[face], "crossing holes")
+}
+
+/// A shell face that cannot be planned fails the scene naming the item, or with
+/// `skip_failed_faces` is left out (with the reason `left_out_faces` gives); the command
+/// line leaves it out, names it and exits 1.
+#[test]
+fn shell_faces_that_cannot_be_planned_are_skipped_and_named() {
+    let text = step_face_with_crossing_holes();
+    let scene = step_scene(&text);
+    assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
+    assert!(matches!(
+        scene.items[0].geometry,
+        knotwork::Geometry::Shell(_)
+    ));
+    let strict = knotwork::SceneOptions::default();
+    let error = CpuTessellator
+        .tessellate_scene(&scene, &strict)
+        .unwrap_err();
+    assert!(
+        matches!(error, knotwork::Error::InItem { index: 0, .. })
+            && error.to_string().contains("cross"),
+        "{error}"
+    );
+    let lenient = knotwork::SceneOptions {
+        skip_failed_faces: true,
+        ..strict
+    };
+    let mesh = CpuTessellator.tessellate_scene(&scene, &lenient).unwrap();
+    assert!(
+        mesh.indices.is_empty() && mesh.parts.is_empty(),
+        "{:?}",
+        mesh.parts
+    );
+    let dir = scratch_dir("crossing-holes");
+    let (input, out) = (dir.join("holes.step"), dir.join("holes.obj"));
+    std::fs::write(&input, &text).unwrap();
+    let run = knotwork(&[
+        "tessellate",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(run.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("face left out") && stderr.contains("cross"),
+        "{stderr}"
+    );
+}
+
 #[test]
 fn step_pcurves_put_edges_on_the_sheet_the_file_means() {
     let gap = 1e-3;
