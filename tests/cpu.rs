@@ -3071,6 +3071,26 @@ fn trimmed_faces_and_shells_fit_the_memory_budget_to_the_byte() {
     }
 }
 
+/// `execute_shell` runs a shell's plan as a scene's meshing does: the same mesh, part for
+/// part, for a solid with a hole through it.
+#[test]
+fn a_shell_plan_executes_to_the_scene_mesh() {
+    use knotwork::{Geometry, SceneOptions};
+    let scene = knotwork::io::read_scene(std::path::Path::new("data/cube_hole.step")).unwrap();
+    assert_eq!(scene.items.len(), 1);
+    let Geometry::Shell(shell) = &scene.items[0].geometry else {
+        panic!("a STEP solid is a shell")
+    };
+    let defaults = SceneOptions::default();
+    let plan = knotwork::cpu::shell_plan(&scene, &defaults, 0).unwrap();
+    let mesh = knotwork::cpu::execute_shell(shell, &plan);
+    assert_eq!(mesh.parts.len(), shell.faces().len());
+    assert_eq!(
+        mesh,
+        CpuTessellator.tessellate_scene(&scene, &defaults).unwrap()
+    );
+}
+
 // ---------------------------------------------------------------- view-dependent frames
 
 /// View-dependent frames at the rates the kernels decide (computed on the host in the
