@@ -112,6 +112,13 @@ impl BSplineSurface {
         let (p, q) = (self.degree_u(), self.degree_v());
         let (nu, nv) = (self.count_u(), self.count_v());
         let pts = super::LocalPoints::absolute(self.homogeneous_points(), self.origin());
+        if let (Some(breaks_u), Some(breaks_v)) = (
+            self.knots_u().bezier_breakpoints(),
+            self.knots_v().bezier_breakpoints(),
+        ) {
+            // Already piecewise Bezier (every patch of a .bpt model): the net is cut as it is.
+            return cut_patches((p, q), &breaks_u, &breaks_v, |i, j| pts[j * nu + i]);
+        }
         // Along u, one row (fixed j) at a time; rows (then columns) in parallel where a
         // surface has enough of them to be worth a task.
         let rows: Vec<(Vec<f64>, Vec<DVec4>)> = (0..nv)
@@ -130,25 +137,37 @@ impl BSplineSurface {
                 refine_to_bezier(q, self.knots_v().knots(), &column)
             })
             .collect();
-        let breaks_v = columns[0].0.clone();
-        let mut patches = Vec::with_capacity((breaks_u.len() - 1) * (breaks_v.len() - 1));
-        for sv in 0..breaks_v.len() - 1 {
-            for su in 0..breaks_u.len() - 1 {
-                let mut points = Vec::with_capacity((p + 1) * (q + 1));
-                for b in 0..=q {
-                    for a in 0..=p {
-                        points.push(columns[su * p + a].1[sv * q + b]);
-                    }
-                }
-                patches.push(BezierPatch {
-                    degree_u: p,
-                    degree_v: q,
-                    points,
-                    range_u: Interval::new(breaks_u[su], breaks_u[su + 1]),
-                    range_v: Interval::new(breaks_v[sv], breaks_v[sv + 1]),
-                });
-            }
-        }
-        patches
+        let breaks_v = &columns[0].0;
+        cut_patches((p, q), &breaks_u, breaks_v, |i, j| columns[i].1[j])
     }
+}
+
+/// The patches of a piecewise Bezier net of `degrees` with breakpoints `breaks_u` and
+/// `breaks_v`, point (i, j) of the whole net (k·p + 1 columns, l·q + 1 rows; neighbouring
+/// patches share their boundary rows and columns) given by `point`; u fastest.
+fn cut_patches(
+    (p, q): (usize, usize),
+    breaks_u: &[f64],
+    breaks_v: &[f64],
+    point: impl Fn(usize, usize) -> DVec4,
+) -> Vec<BezierPatch> {
+    let mut patches = Vec::with_capacity((breaks_u.len() - 1) * (breaks_v.len() - 1));
+    for sv in 0..breaks_v.len() - 1 {
+        for su in 0..breaks_u.len() - 1 {
+            let mut points = Vec::with_capacity((p + 1) * (q + 1));
+            for b in 0..=q {
+                for a in 0..=p {
+                    points.push(point(su * p + a, sv * q + b));
+                }
+            }
+            patches.push(BezierPatch {
+                degree_u: p,
+                degree_v: q,
+                points,
+                range_u: Interval::new(breaks_u[su], breaks_u[su + 1]),
+                range_v: Interval::new(breaks_v[sv], breaks_v[sv + 1]),
+            });
+        }
+    }
+    patches
 }

@@ -106,6 +106,23 @@ impl KnotVector {
         Self::try_new(degree, (0..count + degree + 1).map(|i| i as f64).collect())
     }
 
+    /// The breakpoints of a vector that is already that of a piecewise Bezier (the form
+    /// [`KnotVector::from_breakpoints`] makes: ends degree+1 times, interior knots exactly
+    /// degree times), else `None`.
+    pub fn bezier_breakpoints(&self) -> Option<Vec<f64>> {
+        let p = self.degree;
+        let mut breaks = Vec::new();
+        let mut groups = self.knots.chunk_by(|a, b| a == b).peekable();
+        while let Some(group) = groups.next() {
+            let ends = breaks.is_empty() || groups.peek().is_none();
+            if group.len() != if ends { p + 1 } else { p } {
+                return None;
+            }
+            breaks.push(group[0]);
+        }
+        (breaks.len() >= 2).then_some(breaks)
+    }
+
     /// The clamped vector of a piecewise Bezier with the given strictly increasing
     /// breakpoints: end breakpoints repeated degree+1 times, interior ones degree times.
     pub fn from_breakpoints(degree: usize, breakpoints: &[f64]) -> Result<Self> {
@@ -197,4 +214,32 @@ pub(crate) fn check_degree(degree: usize) -> Result<()> {
         });
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Breakpoints come back from the vectors `from_breakpoints` makes, and from no other.
+    #[test]
+    fn bezier_breakpoints_recognise_only_piecewise_bezier_vectors() {
+        for (degree, breaks) in [
+            (1, vec![0.0, 1.0]),
+            (3, vec![-1.0, 0.5, 0.75, 4.0]),
+            (2, vec![0.0, 1e-6, 1.0]),
+        ] {
+            let knots = KnotVector::from_breakpoints(degree, &breaks).unwrap();
+            assert_eq!(knots.bezier_breakpoints(), Some(breaks), "{knots:?}");
+        }
+        let not_bezier = [
+            (3, vec![0., 0., 0., 0., 0.5, 1., 1., 1., 1.]), // an interior knot once
+            (2, vec![0., 0., 0., 0.25, 0.5, 0.5, 1., 1., 1.]), // one interior knot once
+            (2, vec![0., 0., 1., 1., 2., 2., 2.]),          // unclamped start
+            (1, vec![0., 0., 1., 2.]),                      // unclamped end
+        ];
+        for (degree, knots) in not_bezier {
+            let knots = KnotVector::try_new(degree, knots).unwrap();
+            assert_eq!(knots.bezier_breakpoints(), None, "{knots:?}");
+        }
+    }
 }
