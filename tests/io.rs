@@ -5106,6 +5106,77 @@ fn step_folded_face(gap: f64, pcurves: bool) -> String {
     w.surface_model(&[face], "folded")
 }
 
+/// A shell moved by a rigid map meshes as its mesh moved (its faces' exact shapes move with
+/// it: the lateral face's normals are radial about the moved axis), and a shell turned
+/// inside out (an ORIENTED_CLOSED_SHELL of sense .F.) as its mesh with every triangle and
+/// normal turned.
+#[test]
+fn moved_and_reversed_shells_mesh_as_their_meshes_moved_and_turned() {
+    use knotwork::geom::SamplingLimits;
+    use knotwork::geom::brep::Shell;
+    let scene = step_scene(&step_cylinder(1.0, 2.0));
+    let knotwork::Geometry::Shell(shell) = &scene.items[0].geometry else {
+        panic!("a STEP solid is a shell")
+    };
+    assert!(shell.faces().iter().any(|f| f.shape.is_some()));
+    let limits = SamplingLimits {
+        tolerance: 1e-3,
+        max_edge: f64::INFINITY,
+        max_angle: f64::INFINITY,
+    };
+    let mesh_of = |shell: &Shell| {
+        let plan = knotwork::plan::plan_shell(shell, limits, usize::MAX).unwrap();
+        knotwork::cpu::execute_shell(shell, &plan)
+    };
+    let original = mesh_of(shell);
+    assert!(!original.indices.is_empty());
+    // The cylinder about z, turned a quarter about z (exact), then a shift.
+    // Shifted by less than the radius: an exact shape left where it was would still face the
+    // same way as the surface, and would be taken for its normals.
+    let offset = DVec3::new(0.25, -0.125, 5.0);
+    let turn = |p: DVec3| DVec3::new(-p.y, p.x, p.z);
+    // Whether `n` is the outward normal of the cylinder (radius 1 about z, 0 ≤ z ≤ 2) at `p`:
+    // radial on the lateral face, ∓z on the discs (either at the rims).
+    let outward = |p: DVec3, n: DVec3| {
+        let radial = DVec3::new(p.x, p.y, 0.0);
+        let disc = [(0.0, DVec3::NEG_Z), (2.0, DVec3::Z)]
+            .iter()
+            .any(|&(z, normal)| (p.z - z).abs() < 1e-12 && n.distance(normal) < 1e-9);
+        let lateral = (radial.length() - 1.0).abs() < 1e-12 && n.distance(radial) < 1e-9;
+        radial.length() < 1.0 + 1e-12 && (disc || lateral)
+    };
+    for (k, (p, n)) in original.positions.iter().zip(&original.normals).enumerate() {
+        assert!(outward(*p, *n), "vertex {k} at {p}: {n}");
+    }
+    let moved = mesh_of(&shell.mapped(move |p| turn(p) + offset));
+    assert_eq!(moved.parts.len(), original.parts.len());
+    for (k, (q, n)) in moved.positions.iter().zip(&moved.normals).enumerate() {
+        assert!(outward(*q - offset, *n), "moved vertex {k} at {q}: {n}");
+    }
+    // Turned inside out: every normal inward, the enclosed volume negative.
+    let reversed = mesh_of(&shell.reversed());
+    for (k, (p, n)) in reversed.positions.iter().zip(&reversed.normals).enumerate() {
+        assert!(outward(*p, -*n), "reversed vertex {k} at {p}: {n}");
+    }
+    let volume = |mesh: &knotwork::Mesh| -> f64 {
+        let at = |k: u32| mesh.positions[k as usize];
+        (mesh.indices.chunks_exact(3))
+            .map(|t| at(t[0]).dot(at(t[1]).cross(at(t[2]))) / 6.0)
+            .sum()
+    };
+    let full = 2.0 * std::f64::consts::PI;
+    assert!(
+        (volume(&original) - full).abs() < 1e-2 * full,
+        "{}",
+        volume(&original)
+    );
+    assert!(
+        (volume(&reversed) + full).abs() < 1e-2 * full,
+        "{}",
+        volume(&reversed)
+    );
+}
+
 /// A STEP sheet whose one plane face is the square [0, 4]² with two square holes that
 /// cross ([1, 2.5]² and [2, 3.5]²): each loop is valid alone, and only the face's planning
 /// finds the crossing.
