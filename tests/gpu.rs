@@ -775,6 +775,48 @@ fn curve_suite_conforms_and_a_perturbed_weight_fails() {
     assert!(!report.passes() && report.worst_position > 10.0 * POSITION_REL_BAR);
 }
 
+/// Coons patches split into chunks by small limits read back exactly as from one chunk, and
+/// each chunk's mesh (what a renderer draws) numbers its parts' indices within its own index
+/// buffer: from 0, one after another, to its index count.
+#[test]
+fn chunked_coons_patches_match_one_chunk_with_parts_in_their_own_buffers() {
+    let Some(context) = gpu() else { return };
+    let patches: Vec<_> = (conformance::coons_suite().into_iter())
+        .flat_map(|case| case.patches)
+        .collect();
+    let options = vec![TessOptions::DEFAULT.with_grid(20, 20); patches.len()];
+    let read = |limits: Limits| {
+        let descriptor = BatchDescriptor::new(&[], &TessOptions::DEFAULT)
+            .with_coons(&patches, &options)
+            .with_limits(limits);
+        let batch = GpuBatch::new(context, &descriptor).unwrap();
+        batch.dispatch().unwrap();
+        let mut mesh = knotwork::Mesh32::default();
+        batch.read_coons_into(&mut mesh).unwrap();
+        let chunks: Vec<(Vec<knotwork::MeshPart>, u32)> = (batch.coons_meshes().iter())
+            .map(|chunk| (chunk.parts.clone(), chunk.index_count))
+            .collect();
+        (chunks, mesh)
+    };
+    let (whole_meshes, whole) = read(context.limits());
+    let small = Limits {
+        binding_bytes: 32 << 10,
+        ..context.limits()
+    };
+    let (chunks, chunked) = read(small);
+    assert_eq!(whole_meshes.len(), 1);
+    assert!(chunks.len() > 2, "{} chunks", chunks.len());
+    assert_eq!(chunked, whole);
+    for (parts, index_count) in &chunks {
+        let mut next = 0;
+        for part in parts {
+            assert_eq!(part.first_index, next);
+            next += part.index_count;
+        }
+        assert_eq!(next, *index_count);
+    }
+}
+
 /// Limits small enough to split the curves into several chunks give exactly the result of
 /// one chunk; a curve larger than a binding is refused, naming the curve.
 #[test]
