@@ -3071,6 +3071,27 @@ fn trimmed_faces_and_shells_fit_the_memory_budget_to_the_byte() {
     }
 }
 
+/// Trimmed faces and shells whose options set no tolerance are meshed to
+/// `TRIMMED_DEFAULT_TOLERANCE_REL` of the scene's diagonal: the mesh of that relative
+/// tolerance, and not the mesh of ten times it.
+#[test]
+fn trimmed_faces_default_to_their_documented_tolerance() {
+    use knotwork::SceneOptions;
+    let default_rel = knotwork::cpu::TRIMMED_DEFAULT_TOLERANCE_REL;
+    for path in ["data/single_rounded_cube.iges", "data/cube_hole.step"] {
+        let scene = knotwork::io::read_scene(std::path::Path::new(path)).unwrap();
+        let at = |relative| SceneOptions {
+            grid: TessOptions::DEFAULT.with_tolerance(Tolerance::Relative(relative)),
+            ..SceneOptions::default()
+        };
+        let mesh =
+            |defaults: &SceneOptions| CpuTessellator.tessellate_scene(&scene, defaults).unwrap();
+        let default = mesh(&SceneOptions::default());
+        assert_eq!(default, mesh(&at(default_rel)), "{path}");
+        assert_ne!(default, mesh(&at(10.0 * default_rel)), "{path}");
+    }
+}
+
 /// `execute_shell` runs a shell's plan as a scene's meshing does: the same mesh, part for
 /// part, for a solid with a hole through it.
 #[test]
