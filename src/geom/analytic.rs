@@ -132,7 +132,7 @@ impl Analytic {
 
     /// The sphere `surface` lies on, where it provably lies on one to within 1e-9
     /// (`SHAPE_REL`) of its radius: the sphere fitted (least squares) through a grid of its points, then
-    /// proved on every rational Bezier patch of it ([`proved_at_radius`]). `None` for a
+    /// proved on every rational Bezier patch of it (`proved_at_radius`). `None` for a
     /// polynomial surface (no piece of a sphere has a polynomial parametrisation) and
     /// wherever the proof fails.
     pub fn sphere_of(surface: &BSplineSurface) -> Option<Analytic> {
@@ -156,7 +156,7 @@ impl Analytic {
     /// 1e-9 (`SHAPE_REL`) of its radius: the axis across the normals at a grid of points (the
     /// cross product of the two farthest apart), the circle fitted (least squares) through
     /// the points seen along it, then proved on every rational Bezier patch
-    /// ([`proved_at_radius`] on the parts across the axis). `None` for a polynomial surface
+    /// (`proved_at_radius` on the parts across the axis). `None` for a polynomial surface
     /// and wherever the proof fails.
     pub fn cylinder_of(surface: &BSplineSurface) -> Option<Analytic> {
         if !surface.is_rational() {

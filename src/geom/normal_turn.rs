@@ -15,7 +15,7 @@ use super::tensor::{Bernstein, centre_value};
 use glam::DVec3;
 
 /// Pieces this narrow (as a fraction of the patch's width along each direction) in which
-/// |m|² is not bounded away from 0 (see [`LOOSE_CONDITION`]) — next to a point where S_u × S_v vanishes: a pole, a
+/// |m|² is not bounded away from 0 (see `LOOSE_CONDITION`) — next to a point where S_u × S_v vanishes: a pole, a
 /// collapsed edge, a fold — are left out of the rates: there the normal's rate has no bound
 /// (at a fold the normal flips).
 pub const NORMAL_EXEMPT_FRACTION: f64 = 1.0 / 64.0;
@@ -46,12 +46,12 @@ const LOOSE_CONDITION: f64 = 0.5;
 impl BezierPatch {
     /// Upper bounds of |N_u| and |N_v| of the unit normal over the patch (radians per
     /// parameter unit; see the module). Branch and bound: a piece whose least coefficient
-    /// of |m|² is positive and whose bounds are within [`TIGHTNESS`] of the largest rates met
-    /// at the pieces' centres (or [`NEGLIGIBLE`]) is kept; others are cut in quarters. At
+    /// of |m|² is positive and whose bounds are within `TIGHTNESS` of the largest rates met
+    /// at the pieces' centres (or `NEGLIGIBLE`) is kept; others are cut in quarters. At
     /// [`NORMAL_EXEMPT_FRACTION`] of the patch's widths a piece is kept if its |m|² is
-    /// conditioned ([`LOOSE_CONDITION`]), else left out: it is next to a point where S_u × S_v
+    /// conditioned (`LOOSE_CONDITION`), else left out: it is next to a point where S_u × S_v
     /// vanishes. (0, 0) — no angle limit — for a patch beside such a point whose bound is
-    /// past [`UNBOUNDED_TURN`].
+    /// past `UNBOUNDED_TURN`.
     pub fn normal_rates(&self) -> (f64, f64) {
         let mut rates = (0.0f64, 0.0f64);
         let mut found = (0.0f64, 0.0f64);

@@ -277,7 +277,7 @@ fn project_points(
 }
 
 /// A closed chain of model-space `curves` (a trimming loop) as polylines in a file's
-/// parameters of the surface, each by [`project_points`] (see there for the tolerances and
+/// parameters of the surface, each by `project_points` (see there for the tolerances and
 /// failures). A curve lying wholly on a seam of a closed surface (its two parameter values
 /// there give the same points) is put on the side where its neighbours meet it.
 pub fn project_chain(

@@ -389,7 +389,7 @@ pub fn elliptic_cylinder(
 }
 
 /// The elliptic paraboloid x²/a² + y²/b² = c·z (c ≠ 0) for ρ = √(x²/a² + y²/b²) in `rho`,
-/// θ in `around`: the parabola z = ρ²/c over `rho` ([`parabola_arc`]) revolved.
+/// θ in `around`: the parabola z = ρ²/c over `rho` (`parabola_arc`) revolved.
 pub fn elliptic_paraboloid(
     centre: DVec3,
     a: f64,

@@ -165,7 +165,7 @@ impl TrimmedSurface {
     /// Validates the loops: each has at least one curve, each curve starts where the one
     /// before ends and the last ends where the first starts (within [`LOOP_GAP`]), and every
     /// curve's ends lie in the surface's range (within the same) — on a surface closed along
-    /// an axis, after loops that cross its seam have been taken in ([`across_seams`]). Loop 0 is the outer loop,
+    /// an axis, after loops that cross its seam have been taken in (`across_seams`). Loop 0 is the outer loop,
     /// holes are 1, 2, … in order (also when there is no outer loop). The range is checked at
     /// each curve's knots and 8 points per knot span.
     pub fn try_new(

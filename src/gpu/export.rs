@@ -97,7 +97,7 @@ impl KernelInputs {
 
 /// One chunk of curves as curves.wgsl binds it: bindings 0..=2 whole (the kernel takes the
 /// curve count from the length of binding 0), binding 3 the output, 48 bytes per sample
-/// (position, C′, C″ as vec4<f32>, positions relative to each curve's origin).
+/// (position, C′, C″ as `vec4<f32>`, positions relative to each curve's origin).
 #[derive(Clone, Debug)]
 pub struct CurveChunkInputs {
     pub jobs: Vec<u8>,

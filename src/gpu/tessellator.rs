@@ -159,7 +159,7 @@ impl Tessellator for GpuTessellator {
         work.read(pool, &self.context)
     }
 
-    /// On the GPU in f32, relative to each Bezier cell's centre ([`super::points`]).
+    /// On the GPU in f32, relative to each Bezier cell's centre (`super::points`).
     fn evaluate_face_samples(
         &self,
         faces: &[crate::plan::FaceSamples],

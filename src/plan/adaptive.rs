@@ -20,7 +20,7 @@ use rayon::prelude::*;
 pub const MAX_CELL_SEGMENTS: u32 = 1 << 14;
 
 /// Segments a cell is meant to hold along each direction: a knot span that needs n gets
-/// n / SEGMENTS_PER_CELL cells (n estimated from the span's [`PROBE_PIECES`]). The bound of
+/// n / SEGMENTS_PER_CELL cells (n estimated from the span's `PROBE_PIECES`). The bound of
 /// a smaller cell follows the curvature where it is, not its largest value over the span,
 /// so the flat parts of a span are not sampled at the rate of its bends (and extreme
 /// weights, whose bound is loose over a wide cell, are bounded over narrow ones); smaller

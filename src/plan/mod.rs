@@ -134,7 +134,7 @@ impl SurfacePlan {
     /// cells of [`surface_cells`] (a relative tolerance taken of the diagonal of the box of
     /// all `surfaces`' control points). Counts are checked against u32 before anything is
     /// allocated. Errors name the surface. Surfaces sampled to a tolerance are joined where
-    /// their control points show a shared side (see [`seams`]).
+    /// their control points show a shared side (see `seams`).
     pub fn new(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Self> {
         Self::with_seams(surfaces, options, &[])
     }

@@ -19,7 +19,7 @@
 //! indexed by both), and each cell's grid cells along it take in the other side's samples
 //! inside their own rectangle, so every triangle keeps its grid cell's bound and no vertex of
 //! one side lies on an edge of the other. Neighbours are the cells of one surface and, across
-//! surfaces, the cells along a seam ([`super::seams`]) whose ends match. Poles (sides whose
+//! surfaces, the cells along a seam (`super::seams`) whose ends match. Poles (sides whose
 //! control points coincide) are one vertex, their cells' grid cells fans.
 //!
 //! **Buffer order**, as the GPU writes it (`shaders/view.wgsl`): the corners, then each
