@@ -120,3 +120,22 @@ impl KnotVector {
         (span, ders[0][..=self.degree()].to_vec())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Derivatives above the degree are zero whatever the buffer held before (it is reused
+    /// across calls), and the values and first derivatives are the hat functions'.
+    #[test]
+    fn derivatives_above_the_degree_are_zero_in_a_reused_buffer() {
+        let knots = KnotVector::try_new(1, vec![0.0, 0.0, 0.5, 1.0, 1.0]).unwrap();
+        let mut ders: BasisDers = [[7.0; MAX_ORDER]; 3];
+        let u = 0.75;
+        let span = knots.find_span(u);
+        basis_ders(&knots, span, u, 2, &mut ders);
+        assert_eq!(ders[0][..2], [0.5, 0.5]);
+        assert_eq!(ders[1][..2], [-2.0, 2.0]);
+        assert_eq!(ders[2][..2], [0.0, 0.0]);
+    }
+}
