@@ -14,7 +14,7 @@
 
 use super::adaptive::Side;
 use crate::error::{Error, Result};
-use crate::geom::BSplineSurface;
+use crate::geom::{BSplineSurface, KnotVector};
 use glam::DVec3;
 use std::collections::{HashMap, HashSet};
 
@@ -24,19 +24,25 @@ const SAME_FRACTION: f64 = 1e-12;
 /// Control points of two sides closer than this fraction of the model's diagonal coincide.
 const SAME_POINT_REL: f64 = 1e-9;
 
-/// A side's boundary curve: the row or column of control points on it, with their weights,
-/// and the knots along it normalised to the side's range.
-struct SideCurve {
-    degree: usize,
-    knots: Vec<f64>,
-    points: Vec<DVec3>,
-    weights: Vec<f64>,
+/// A side's boundary curve, read in place from its surface: the row or column of control
+/// points on it, with their weights, and the knots along it normalised to the side's range.
+struct SideCurve<'a> {
+    surface: &'a BSplineSurface,
+    /// The knots along the side, with the start and width of the range they are normalised
+    /// to.
+    along: &'a KnotVector,
+    start: f64,
+    width: f64,
+    /// Control point k of the side is (k, fixed) where it runs along u, else (fixed, k).
+    along_u: bool,
+    fixed: usize,
+    count: usize,
 }
 
 /// The boundary curve of `surface` on `side`, if the side is where the control net's first
 /// or last row (column) is the boundary: the knots clamped at that end and the evaluation
 /// range reaching it, and the range along the side the whole knot domain.
-fn side_curve(surface: &BSplineSurface, side: Side) -> Option<SideCurve> {
+fn side_curve(surface: &BSplineSurface, side: Side) -> Option<SideCurve<'_>> {
     let along_u = matches!(side, Side::Bottom | Side::Top);
     let (across, along) = if along_u {
         (surface.knots_v(), surface.knots_u())
@@ -65,63 +71,77 @@ fn side_curve(surface: &BSplineSurface, side: Side) -> Option<SideCurve> {
     } else {
         (count_v, if at_start { 0 } else { count_u - 1 })
     };
-    let at = |k: usize| if along_u { (k, fixed) } else { (fixed, k) };
-    let width = range_along.end - range_along.start;
     Some(SideCurve {
-        degree: along.degree(),
-        knots: along
-            .knots()
-            .iter()
-            .map(|t| (t - range_along.start) / width)
-            .collect(),
-        points: (0..count)
-            .map(|k| {
-                let (i, j) = at(k);
-                surface.control_point(i, j)
-            })
-            .collect(),
-        weights: (0..count)
-            .map(|k| {
-                let (i, j) = at(k);
-                surface.weight(i, j)
-            })
-            .collect(),
+        surface,
+        along,
+        start: range_along.start,
+        width: range_along.end - range_along.start,
+        along_u,
+        fixed,
+        count,
     })
 }
 
-impl SideCurve {
+impl SideCurve<'_> {
+    /// Control net indices (i, j) of the side's control point `k`.
+    fn at(&self, k: usize) -> (usize, usize) {
+        if self.along_u {
+            (k, self.fixed)
+        } else {
+            (self.fixed, k)
+        }
+    }
+
+    fn point(&self, k: usize) -> DVec3 {
+        let (i, j) = self.at(k);
+        self.surface.control_point(i, j)
+    }
+
+    fn weight(&self, k: usize) -> f64 {
+        let (i, j) = self.at(k);
+        self.surface.weight(i, j)
+    }
+
+    /// Knot `k` along the side as a fraction of the side's range.
+    fn knot(&self, k: usize) -> f64 {
+        (self.along.knots()[k] - self.start) / self.width
+    }
+
+    fn first_and_last(&self) -> (DVec3, DVec3) {
+        (self.point(0), self.point(self.count - 1))
+    }
+
     /// Whether every control point is within `tolerance` of the first.
     fn is_point(&self, tolerance: f64) -> bool {
-        self.points
-            .iter()
-            .all(|p| (*p - self.points[0]).length() <= tolerance)
+        let first = self.point(0);
+        (1..self.count).all(|k| (self.point(k) - first).length() <= tolerance)
     }
 
     /// Whether `other` is the same curve, run the same way (`reversed` false) or the other.
     fn same_as(&self, other: &SideCurve, reversed: bool, tolerance: f64) -> bool {
-        let n = self.points.len();
-        if self.degree != other.degree
-            || n != other.points.len()
-            || self.knots.len() != other.knots.len()
+        let n = self.count;
+        let m = self.along.knots().len();
+        if self.along.degree() != other.along.degree()
+            || n != other.count
+            || m != other.along.knots().len()
         {
             return false;
         }
         let pick = |k: usize| if reversed { n - 1 - k } else { k };
-        let knots_agree = self.knots.iter().enumerate().all(|(k, &t)| {
-            let m = self.knots.len();
+        let knots_agree = (0..m).all(|k| {
             let s = if reversed {
-                1.0 - other.knots[m - 1 - k]
+                1.0 - other.knot(m - 1 - k)
             } else {
-                other.knots[k]
+                other.knot(k)
             };
-            (t - s).abs() <= SAME_FRACTION
+            (self.knot(k) - s).abs() <= SAME_FRACTION
         });
-        let ratio = self.weights[0] / other.weights[pick(0)];
+        let ratio = self.weight(0) / other.weight(pick(0));
         knots_agree
             && (0..n).all(|k| {
-                (self.points[k] - other.points[pick(k)]).length() <= tolerance
-                    && (self.weights[k] - ratio * other.weights[pick(k)]).abs()
-                        <= 1e-12 * self.weights[k]
+                (self.point(k) - other.point(pick(k))).length() <= tolerance
+                    && (self.weight(k) - ratio * other.weight(pick(k))).abs()
+                        <= 1e-12 * self.weight(k)
             })
     }
 }
@@ -337,7 +357,10 @@ pub(crate) fn find_seams(
     // Candidates by the cell of their first and last points on a grid of the tolerance's
     // size (both orders), so that matching is not quadratic in the sides.
     let key = |p: DVec3| (p / (tolerance * 16.0)).floor().as_i64vec3().to_array();
-    let ends = |c: &SideCurve| (key(c.points[0]), key(c.points[c.points.len() - 1]));
+    let ends = |c: &SideCurve| {
+        let (first, last) = c.first_and_last();
+        (key(first), key(last))
+    };
     let mut by_ends: HashMap<_, Vec<usize>> = HashMap::new();
     for (index, (_, curve)) in curves.iter().enumerate() {
         by_ends.entry(ends(curve)).or_default().push(index);
