@@ -153,13 +153,13 @@ pub struct MeshPart {
     pub index_count: u32,
 }
 
-/// A triangle mesh: per-vertex position, unit normal and uv, and u32 triangle indices.
-///
 /// Bytes per vertex of an f64 [`Mesh`]: position and normal (3 × f64 each), uv (2 × f64) —
 /// what memory budgets count.
 pub(crate) const F64_VERTEX_BYTES: u64 =
     (2 * size_of::<glam::DVec3>() + size_of::<glam::DVec2>()) as u64;
 
+/// A triangle mesh: per-vertex position, unit normal and uv, and u32 triangle indices.
+///
 /// Grid convention: each surface contributes grid_u × grid_v vertices, uniform in parameter
 /// over its range; vertex (i, j) of a surface is at `part.first_vertex + j·grid_u + i` (u
 /// fastest); surfaces appear in input order; `uv` is the parameter mapped to [0, 1]². Each grid

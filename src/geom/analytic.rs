@@ -131,9 +131,9 @@ impl Analytic {
     }
 
     /// The sphere `surface` lies on, where it provably lies on one to within 1e-9
-    /// (`SHAPE_REL`) of its radius: the sphere fitted (least squares) through a grid of its points, then
-    /// proved on every rational Bezier patch of it (`proved_at_radius`). `None` for a
-    /// polynomial surface (no piece of a sphere has a polynomial parametrisation) and
+    /// (`SHAPE_REL`) of its radius: the sphere fitted (least squares) through a grid of its
+    /// points, then proved on every rational Bezier patch of it (`proved_at_radius`). `None`
+    /// for a polynomial surface (no piece of a sphere has a polynomial parametrisation) and
     /// wherever the proof fails.
     pub fn sphere_of(surface: &BSplineSurface) -> Option<Analytic> {
         if !surface.is_rational() {

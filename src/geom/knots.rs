@@ -120,7 +120,7 @@ impl KnotVector {
             }
             breaks.push(group[0]);
         }
-        (breaks.len() >= 2).then_some(breaks)
+        Some(breaks)
     }
 
     /// The clamped vector of a piecewise Bezier with the given strictly increasing

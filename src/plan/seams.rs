@@ -107,10 +107,6 @@ impl SideCurve<'_> {
         (self.along.knots()[k] - self.start) / self.width
     }
 
-    fn first_and_last(&self) -> (DVec3, DVec3) {
-        (self.point(0), self.point(self.count - 1))
-    }
-
     /// Whether every control point is within `tolerance` of the first.
     fn is_point(&self, tolerance: f64) -> bool {
         let first = self.point(0);
@@ -357,10 +353,7 @@ pub(crate) fn find_seams(
     // Candidates by the cell of their first and last points on a grid of the tolerance's
     // size (both orders), so that matching is not quadratic in the sides.
     let key = |p: DVec3| (p / (tolerance * 16.0)).floor().as_i64vec3().to_array();
-    let ends = |c: &SideCurve| {
-        let (first, last) = c.first_and_last();
-        (key(first), key(last))
-    };
+    let ends = |c: &SideCurve| (key(c.point(0)), key(c.point(c.count - 1)));
     let mut by_ends: HashMap<_, Vec<usize>> = HashMap::new();
     for (index, (_, curve)) in curves.iter().enumerate() {
         by_ends.entry(ends(curve)).or_default().push(index);
