@@ -20,20 +20,18 @@ pub use seams::{Seam, SurfaceSide};
 pub use tables::{AxisSamples, BEZIER_DEGREE, BezierSegment, ROW_PADDING, SpanRun};
 pub use trim::{MAX_TRIMMED_VERTICES, TrimmedPlan, plan_trimmed, plan_trimmed_within};
 
-use tables::AxisCache;
+use tables::{AxisTables, KnotIds, TableKey};
 
 use crate::error::{Error, Result};
 use crate::geom::patches::CoonsPatch;
-use crate::geom::{BSplineCurve, BSplineSurface, Interval, KnotVector, SamplingLimits};
+use crate::geom::{BSplineCurve, BSplineSurface, Interval, SamplingLimits};
 use crate::mesh::{MeshPart, TessOptions, Tolerance};
 use rayon::prelude::*;
 use std::sync::Arc;
 
-/// Fewest cells whose grids one task describes, and fewest axis tables one task makes: a
-/// surface of few cells (a file of many small patches) is planned on one thread, not
-/// split into tasks smaller than their hand-over.
+/// Fewest cells whose grids one task describes: a surface of few cells (a file of many small
+/// patches) is planned on one thread, not split into tasks smaller than their hand-over.
 const CELLS_PER_TASK: usize = 64;
-const TABLES_PER_TASK: usize = 8;
 
 /// The vertices of one planned face (a trimmed face's, or a shell face's) an executor
 /// evaluates: `surface` at each of `params` (within its range). What comes back per vertex
@@ -220,34 +218,51 @@ impl SurfacePlan {
             })
             .collect();
         let joined = sampling.iter().any(|s| matches!(s, Sampling::Cells(_)));
-        // Grids share their tables through one cache; cells are planned surface by surface
-        // in parallel.
-        let mut cache = AxisCache::default();
-        let grids: Vec<Option<SurfaceSamples>> = surfaces
-            .iter()
-            .zip(&sampling)
-            .zip(&layout.parts)
+        // Every table of the plan, each distinct one made once: a grid's two, a cell grid's
+        // one per column (row) and rate — keyed by (column or row, segments) per surface.
+        let mut knot_ids = KnotIds::default();
+        let knots: Vec<[u32; 2]> = (surfaces.iter())
+            .map(|s| [knot_ids.id(s.knots_u()), knot_ids.id(s.knots_v())])
+            .collect();
+        let keys: Vec<[AxisKeys; 2]> = (surfaces.par_iter().zip(&sampling).zip(&knots))
+            .map(|((surface, sampling), &[knots_u, knots_v])| {
+                let (range_u, range_v) = (surface.range_u(), surface.range_v());
+                match sampling {
+                    Sampling::Grid(nu, nv) => [
+                        vec![((0, nu - 1), TableKey::new(knots_u, range_u, range_u, nu - 1))],
+                        vec![((0, nv - 1), TableKey::new(knots_v, range_v, range_v, nv - 1))],
+                    ],
+                    Sampling::Cells(cells) => [
+                        axis_keys(cells, false, knots_u, range_u),
+                        axis_keys(cells, true, knots_v, range_v),
+                    ],
+                }
+            })
+            .collect();
+        let wanted = keys.iter().flatten().flatten().map(|&(_, key)| key);
+        let tables = AxisTables::new(&knot_ids, wanted.collect());
+        let grids: Vec<Option<SurfaceSamples>> = (sampling.iter().zip(&layout.parts))
+            .zip(&keys)
             .enumerate()
-            .map(|(index, ((surface, sampling), part))| match sampling {
-                Sampling::Grid(nu, nv) => Some(SurfaceSamples {
+            .map(|(index, ((sampling, part), [columns, rows]))| match sampling {
+                Sampling::Grid(..) => Some(SurfaceSamples {
                     surface: index,
                     part: *part,
-                    columns: cache.uniform(surface.knots_u(), surface.range_u(), *nu as usize),
-                    rows: cache.uniform(surface.knots_v(), surface.range_v(), *nv as usize),
+                    columns: tables.get(&columns[0].1),
+                    rows: tables.get(&rows[0].1),
                 }),
                 Sampling::Cells(_) => None,
             })
             .collect();
-        let planned: Vec<(Vec<SurfaceSamples>, Vec<u32>)> = surfaces
+        let planned: Vec<(Vec<SurfaceSamples>, Vec<u32>)> = sampling
             .par_iter()
-            .zip(&sampling)
             .zip(&layout.parts)
             .zip(grids)
             .zip(&external)
             .zip(&vertices)
             .enumerate()
             .map(
-                |(index, (((((surface, sampling), part), grid), external), vertices))| {
+                |(index, ((((sampling, part), grid), external), vertices))| {
                     let mut triangles = Vec::new();
                     match (sampling, grid, vertices) {
                         (Sampling::Grid(nu, nv), Some(grid), _) => {
@@ -267,7 +282,10 @@ impl SurfacePlan {
                         (Sampling::Cells(cells), _, Some(vertices)) => {
                             triangles.reserve(part.index_count as usize);
                             cells.push_triangles(vertices, external, &mut triangles);
-                            (cell_samples(index, surface, vertices, part), triangles)
+                            let [columns, rows] = &keys[index];
+                            let samples =
+                                cell_samples(index, vertices, part, [columns, rows], &tables);
+                            (samples, triangles)
                         }
                         _ => unreachable!("grids have samples, cells their vertices"),
                     }
@@ -409,16 +427,21 @@ pub fn row_triangles(part: &MeshPart, j: u32, indices: &mut [u32]) {
 }
 
 /// The grids of the cells of surface `index`, each at the first of its `vertices` (the
-/// cells' grids one after another from the first vertex of its `part`).
+/// cells' grids one after another from the first vertex of its `part`), with the tables of
+/// its columns and rows (`keys`, from [`axis_keys`]) among `tables`.
 fn cell_samples(
     index: usize,
-    surface: &BSplineSurface,
     vertices: &adaptive::CellVertices,
     part: &MeshPart,
+    keys: [&AxisKeys; 2],
+    tables: &AxisTables,
 ) -> Vec<SurfaceSamples> {
     let cells = vertices.grid();
-    let columns = axis_tables(cells, false, surface.knots_u(), surface.range_u());
-    let rows = axis_tables(cells, true, surface.knots_v(), surface.range_v());
+    let [columns, rows] = keys.map(|keys| {
+        (keys.iter())
+            .map(|(at, key)| (*at, tables.get(key)))
+            .collect::<Vec<_>>()
+    });
     (cells.cells.par_iter().enumerate())
         .with_min_len(CELLS_PER_TASK)
         .map(|(k, cell)| {
@@ -442,37 +465,33 @@ fn cell_samples(
         .collect()
 }
 
-/// The tables of `cells` along u (or v where `along_v`), by (column or row, segments), in
-/// increasing order: cells of one column (row) share their table where their rates agree,
-/// each distinct table made once, in parallel.
-fn axis_tables(
-    cells: &CellGrid,
-    along_v: bool,
-    knots: &KnotVector,
-    range: Interval,
-) -> Vec<((usize, u32), Arc<AxisSamples>)> {
-    let mut keys: Vec<(usize, u32)> = (cells.cells.iter().enumerate())
+/// The tables one direction of a surface samples: (column or row, segments) — for a grid,
+/// (0, segments) — in increasing order, with the key of its table.
+type AxisKeys = Vec<((usize, u32), TableKey)>;
+
+/// The tables of `cells` along u (or v where `along_v`) of knot vector `knots` over `range`:
+/// cells of one column (row) share their table where their rates agree.
+fn axis_keys(cells: &CellGrid, along_v: bool, knots: u32, range: Interval) -> AxisKeys {
+    let mut at: Vec<(usize, u32)> = (cells.cells.iter().enumerate())
         .map(|(k, cell)| match along_v {
             false => (k % cells.columns, cell.segments.0),
             true => (k / cells.columns, cell.segments.1),
         })
         .collect();
-    keys.sort_unstable();
-    keys.dedup();
-    keys.into_par_iter()
-        .with_min_len(TABLES_PER_TASK)
+    at.sort_unstable();
+    at.dedup();
+    (at.into_iter())
         .map(|(at, n)| {
             let piece = match along_v {
                 false => cells.cells[at].range_u,
                 true => cells.cells[at * cells.columns].range_v,
             };
-            let table = AxisSamples::uniform_over(knots, range, piece, n);
-            ((at, n), Arc::new(table))
+            ((at, n), TableKey::new(knots, range, piece, n))
         })
         .collect()
 }
 
-/// The table of `key` (column or row, segments) among `tables` from [`axis_tables`].
+/// The table of `key` (column or row, segments) among `tables` from [`cell_samples`].
 fn table_of(tables: &[((usize, u32), Arc<AxisSamples>)], key: (usize, u32)) -> Arc<AxisSamples> {
     let at = tables.binary_search_by_key(&key, |entry| entry.0);
     tables[at.expect("every cell's key has a table")].1.clone()
@@ -748,17 +767,23 @@ impl CoonsPlan {
     /// Plans patch k on the grid of `options[k]`.
     pub fn new(patches: &[CoonsPatch], options: &[TessOptions]) -> Result<Self> {
         let layout = GridLayout::new(patches.len(), options)?;
-        let mut cache = AxisCache::default();
-        let items = patches
-            .iter()
-            .zip(&layout.parts)
-            .map(|(patch, &part)| {
-                let (nu, nv) = (part.grid_u as usize, part.grid_v as usize);
-                let boundaries = std::array::from_fn(|k| {
+        // Boundary k of each patch: v = 0 and v = 1 at the grid's columns, u = 0 and u = 1
+        // at its rows.
+        let mut knot_ids = KnotIds::default();
+        let keys: Vec<[TableKey; 4]> = (patches.iter().zip(&layout.parts))
+            .map(|(patch, part)| {
+                std::array::from_fn(|k| {
                     let curve = &patch.boundaries()[k];
-                    let samples = if k < 2 { nu } else { nv };
-                    cache.uniform(curve.knots(), curve.range(), samples)
-                });
+                    let samples = if k < 2 { part.grid_u } else { part.grid_v };
+                    let range = curve.range();
+                    TableKey::new(knot_ids.id(curve.knots()), range, range, samples - 1)
+                })
+            })
+            .collect();
+        let tables = AxisTables::new(&knot_ids, keys.iter().flatten().copied().collect());
+        let items = (patches.iter().zip(&layout.parts).zip(&keys))
+            .map(|((patch, &part), keys)| {
+                let (nu, nv) = (part.grid_u as usize, part.grid_v as usize);
                 let blends = |n: usize| -> Vec<[f64; 3]> {
                     (0..n)
                         .map(|k| patch.blend().derivatives(k as f64 / (n - 1) as f64))
@@ -766,7 +791,7 @@ impl CoonsPlan {
                 };
                 CoonsSamples {
                     part,
-                    boundaries,
+                    boundaries: keys.each_ref().map(|key| tables.get(key)),
                     column_blends: blends(nu),
                     row_blends: blends(nv),
                 }
@@ -802,8 +827,8 @@ impl CurvePlan {
                 found: samples.len(),
             });
         }
-        let mut plan = CurvePlan::default();
-        let mut cache = AxisCache::default();
+        let mut knot_ids = KnotIds::default();
+        let mut keys = Vec::with_capacity(curves.len());
         for (index, (curve, &count)) in curves.iter().zip(samples).enumerate() {
             if count < 2 {
                 return Err(Error::InCurve {
@@ -811,9 +836,15 @@ impl CurvePlan {
                     source: Box::new(Error::GridTooSmall { nu: count, nv: 1 }),
                 });
             }
+            let range = curve.range();
+            keys.push(TableKey::new(knot_ids.id(curve.knots()), range, range, count - 1));
+        }
+        let tables = AxisTables::new(&knot_ids, keys.clone());
+        let mut plan = CurvePlan::default();
+        for (key, &count) in keys.iter().zip(samples) {
             plan.items.push(CurveSamples {
                 first_sample: plan.sample_count,
-                samples: cache.uniform(curve.knots(), curve.range(), count as usize),
+                samples: tables.get(key),
             });
             plan.sample_count += u64::from(count);
         }
@@ -960,5 +991,30 @@ mod tests {
         );
         assert!(Arc::ptr_eq(&a.columns, &c.columns) && !Arc::ptr_eq(&a.rows, &c.rows));
         assert_eq!(c.rows.len(), 5);
+
+        // Cells too, across surfaces: a copy of a curved patch moved away (no seam) has the
+        // same cells, each sharing its tables with the original's.
+        let curved: Vec<glam::DVec3> = (points.iter())
+            .map(|p| glam::DVec3::new(p.x, p.y, (p.x * p.y).sin()))
+            .collect();
+        let curved = crate::geom::bezier_surface(3, 3, &curved, None).unwrap();
+        let surfaces = [curved.clone(), curved.mapped(|p| p + glam::DVec3::X * 10.0)];
+        let adaptive = TessOptions::DEFAULT.with_tolerance(Tolerance::Absolute(1e-3));
+        let plan = SurfacePlan::new(&surfaces, &[adaptive; 2]).unwrap();
+        let cells = plan.items.len() / 2;
+        assert!(cells > 1);
+        let (first, second) = plan.items.split_at(cells);
+        for (a, b) in first.iter().zip(second) {
+            assert!(Arc::ptr_eq(&a.columns, &b.columns) && Arc::ptr_eq(&a.rows, &b.rows));
+        }
+        let distinct = |pick: fn(&SurfaceSamples) -> &Arc<AxisSamples>| {
+            let mut tables: Vec<*const AxisSamples> =
+                first.iter().map(|item| Arc::as_ptr(pick(item))).collect();
+            tables.sort_unstable();
+            tables.dedup();
+            tables.len()
+        };
+        assert!(distinct(|item| &item.columns) < cells);
+        assert!(distinct(|item| &item.rows) < cells);
     }
 }

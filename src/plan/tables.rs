@@ -4,7 +4,9 @@
 
 use super::adaptive::sample_fraction;
 use crate::geom::{BasisDers, Interval, KnotVector, MAX_ORDER, basis_ders};
+use rayon::prelude::*;
 use std::collections::HashMap;
+use std::hash::{Hash, Hasher};
 use std::sync::Arc;
 
 /// Zeros after each row of an [`AxisSamples`] table, so that 4-wide loads starting at any
@@ -14,6 +16,10 @@ pub const ROW_PADDING: usize = 3;
 /// Highest degree whose knot spans get a cubic Bezier form ([`AxisSamples::bezier_segments`]);
 /// lower degrees are elevated to it.
 pub const BEZIER_DEGREE: usize = 3;
+
+/// Fewest tables one task makes: a plan of few tables is made on one thread, not split into
+/// tasks smaller than their hand-over.
+const TABLES_PER_TASK: usize = 8;
 
 /// Consecutive, evenly spaced samples inside one knot span.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -168,35 +174,114 @@ impl AxisSamples {
     }
 }
 
-/// The axis tables of one plan, shared between items that sample the same knot vector over
-/// the same range at the same count (every patch of a Bezier model, say): each distinct
-/// table is computed once.
-#[derive(Debug, Default)]
-pub(crate) struct AxisCache {
-    tables: HashMap<AxisKey, Arc<AxisSamples>>,
+/// A table of a plan: its knot vector (an index from [`KnotIds`]), the range its fractions
+/// are of, the piece it samples and its segments, by their bits — equal keys give equal
+/// tables.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) struct TableKey {
+    knots: u32,
+    range: [u64; 2],
+    piece: [u64; 2],
+    segments: u32,
 }
 
-/// Degree, knot bits, range bits and sample count: equal keys give equal tables.
-type AxisKey = (usize, Vec<u64>, [u64; 2], usize);
+impl TableKey {
+    /// `segments` + 1 samples of `piece` ⊆ `range` of knot vector `knots` (see
+    /// [`AxisSamples::uniform_over`]).
+    pub fn new(knots: u32, range: Interval, piece: Interval, segments: u32) -> Self {
+        let bits = |i: Interval| [i.start.to_bits(), i.end.to_bits()];
+        TableKey {
+            knots,
+            range: bits(range),
+            piece: bits(piece),
+            segments,
+        }
+    }
+}
 
-impl AxisCache {
-    /// [`AxisSamples::uniform`] of these arguments, computed once per plan.
-    pub fn uniform(
-        &mut self,
-        knots: &KnotVector,
-        range: Interval,
-        samples: usize,
-    ) -> Arc<AxisSamples> {
-        let key = (
-            knots.degree(),
-            knots.knots().iter().map(|k| k.to_bits()).collect(),
-            [range.start.to_bits(), range.end.to_bits()],
-            samples,
-        );
-        self.tables
-            .entry(key)
-            .or_insert_with(|| Arc::new(AxisSamples::uniform(knots, range, samples)))
-            .clone()
+/// The distinct knot vectors of one plan (equal degree and knots, bit for bit), each
+/// numbered once, so that a [`TableKey`] names its knots without copying them.
+#[derive(Debug, Default)]
+pub(crate) struct KnotIds<'a> {
+    ids: HashMap<KnotBits<'a>, u32>,
+    knots: Vec<&'a KnotVector>,
+}
+
+/// A knot vector compared and hashed by its degree and its knots' bits.
+#[derive(Debug)]
+struct KnotBits<'a>(&'a KnotVector);
+
+impl PartialEq for KnotBits<'_> {
+    fn eq(&self, other: &Self) -> bool {
+        let (a, b) = (self.0, other.0);
+        a.degree() == b.degree()
+            && a.knots().len() == b.knots().len()
+            && (a.knots().iter().zip(b.knots())).all(|(x, y)| x.to_bits() == y.to_bits())
+    }
+}
+
+impl Eq for KnotBits<'_> {}
+
+impl Hash for KnotBits<'_> {
+    fn hash<H: Hasher>(&self, state: &mut H) {
+        self.0.degree().hash(state);
+        for knot in self.0.knots() {
+            knot.to_bits().hash(state);
+        }
+    }
+}
+
+impl<'a> KnotIds<'a> {
+    /// The number of `knots` (the first of its equals to be numbered).
+    pub fn id(&mut self, knots: &'a KnotVector) -> u32 {
+        let next = self.knots.len() as u32;
+        let id = *self.ids.entry(KnotBits(knots)).or_insert(next);
+        if id == next {
+            self.knots.push(knots);
+        }
+        id
+    }
+}
+
+/// The axis tables of one plan, each distinct [`TableKey`] computed once (in parallel) and
+/// shared by every grid, cell, Coons boundary or curve that samples it (every patch of a
+/// Bezier model, say).
+#[derive(Debug)]
+pub(crate) struct AxisTables {
+    /// In increasing order, without repeats.
+    keys: Vec<TableKey>,
+    tables: Vec<Arc<AxisSamples>>,
+}
+
+impl AxisTables {
+    /// The tables of `wanted` (in any order, with repeats), their knots numbered by `knots`.
+    pub fn new(knots: &KnotIds, mut wanted: Vec<TableKey>) -> Self {
+        wanted.sort_unstable();
+        wanted.dedup();
+        let tables = (wanted.par_iter())
+            .with_min_len(TABLES_PER_TASK)
+            .map(|key| {
+                let interval = |bits: [u64; 2]| {
+                    Interval::new(f64::from_bits(bits[0]), f64::from_bits(bits[1]))
+                };
+                Arc::new(AxisSamples::uniform_over(
+                    knots.knots[key.knots as usize],
+                    interval(key.range),
+                    interval(key.piece),
+                    key.segments,
+                ))
+            })
+            .collect();
+        AxisTables {
+            keys: wanted,
+            tables,
+        }
+    }
+
+    /// The table of `key`, which must be one of those the tables were made for.
+    pub fn get(&self, key: &TableKey) -> Arc<AxisSamples> {
+        let at = self.keys.binary_search(key);
+        self.tables[at.expect("every key asked for has a table")].clone()
     }
 }
 
