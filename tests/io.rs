@@ -5125,16 +5125,19 @@ fn moved_and_reversed_shells_mesh_as_their_meshes_moved_and_turned() {
         max_angle: f64::INFINITY,
     };
     let mesh_of = |shell: &Shell| {
-        let plan = knotwork::plan::plan_shell(shell, limits, usize::MAX).unwrap();
+        // 10 000 vertices a face, some 30 times what the whole shell needs (a shape left
+        // behind refines without end).
+        let plan = knotwork::plan::plan_shell(shell, limits, 10_000).unwrap();
         knotwork::cpu::execute_shell(shell, &plan)
     };
     let original = mesh_of(shell);
     assert!(!original.indices.is_empty());
-    // The cylinder about z, turned a quarter about z (exact), then a shift.
-    // Shifted by less than the radius: an exact shape left where it was would still face the
-    // same way as the surface, and would be taken for its normals.
+    // The cylinder about z, turned a quarter about x (exact: its axis becomes y), then a
+    // shift. Shifted by less than the radius: an exact shape left where it was would still
+    // face the same way as the surface, and would be taken for its normals.
     let offset = DVec3::new(0.25, -0.125, 5.0);
-    let turn = |p: DVec3| DVec3::new(-p.y, p.x, p.z);
+    let turn = |p: DVec3| DVec3::new(p.x, -p.z, p.y);
+    let unturn = |p: DVec3| DVec3::new(p.x, p.z, -p.y);
     // Whether `n` is the outward normal of the cylinder (radius 1 about z, 0 ≤ z ≤ 2) at `p`:
     // radial on the lateral face, ∓z on the discs (either at the rims).
     let outward = |p: DVec3, n: DVec3| {
@@ -5150,8 +5153,24 @@ fn moved_and_reversed_shells_mesh_as_their_meshes_moved_and_turned() {
     }
     let moved = mesh_of(&shell.mapped(move |p| turn(p) + offset));
     assert_eq!(moved.parts.len(), original.parts.len());
+    // A rigid motion changes no deviation, so no refinement: as many triangles, every
+    // vertex moved (an exact shape, surface or edge curve left behind would be measured
+    // against, and refine or misplace the faces). Which diagonal a square of cocircular
+    // vertices takes may differ by rounding.
+    assert_eq!(moved.indices.len(), original.indices.len());
+    assert_eq!(moved.positions.len(), original.positions.len());
+    for (k, p) in original.positions.iter().enumerate() {
+        let image = turn(*p) + offset;
+        assert!(
+            (moved.positions.iter()).any(|q| q.distance(image) < 1e-12),
+            "vertex {k} at {p} has no image at {image}"
+        );
+    }
     for (k, (q, n)) in moved.positions.iter().zip(&moved.normals).enumerate() {
-        assert!(outward(*q - offset, *n), "moved vertex {k} at {q}: {n}");
+        assert!(
+            outward(unturn(*q - offset), unturn(*n)),
+            "moved vertex {k} at {q}: {n}"
+        );
     }
     // Turned inside out: every normal inward, the enclosed volume negative.
     let reversed = mesh_of(&shell.reversed());

@@ -229,8 +229,14 @@ impl SurfacePlan {
                 let (range_u, range_v) = (surface.range_u(), surface.range_v());
                 match sampling {
                     Sampling::Grid(nu, nv) => [
-                        vec![((0, nu - 1), TableKey::new(knots_u, range_u, range_u, nu - 1))],
-                        vec![((0, nv - 1), TableKey::new(knots_v, range_v, range_v, nv - 1))],
+                        vec![(
+                            (0, nu - 1),
+                            TableKey::new(knots_u, range_u, range_u, nu - 1),
+                        )],
+                        vec![(
+                            (0, nv - 1),
+                            TableKey::new(knots_v, range_v, range_v, nv - 1),
+                        )],
                     ],
                     Sampling::Cells(cells) => [
                         axis_keys(cells, false, knots_u, range_u),
@@ -244,15 +250,17 @@ impl SurfacePlan {
         let grids: Vec<Option<SurfaceSamples>> = (sampling.iter().zip(&layout.parts))
             .zip(&keys)
             .enumerate()
-            .map(|(index, ((sampling, part), [columns, rows]))| match sampling {
-                Sampling::Grid(..) => Some(SurfaceSamples {
-                    surface: index,
-                    part: *part,
-                    columns: tables.get(&columns[0].1),
-                    rows: tables.get(&rows[0].1),
-                }),
-                Sampling::Cells(_) => None,
-            })
+            .map(
+                |(index, ((sampling, part), [columns, rows]))| match sampling {
+                    Sampling::Grid(..) => Some(SurfaceSamples {
+                        surface: index,
+                        part: *part,
+                        columns: tables.get(&columns[0].1),
+                        rows: tables.get(&rows[0].1),
+                    }),
+                    Sampling::Cells(_) => None,
+                },
+            )
             .collect();
         let planned: Vec<(Vec<SurfaceSamples>, Vec<u32>)> = sampling
             .par_iter()
@@ -837,7 +845,12 @@ impl CurvePlan {
                 });
             }
             let range = curve.range();
-            keys.push(TableKey::new(knot_ids.id(curve.knots()), range, range, count - 1));
+            keys.push(TableKey::new(
+                knot_ids.id(curve.knots()),
+                range,
+                range,
+                count - 1,
+            ));
         }
         let tables = AxisTables::new(&knot_ids, keys.clone());
         let mut plan = CurvePlan::default();
