@@ -64,6 +64,29 @@ fn standard_knot_vector_for_8_points_order_4() {
     );
     assert_eq!(uniform.domain(), (3.0, 8.0));
     assert!(!uniform.is_clamped());
+    // Clamped means degree + 1 equal knots at both ends: one end, or degree at an end, is not.
+    let clamped = |knots: &[f64]| KnotVector::try_new(3, knots.to_vec()).unwrap().is_clamped();
+    assert!(!clamped(&[0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 3.0, 4.0]));
+    assert!(!clamped(&[0.0, 1.0, 2.0, 3.0, 4.0, 4.0, 4.0, 4.0]));
+    assert!(!clamped(&[0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 2.0, 2.0]));
+    assert!(!clamped(&[0.0, 0.0, 0.0, 1.0, 2.0, 2.0, 2.0, 2.0]));
+    assert!(clamped(&[0.0, 0.0, 0.0, 0.0, 2.0, 2.0, 2.0, 2.0]));
+    // Too few control points for the degree is said as such, not as too few knots.
+    for made in [KnotVector::clamped_uniform(3, 3), KnotVector::uniform(3, 3)] {
+        assert!(matches!(
+            made,
+            Err(knotwork::Error::ControlPointCount {
+                expected: 4,
+                found: 3,
+                ..
+            })
+        ));
+    }
+    assert_eq!(
+        KnotVector::clamped_uniform(3, 4).unwrap().control_count(),
+        4
+    );
+    assert_eq!(KnotVector::uniform(3, 4).unwrap().control_count(), 4);
 }
 
 #[test]
@@ -74,6 +97,14 @@ fn find_span_handles_ends_and_repeated_knots() {
     assert_eq!(knots.find_span(1.0), 4);
     assert_eq!(knots.find_span(2.5), 5);
     assert_eq!(knots.find_span(3.0), 5);
+    // Unclamped ends whose domain knots repeat inwards: the spans next to them.
+    let inner = KnotVector::try_new(2, vec![0.0, 0.0, 1.0, 1.0, 2.0, 3.0, 3.0, 4.0, 5.0]).unwrap();
+    assert_eq!(inner.domain(), (1.0, 3.0));
+    assert_eq!(inner.find_span(0.0), 3);
+    assert_eq!(inner.find_span(1.0), 3);
+    assert_eq!(inner.find_span(2.5), 4);
+    assert_eq!(inner.find_span(3.0), 4);
+    assert_eq!(inner.find_span(9.0), 4);
 }
 
 // ---------------------------------------------------------------- exact conics
@@ -594,7 +625,11 @@ fn every_geometry_error_is_reported() {
     ));
     assert!(matches!(
         root(KnotVector::try_new(1, vec![0.0, 0.0, 2.0, 1.0, 3.0, 3.0])),
-        Error::KnotsDecreasing { index: 3, .. }
+        Error::KnotsDecreasing {
+            index: 3,
+            previous: 2.0,
+            value: 1.0
+        }
     ));
     assert!(matches!(
         root(KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 1.0, 1.0])),

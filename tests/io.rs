@@ -5172,8 +5172,28 @@ fn moved_and_reversed_shells_mesh_as_their_meshes_moved_and_turned() {
             "moved vertex {k} at {q}: {n}"
         );
     }
-    // Turned inside out: every normal inward, the enclosed volume negative.
-    let reversed = mesh_of(&shell.reversed());
+    // Turned inside out: every loop runs the other way (each edge backwards, in reverse
+    // order), every normal inward, the enclosed volume negative.
+    use knotwork::geom::brep::{Bound, OrientedEdge};
+    let turned = shell.reversed();
+    for (face, turned) in shell.faces().iter().zip(turned.faces()) {
+        assert_ne!(face.same_sense, turned.same_sense);
+        let backwards: Vec<Bound> = (face.bounds.iter())
+            .map(|bound| match bound {
+                Bound::Edges(chain) => Bound::Edges(
+                    (chain.iter().rev())
+                        .map(|o| OrientedEdge {
+                            edge: o.edge,
+                            forward: !o.forward,
+                        })
+                        .collect(),
+                ),
+                vertex => vertex.clone(),
+            })
+            .collect();
+        assert_eq!(turned.bounds, backwards, "{}", face.name);
+    }
+    let reversed = mesh_of(&turned);
     for (k, (p, n)) in reversed.positions.iter().zip(&reversed.normals).enumerate() {
         assert!(outward(*p, -*n), "reversed vertex {k} at {p}: {n}");
     }

@@ -45,12 +45,8 @@ impl KnotVector {
             });
         }
         let mut start = 0;
-        while start < knots.len() {
-            let mut end = start + 1;
-            while end < knots.len() && knots[end] == knots[start] {
-                end += 1;
-            }
-            let multiplicity = end - start;
+        for run in knots.chunk_by(|a, b| a == b) {
+            let (multiplicity, end) = (run.len(), start + run.len());
             let touches_end = start == 0 || end == knots.len();
             let max = if touches_end { degree + 1 } else { degree };
             if multiplicity > max {
@@ -188,19 +184,12 @@ impl KnotVector {
         let p = self.degree;
         let n = self.control_count();
         let k = &self.knots;
+        // The last knot before the domain's end, and the last equal to its start.
         if u >= k[n] {
-            let mut s = n - 1;
-            while k[s] >= k[n] {
-                s -= 1;
-            }
-            return s;
+            return k[..n].partition_point(|&x| x < k[n]) - 1;
         }
         if u <= k[p] {
-            let mut s = p;
-            while k[s + 1] <= k[p] {
-                s += 1;
-            }
-            return s;
+            return k.partition_point(|&x| x <= k[p]) - 1;
         }
         p + k[p + 1..=n].partition_point(|&x| x <= u)
     }
