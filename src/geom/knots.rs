@@ -184,14 +184,12 @@ impl KnotVector {
         let p = self.degree;
         let n = self.control_count();
         let k = &self.knots;
-        // The last knot before the domain's end, and the last equal to its start.
+        // At or past the domain's end: the span of the last knot before it.
         if u >= k[n] {
             return k[..n].partition_point(|&x| x < k[n]) - 1;
         }
-        if u <= k[p] {
-            return k.partition_point(|&x| x <= k[p]) - 1;
-        }
-        p + k[p + 1..=n].partition_point(|&x| x <= u)
+        // Else the last knot at or below u, held to the domain's start.
+        p + k[p + 1..=n].partition_point(|&x| x <= u.max(k[p]))
     }
 }
 
