@@ -20,6 +20,7 @@ pub use seams::{Seam, SurfaceSide};
 pub use tables::{AxisSamples, BEZIER_DEGREE, BezierSegment, ROW_PADDING, SpanRun};
 pub use trim::{MAX_TRIMMED_VERTICES, TrimmedPlan, plan_trimmed, plan_trimmed_within};
 
+use seams::Joined;
 use tables::{AxisTables, KnotIds, TableKey};
 
 use crate::error::{Error, Result};
@@ -168,13 +169,24 @@ impl SurfacePlan {
         options: &[TessOptions],
         seams: &[Seam],
     ) -> Result<SurfaceSampling> {
-        let sampling = surface_sampling(surfaces, options)?;
+        if options.len() != surfaces.len() {
+            return Err(Error::OptionsCount {
+                expected: surfaces.len(),
+                found: options.len(),
+            });
+        }
+        // The seams need only the control points: found while the surfaces are sampled.
+        let (sampling, sides) = rayon::join(
+            || surface_sampling(surfaces, options),
+            || SeamSides::find(surfaces, options, seams),
+        );
+        let (sampling, sides) = (sampling?, sides?);
         let SeamSamples {
             vertices,
             external,
             same,
             triangles,
-        } = SeamSamples::new(surfaces, &sampling, seams)?;
+        } = SeamSamples::new(surfaces, &sampling, sides)?;
         let layout = layout_of(&sampling, &triangles)?;
         let poles = (vertices.iter())
             .map(|v| v.as_ref().map_or([false; 4], |v| v.poles()))
@@ -518,11 +530,47 @@ struct SeamSamples<'a> {
     triangles: Vec<u64>,
 }
 
+/// The sides a plan joins and the sides collapsed to poles, from the control points alone
+/// (what [`SeamSamples`] merges once the surfaces are sampled).
+struct SeamSides {
+    joined: Vec<Joined>,
+    /// Per surface, which sides are one point (all false for surfaces on grids).
+    poles: Vec<[bool; 4]>,
+    /// That of all the surfaces' control points ([`model_diagonal`]).
+    diagonal: f64,
+}
+
+impl SeamSides {
+    /// The `asked` seams and those the control points show among the surfaces `options`
+    /// (one per surface) sample to a tolerance.
+    fn find(surfaces: &[BSplineSurface], options: &[TessOptions], asked: &[Seam]) -> Result<Self> {
+        let adaptive: Vec<bool> = options.iter().map(TessOptions::is_adaptive).collect();
+        let diagonal = model_diagonal(surfaces);
+        let tolerance = seams::point_tolerance(diagonal);
+        let poles = (surfaces.iter().zip(&adaptive))
+            .map(|(surface, &adaptive)| match adaptive {
+                true => seams::pole_sides(surface, tolerance),
+                false => [false; 4],
+            })
+            .collect();
+        let mut joined = seams::asked_seams(surfaces, &adaptive, asked)?;
+        joined.extend(seams::find_seams(surfaces, &adaptive, &joined, tolerance));
+        Ok(SeamSides {
+            joined,
+            poles,
+            diagonal,
+        })
+    }
+}
+
 impl<'a> SeamSamples<'a> {
-    /// Joins the `asked` seams and those the control points show among the adaptive
-    /// surfaces of `sampling`, and merges their samples (vertices numbered as the layout
-    /// will: checked against u32 here first).
-    fn new(surfaces: &[BSplineSurface], sampling: &'a [Sampling], asked: &[Seam]) -> Result<Self> {
+    /// Merges the samples of the seams of `sides` (found for the same surfaces and options
+    /// as `sampling`), vertices numbered as the layout will: checked against u32 here first.
+    fn new(
+        surfaces: &[BSplineSurface],
+        sampling: &'a [Sampling],
+        sides: SeamSides,
+    ) -> Result<Self> {
         // The cells' own triangles (seams add more): a job too large for u32 is refused
         // here with counts that mean something.
         let own_triangles: Vec<u64> = sampling
@@ -540,22 +588,14 @@ impl<'a> SeamSamples<'a> {
                 Sampling::Grid(..) => None,
             })
             .collect();
-        let diagonal = model_diagonal(surfaces);
-        let tolerance = seams::point_tolerance(diagonal);
-        let vertices: Vec<Option<adaptive::CellVertices>> = cells
-            .iter()
+        let vertices: Vec<Option<adaptive::CellVertices>> = (cells.iter())
             .zip(&without_seams.parts)
-            .zip(surfaces)
-            .map(|((cells, part), surface)| {
-                cells.map(|c| c.vertices(part.first_vertex, seams::pole_sides(surface, tolerance)))
-            })
+            .zip(&sides.poles)
+            .map(|((cells, part), &poles)| cells.map(|c| c.vertices(part.first_vertex, poles)))
             .collect();
-        let adaptive: Vec<bool> = cells.iter().map(Option::is_some).collect();
         let mut external: Vec<[Vec<(f64, u32)>; 4]> = vec![Default::default(); surfaces.len()];
         let mut same = Vec::new();
-        let mut joined = seams::asked_seams(surfaces, &adaptive, asked)?;
-        joined.extend(seams::find_seams(surfaces, &adaptive, &joined, tolerance));
-        for seam in joined {
+        for seam in sides.joined {
             let grid = |surface: usize| cells[surface].expect("seams join adaptive surfaces");
             let side_samples = |(surface, side): (usize, adaptive::Side)| {
                 grid(surface).side_samples(vertices[surface].as_ref().expect("planned"), side)
@@ -563,7 +603,7 @@ impl<'a> SeamSamples<'a> {
             let (first, second) = (side_samples(seam.first), side_samples(seam.second));
             let allowed = seams::allowed_gap(
                 [seam.first.0, seam.second.0].map(|k| grid(k).limits.tolerance),
-                diagonal,
+                sides.diagonal,
             );
             seams::check_gap(surfaces, &seam, &first, &second, allowed)?;
             let (pairs, [first_lacks, second_lacks]) =
@@ -664,15 +704,9 @@ fn layout_of(sampling: &[Sampling], triangles: &[u64]) -> Result<GridLayout> {
     })
 }
 
-/// The sampling of every surface under its options, planned in parallel; errors name the
-/// (first failing) surface.
+/// The sampling of every surface under its options (one each), planned in parallel; errors
+/// name the (first failing) surface.
 fn surface_sampling(surfaces: &[BSplineSurface], options: &[TessOptions]) -> Result<Vec<Sampling>> {
-    if options.len() != surfaces.len() {
-        return Err(Error::OptionsCount {
-            expected: surfaces.len(),
-            found: options.len(),
-        });
-    }
     let relative_to = options
         .iter()
         .any(|o| matches!(o.tolerance, Some(Tolerance::Relative(_))))
