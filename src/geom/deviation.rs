@@ -58,6 +58,24 @@ impl SamplingLimits {
 }
 
 impl DerivativeBound {
+    /// A bound over the union of the rectangles of `self` and `other`, neither with normal
+    /// rates (those are bounded per rectangle, away from a neighbourhood that scales with
+    /// it): the larger of each derivative's bounds, each bounding its magnitude over its
+    /// own rectangle.
+    pub fn union(&self, other: &DerivativeBound) -> DerivativeBound {
+        debug_assert!(self.normal_u == 0.0 && self.normal_v == 0.0);
+        debug_assert!(other.normal_u == 0.0 && other.normal_v == 0.0);
+        DerivativeBound {
+            u: self.u.max(other.u),
+            v: self.v.max(other.v),
+            uu: self.uu.max(other.uu),
+            uv: self.uv.max(other.uv),
+            vv: self.vv.max(other.vv),
+            normal_u: 0.0,
+            normal_v: 0.0,
+        }
+    }
+
     /// The longest an edge of parameter extents (h, k) can be: h·|S_u| + k·|S_v| (the mean
     /// value theorem along the edge).
     pub fn edge_length(&self, h: f64, k: f64) -> f64 {
@@ -747,6 +765,30 @@ mod tests {
             tight <= 1.15 && loose >= 1.4,
             "small cells: quotient {tight}×, magnitudes {loose}×"
         );
+    }
+
+    /// The union of the bounds of a patch's four quarters bounds every derivative over the
+    /// whole patch (sampled to the differences' own error), each component the larger of
+    /// the quarters' — here below the whole patch's own bound by magnitudes, whose box of
+    /// control points is wider.
+    #[test]
+    fn the_union_of_quarters_bounds_the_whole() {
+        let whole = patch();
+        let quarters = [(0.0, 0.5), (0.5, 1.0)].map(|(u0, u1)| {
+            let strip = whole.restricted_u(u0, u1);
+            [strip.restricted_v(0.0, 0.5), strip.restricted_v(0.5, 1.0)]
+        });
+        let bounds = quarters.as_flattened().iter().map(|q| q.magnitude_bound());
+        let union = bounds.clone().reduce(|a, b| a.union(&b)).unwrap();
+        let fields = |b: &DerivativeBound| [b.u, b.v, b.uu, b.uv, b.vv];
+        let most = sampled(&whole);
+        let own = fields(&whole.magnitude_bound());
+        for c in 0..5 {
+            let largest = bounds.clone().map(|b| fields(&b)[c]).fold(0.0, f64::max);
+            assert_eq!(fields(&union)[c], largest);
+            assert!(most[c] <= largest * (1.0 + 1e-5) + 1e-9, "component {c}");
+            assert!(largest < own[c], "component {c}: {largest} ≥ {}", own[c]);
+        }
     }
 
     /// The largest error of the linear interpolant of `f` over the triangle `corners`,

@@ -231,14 +231,28 @@ pub fn surface_cells(
             let (count_u, count_v) = (along_u[c].len(), along_v[r].len());
             let mut own = Vec::with_capacity(count_u * count_v);
             // Cells cut as the span's probes were are those pieces: their bounds are known
-            // (the same restriction of the same patch).
-            let probed = (span.probes == (count_u, count_v)).then_some(&span.bounded);
+            // (the same restriction of the same patch). Cells that are unions of k_u × k_v
+            // probe pieces are bounded by the larger of their pieces' bounds (without an
+            // angle limit: normal rates are bounded per rectangle).
+            let (p_u, p_v) = span.probes;
+            let merged = (p_u > 0 && p_u % count_u == 0 && p_v % count_v == 0)
+                .then(|| (p_u / count_u, p_v / count_v))
+                .filter(|&k| k == (1, 1) || !limits.max_angle.is_finite());
             for (a, &(u0, u1, u)) in along_u[c].iter().enumerate() {
                 // The column's strip (and a piece reused along it), cut where needed.
                 let mut cut: Option<(BezierPatch, BezierPatch)> = None;
                 for (b, &(v0, v1, v)) in along_v[r].iter().enumerate() {
-                    let (bound, segments) = match probed {
-                        Some(probes) => probes[b * count_u + a],
+                    let (bound, segments) = match merged {
+                        Some((1, 1)) => span.bounded[b * p_u + a],
+                        Some((k_u, k_v)) => {
+                            let pieces = (b * k_v..(b + 1) * k_v).flat_map(|j| {
+                                (a * k_u..(a + 1) * k_u).map(move |i| span.bounded[j * p_u + i].0)
+                            });
+                            let bound = pieces
+                                .reduce(|all, piece| all.union(&piece))
+                                .expect("k_u, k_v ≥ 1");
+                            (bound, segments_of(bound, u, v))
+                        }
                         None => {
                             let (strip, piece) = cut.get_or_insert_with(|| {
                                 let strip = patch.restricted_u(u0, u1);
