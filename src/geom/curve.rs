@@ -139,6 +139,7 @@ impl BSplineCurve {
         let (lo, hi) = super::cartesian_box(&self.points);
         (self.origin + lo, self.origin + hi)
     }
+    /// True when the curve was given weights (even if all of them are 1).
     pub fn is_rational(&self) -> bool {
         self.rational
     }
@@ -147,15 +148,17 @@ impl BSplineCurve {
     /// its end — the pieces over which the curve is a single polynomial (or rational).
     pub fn span_breaks(&self) -> Vec<f64> {
         let range = self.range;
-        let mut breaks = vec![range.start];
-        breaks.extend(
-            self.knots
-                .knots()
-                .iter()
-                .copied()
-                .filter(|&t| t > range.start && t < range.end),
-        );
-        breaks.push(range.end);
+        // The (sorted) knots held to the range, between its ends: knots outside it become
+        // its ends, and repeats go.
+        let mut breaks: Vec<f64> = std::iter::once(range.start)
+            .chain(
+                self.knots
+                    .knots()
+                    .iter()
+                    .map(|&t| t.clamp(range.start, range.end)),
+            )
+            .chain(std::iter::once(range.end))
+            .collect();
         breaks.dedup();
         breaks
     }
@@ -193,5 +196,87 @@ impl BSplineCurve {
         );
         curve.range = Interval::new(a + b - self.range.end, a + b - self.range.start);
         curve
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cubic_knots() -> KnotVector {
+        KnotVector::try_new(3, vec![0.0, 0.0, 0.0, 0.0, 1.0, 2.0, 2.0, 2.0, 2.0]).unwrap()
+    }
+
+    /// Homogeneous points are checked as Cartesian ones are: their count, each weight
+    /// finite and positive (the first bad one named), each coordinate finite.
+    #[test]
+    fn homogeneous_points_are_checked() {
+        let good = || vec![DVec4::new(1.0, 2.0, 3.0, 1.0); 5];
+        let build = |points| BSplineCurve::from_homogeneous(cubic_knots(), points, true);
+        assert!(build(good()).is_ok());
+        assert!(matches!(
+            build(good()[..4].to_vec()),
+            Err(Error::ControlPointCount {
+                expected: 5,
+                found: 4,
+                ..
+            })
+        ));
+        for w in [0.0, -0.5, f64::INFINITY, f64::NAN] {
+            let mut points = good();
+            points[3].w = w;
+            points[4].w = 0.0;
+            match build(points) {
+                Err(Error::InvalidWeight { index: 3, value }) => {
+                    assert!(value == w || (value.is_nan() && w.is_nan()))
+                }
+                other => panic!("weight {w}: {other:?}"),
+            }
+        }
+        let mut points = good();
+        points[2].y = f64::NAN;
+        assert!(matches!(
+            build(points),
+            Err(Error::ControlPointNotFinite { index: 2 })
+        ));
+        let relative = BSplineCurve::from_relative(cubic_knots(), DVec3::ONE, good(), false);
+        assert!(relative.is_ok_and(|c| c.control_point(0) == DVec3::new(2.0, 3.0, 4.0)));
+        let mut points = good();
+        points[1].w = 0.0;
+        assert!(matches!(
+            BSplineCurve::from_relative(cubic_knots(), DVec3::ONE, points, false),
+            Err(Error::InvalidWeight { index: 1, .. })
+        ));
+    }
+
+    /// A curve is rational when it was given weights, all 1 or not.
+    #[test]
+    fn given_weights_make_a_curve_rational() {
+        let points = [DVec3::X, DVec3::Y, DVec3::Z, DVec3::ONE, DVec3::NEG_X];
+        let knots = cubic_knots;
+        let plain = BSplineCurve::try_new(knots(), &points, None).unwrap();
+        let ones = BSplineCurve::try_new(knots(), &points, Some(&[1.0; 5])).unwrap();
+        let weighted = BSplineCurve::try_new(knots(), &points, Some(&[1.0, 2.0, 1.0, 0.5, 1.0]));
+        assert!(!plain.is_rational());
+        assert!(ones.is_rational() && weighted.unwrap().is_rational());
+    }
+
+    /// The pieces of the range: its ends and the distinct knots strictly inside it, also
+    /// where the range starts or ends on a knot or between knots.
+    #[test]
+    fn span_breaks_are_the_knots_inside_the_range() {
+        let knots = KnotVector::try_new(2, vec![0.0, 0.0, 0.0, 1.0, 1.0, 2.0, 3.0, 3.0, 3.0]);
+        let points = [DVec3::ZERO; 6];
+        let curve = BSplineCurve::try_new(knots.unwrap(), &points, None).unwrap();
+        assert_eq!(curve.span_breaks(), [0.0, 1.0, 2.0, 3.0]);
+        for (range, breaks) in [
+            ((1.0, 2.0), vec![1.0, 2.0]),
+            ((0.5, 2.5), vec![0.5, 1.0, 2.0, 2.5]),
+            ((1.0, 1.5), vec![1.0, 1.5]),
+            ((0.25, 0.75), vec![0.25, 0.75]),
+        ] {
+            let within = curve.clone().with_range(Interval::new(range.0, range.1));
+            assert_eq!(within.unwrap().span_breaks(), breaks, "{range:?}");
+        }
     }
 }
