@@ -58,24 +58,6 @@ impl SamplingLimits {
 }
 
 impl DerivativeBound {
-    /// A bound over the union of the rectangles of `self` and `other`, neither with normal
-    /// rates (those are bounded per rectangle, away from a neighbourhood that scales with
-    /// it): the larger of each derivative's bounds, each bounding its magnitude over its
-    /// own rectangle.
-    pub fn union(&self, other: &DerivativeBound) -> DerivativeBound {
-        debug_assert!(self.normal_u == 0.0 && self.normal_v == 0.0);
-        debug_assert!(other.normal_u == 0.0 && other.normal_v == 0.0);
-        DerivativeBound {
-            u: self.u.max(other.u),
-            v: self.v.max(other.v),
-            uu: self.uu.max(other.uu),
-            uv: self.uv.max(other.uv),
-            vv: self.vv.max(other.vv),
-            normal_u: 0.0,
-            normal_v: 0.0,
-        }
-    }
-
     /// The longest an edge of parameter extents (h, k) can be: h·|S_u| + k·|S_v| (the mean
     /// value theorem along the edge).
     pub fn edge_length(&self, h: f64, k: f64) -> f64 {
@@ -767,7 +749,7 @@ mod tests {
         );
     }
 
-    /// The union of the bounds of a patch's four quarters bounds every derivative over the
+    /// The larger of the bounds of a patch's four quarters bounds every derivative over the
     /// whole patch (sampled to the differences' own error), each component the larger of
     /// the quarters' — here below the whole patch's own bound by magnitudes, whose box of
     /// control points is wider.
@@ -779,7 +761,7 @@ mod tests {
             [strip.restricted_v(0.0, 0.5), strip.restricted_v(0.5, 1.0)]
         });
         let bounds = quarters.as_flattened().iter().map(|q| q.magnitude_bound());
-        let union = bounds.clone().reduce(|a, b| a.union(&b)).unwrap();
+        let union = bounds.clone().reduce(DerivativeBound::max).unwrap();
         let fields = |b: &DerivativeBound| [b.u, b.v, b.uu, b.uv, b.vv];
         let most = sampled(&whole);
         let own = fields(&whole.magnitude_bound());

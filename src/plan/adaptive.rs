@@ -248,9 +248,7 @@ pub fn surface_cells(
                             let pieces = (b * k_v..(b + 1) * k_v).flat_map(|j| {
                                 (a * k_u..(a + 1) * k_u).map(move |i| span.bounded[j * p_u + i].0)
                             });
-                            let bound = pieces
-                                .reduce(|all, piece| all.union(&piece))
-                                .expect("k_u, k_v ≥ 1");
+                            let bound = pieces.reduce(DerivativeBound::max).expect("k_u, k_v ≥ 1");
                             (bound, segments_of(bound, u, v))
                         }
                         None => {
