@@ -837,6 +837,148 @@ fn surface_split_preserves_the_surface() {
     ));
 }
 
+/// `surface` with its v knots mapped affinely onto [v0, v1] and each control point and
+/// weight replaced by `edit(i, j, point, weight)`.
+fn rebuilt(
+    surface: &BSplineSurface,
+    (v0, v1): (f64, f64),
+    edit: impl Fn(usize, usize, DVec3, f64) -> (DVec3, f64),
+) -> BSplineSurface {
+    let (a, b) = surface.knots_v().domain();
+    let knots_v: Vec<f64> = surface
+        .knots_v()
+        .knots()
+        .iter()
+        .map(|k| v0 + (k - a) / (b - a) * (v1 - v0))
+        .collect();
+    let knots_v = KnotVector::try_new(surface.degree_v(), knots_v).unwrap();
+    let (mut points, mut weights) = (Vec::new(), Vec::new());
+    for j in 0..surface.count_v() {
+        for i in 0..surface.count_u() {
+            let (p, w) = edit(i, j, surface.control_point(i, j), surface.weight(i, j));
+            points.push(p);
+            weights.push(w);
+        }
+    }
+    BSplineSurface::try_new(surface.knots_u().clone(), knots_v, &points, Some(&weights)).unwrap()
+}
+
+/// Splitting exactly at a range end is refused: the halves would be empty.
+#[test]
+fn splits_at_the_range_ends_are_refused() {
+    let torus = shapes::torus(DVec3::ZERO, 2.0, 0.5);
+    for t in [0.0, 1.0] {
+        for result in [torus.split_u(t), torus.split_v(t)] {
+            assert!(
+                matches!(result.unwrap_err(), Error::ParameterOutside { .. }),
+                "t = {t}"
+            );
+        }
+    }
+}
+
+/// Moving the seam of a closed surface whose domain does not start at 0 (v in [2, 5]):
+/// the range becomes [c, c + 3] and the surface is the same point set, shifted by the
+/// period past the old seam. Surfaces that do not close — an open section, a last row off
+/// by 1e-9 of the size, weights that differ by 1e-3, a range short of the domain, unclamped
+/// knots — are refused; rows and weights that agree to half the 1e-12 tolerance (at a size
+/// and weights of ~1e3, so the relative bound matters) are accepted.
+#[test]
+fn reseaming_moves_the_seam_of_closed_surfaces_only() {
+    let torus = shapes::torus(DVec3::ZERO, 2.0, 0.5);
+    let closed = rebuilt(&torus, (2.0, 5.0), |_, _, p, w| (p, w));
+    let c = 3.2;
+    let moved = closed.reseamed_v(c).expect("a full torus closes along v");
+    assert_eq!(moved.range_v(), Interval::new(c, c + 3.0));
+    assert_eq!(moved.range_u(), closed.range_u());
+    for u in params(8) {
+        for v in params(12).map(|t| 2.0 + 3.0 * t) {
+            let shifted = if v < c { v + 3.0 } else { v };
+            assert_close(
+                moved.point(u, shifted),
+                closed.point(u, v),
+                5.0,
+                "reseamed v",
+            );
+        }
+    }
+    let transposed = closed.transposed().reseamed_u(c).expect("closes along u");
+    assert_close(
+        transposed.point(4.0, 0.3),
+        closed.point(0.3, 4.0),
+        5.0,
+        "reseamed u",
+    );
+
+    let last = closed.count_v() - 1;
+    let size = closed.control_box_diagonal();
+    let nudged = rebuilt(&torus, (2.0, 5.0), |_, j, p, w| {
+        (
+            if j == last {
+                p + DVec3::X * 1e-9 * size
+            } else {
+                p
+            },
+            w,
+        )
+    });
+    let reweighted = rebuilt(&torus, (2.0, 5.0), |_, j, p, w| {
+        (p, if j == last { w * 1.001 } else { w })
+    });
+    let section = shapes::torus_section(
+        DVec3::ZERO,
+        2.0,
+        0.5,
+        Interval::new(0.0, 2.0 * PI),
+        Interval::new(0.0, 1.5 * PI),
+    )
+    .unwrap();
+    let shortened = closed
+        .clone()
+        .with_range(closed.range_u(), Interval::new(2.0, 4.5))
+        .unwrap();
+    let unclamped_knots = KnotVector::uniform(2, closed.count_v()).unwrap();
+    let (points, weights): (Vec<DVec3>, Vec<f64>) = (0..closed.count_v())
+        .flat_map(|j| (0..closed.count_u()).map(move |i| (i, j)))
+        .map(|(i, j)| (closed.control_point(i, j), closed.weight(i, j)))
+        .unzip();
+    let unclamped = BSplineSurface::try_new(
+        closed.knots_u().clone(),
+        unclamped_knots,
+        &points,
+        Some(&weights),
+    )
+    .unwrap();
+    for (what, surface) in [
+        ("nudged last row", &nudged),
+        ("last row's weights differ", &reweighted),
+        ("open section", &section),
+        ("range short of the domain", &shortened),
+        ("unclamped", &unclamped),
+    ] {
+        let c = surface.range_v().lerp(0.4);
+        assert!(surface.reseamed_v(c).is_none(), "{what} was reseamed");
+    }
+
+    // Size ~2.6e3 and weights ~1e3: agreement to half of 1e-12 relative is closed.
+    let scaled = |edit_last: bool| {
+        rebuilt(&torus, (2.0, 5.0), move |_, j, p, w| {
+            let (p, w) = (p * 512.0, w * 1024.0);
+            if edit_last && j == last {
+                (p + DVec3::X * 0.5e-12 * (512.0 * size), w * (1.0 + 0.5e-12))
+            } else {
+                (p, w)
+            }
+        })
+    };
+    assert!(scaled(false).control_box_diagonal() >= 512.0 * size * (1.0 - 1e-15));
+    let big = scaled(true);
+    assert!(
+        big.reseamed_v(c).is_some(),
+        "rows within the tolerance refused"
+    );
+}
+
 /// Degrees of the exact Coons conversion: polynomial boundaries keep deg α + p; rational arcs
 /// multiply weights (cubic blend over arcs: 3 + 2 + 2 = 7).
 #[test]
