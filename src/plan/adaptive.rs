@@ -158,10 +158,15 @@ pub fn surface_cells(
             let probes = |n: u32| cells_for(n).min(PROBE_PIECES);
             let (p_u, p_v) = (probes(n_u), probes(n_v));
             if p_u * p_v == 1 {
+                // A whole span worth one cell is bounded here as that cell would be (the
+                // cheap bound, no normal rates): kept for the cell if it is one.
+                let whole = clipped_u == patch.range_u && clipped_v == patch.range_v;
+                let as_cell = effort == BoundEffort::Magnitudes && !limits.max_angle.is_finite();
+                let kept = (whole && as_cell).then_some((bound, (n_u, n_v)));
                 return SpanRates {
                     rates: (n_u, n_v),
-                    probes: (0, 0),
-                    bounded: Vec::new(),
+                    probes: if kept.is_some() { (1, 1) } else { (0, 0) },
+                    bounded: kept.into_iter().collect(),
                 };
             }
             let (across_u, across_v) = (
@@ -298,7 +303,8 @@ pub fn surface_cells(
 struct SpanRates {
     /// Segments the span needs along u and v.
     rates: (u32, u32),
-    /// Probe pieces along u and v ((0, 0): the span was not probed, being one cell's worth).
+    /// Probe pieces along u and v ((0, 0): the span was not probed, being one cell's worth
+    /// whose bound differs from a cell's; (1, 1) where it is a cell's).
     probes: (usize, usize),
     /// Each probe piece's bound and segments, u fastest (empty where not probed).
     bounded: Vec<(DerivativeBound, (u32, u32))>,
