@@ -240,6 +240,9 @@ fn curve_operations_preserve_the_curve() {
     ];
     let weights = [1.0, 2.0, 0.5, 1.0, 3.0, 1.0];
     let nurbs = BSplineCurve::try_new(knots, &pts, Some(&weights)).unwrap();
+    let (lo, hi) = nurbs.control_box();
+    assert_close(lo, p2(0., -1.), 6.0, "control box, weighted points");
+    assert_close(hi, p2(5., 3.), 6.0, "control box, weighted points");
     let refined = nurbs.with_knot(1.7, 2).unwrap();
     assert_eq!(refined.homogeneous_points().len(), 8);
     let elevated = nurbs.elevated(5).unwrap();
