@@ -1858,6 +1858,55 @@ fn a_fold_inside_a_rational_patch_takes_its_limit_normal() {
     }
 }
 
+/// A double cone inside one rational span: S = apex + (2v − 1)·C(u), rows apex ∓ C_i with
+/// the same weights, so at v = ½ the apex has S_u = 0 while S_v = 2C ≠ 0 — the transpose of
+/// the fold above. The dominant control point there is a row's, not the apex, so the
+/// first-order limit's terms in S × S_v count (they cancel exactly in the true A₁; a wrong
+/// coefficient on either leaves a multiple of C_k × C). Weights 2⁻⁶..2⁶, dyadic coordinates
+/// 2¹⁷ from the origin; normals at (u, ½) against the exact oracle's limit toward the centre.
+#[test]
+fn an_apex_inside_a_rational_span_takes_its_limit_normal() {
+    let apex = DVec3::new(131072.0, -65536.0, 32768.0);
+    let generator = [
+        DVec3::new(1.0, 0.0, 0.5),
+        DVec3::new(0.5, 1.0, -0.25),
+        DVec3::new(-0.5, 1.25, 0.75),
+        DVec3::new(-1.0, 0.25, 0.5),
+    ];
+    let weights_u = [2.0, 0.015625, 64.0, 0.5];
+    let points: Vec<DVec3> = [-1.0, 1.0]
+        .iter()
+        .flat_map(|side| generator.iter().map(move |c| apex + *side * *c))
+        .collect();
+    let weights: Vec<f64> = weights_u.iter().chain(&weights_u).copied().collect();
+    let knots_u = vec![0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0];
+    let knots_v = vec![0.0, 0.0, 1.0, 1.0];
+    let surface = BSplineSurface::try_new(
+        KnotVector::try_new(3, knots_u.clone()).unwrap(),
+        KnotVector::try_new(1, knots_v.clone()).unwrap(),
+        &points,
+        Some(&weights),
+    )
+    .unwrap();
+    let oracle = common::exact::ExactSurface::new((3, 1), &knots_u, &knots_v, &points, &weights);
+    for u in [0.125, 0.375, 0.5, 0.75, 0.9375] {
+        let exact = oracle.evaluate(u, 0.5);
+        assert_eq!(exact.du, DVec3::ZERO, "the apex is exact at u = {u}");
+        let step_u = if u > 0.5 { -1.0 } else { 1.0 };
+        let limit = oracle
+            .limit_normal(u, 0.5, step_u, 1.0)
+            .expect("a first-order limit");
+        let ours = surface.evaluate(u, 0.5);
+        assert!(ours.position.distance(apex) <= 4.0 * f64::EPSILON * 131072.0);
+        let turned = angle(ours.normal, limit);
+        assert!(
+            turned <= 1e-6,
+            "u = {u}: normal {} is {turned:e} rad from the limit {limit}",
+            ours.normal
+        );
+    }
+}
+
 // ---------------------------------------------------------------- adaptive tessellation
 
 /// A random rational surface for the adaptive tests: degrees 1..=4, knots with
