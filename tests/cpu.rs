@@ -1794,20 +1794,20 @@ fn third_order_degeneracy_takes_the_sampled_limit() {
 }
 
 /// A fold inside a rational patch: each control column of a bicubic × quadratic patch runs
-/// out and back (its first and last points and weights equal), so the surface turns back on
-/// itself along v = ½, where S_v vanishes exactly (and S_uv with it) while S_u does not.
-/// There the point is not a control point: relative to the dominant control point it is not
-/// zero, so the first-order limit's terms in S count (at collapsed rows, the other tests'
-/// degenerate points, the point is the dominant control point and they vanish). Weights
-/// 2⁻⁶..2⁶ and coordinates on a dyadic grid 2¹⁷ from the origin, so the input is exact;
-/// normals at (u, ½) against the exact oracle's limit toward the centre, within the
-/// issue's 1e-6 rad for limit normals, from both sides of the middle.
+/// out and back (its first and last points equal, the last weight `ratio` times the first),
+/// so the surface turns back on itself where the homogeneous H_v is parallel to H, at
+/// v = 1/(1 + √ratio) — ½ for equal weights, ¼ for ninefold ones — where S_v vanishes
+/// exactly (and S_uv with it) while S_u does not. There the point is not a control point:
+/// relative to the dominant control point it is not zero, so the first-order limit's terms
+/// in S count (at collapsed rows, the other tests' degenerate points, the point is the
+/// dominant control point and they vanish), those in w_uv·S only where the weights are not
+/// symmetric about the fold. Weights 2⁻⁶..2⁶ (times 9) and coordinates on a dyadic grid 2¹⁷
+/// from the origin, so the input is exact; normals at the fold against the exact oracle's
+/// limit toward the centre, within the 1e-6 rad for limit normals.
 #[test]
 fn a_fold_inside_a_rational_patch_takes_its_limit_normal() {
     let offset = DVec3::new(131072.0, -65536.0, 32768.0);
-    let mut points = Vec::new();
-    let mut weights = Vec::new();
-    // Rows j = 0, 1, 2 of four points each (u fastest); row 2 repeats row 0.
+    // Rows j = 0, 1, 2 of four points each (u fastest); row 2 repeats row 0's points.
     let row = |j: usize, i: usize| {
         let (x, k) = (i as f64, j as f64);
         match j % 2 {
@@ -1821,49 +1821,56 @@ fn a_fold_inside_a_rational_patch_takes_its_limit_normal() {
             ),
         }
     };
-    for j in 0..3 {
-        for i in 0..4 {
-            let (p, w) = row(j, i);
-            points.push(p + offset);
-            weights.push(w);
-        }
-    }
     let knots_u = vec![0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0];
     let knots_v = vec![0.0, 0.0, 0.0, 1.0, 1.0, 1.0];
-    let surface = BSplineSurface::try_new(
-        KnotVector::try_new(3, knots_u.clone()).unwrap(),
-        KnotVector::try_new(2, knots_v.clone()).unwrap(),
-        &points,
-        Some(&weights),
-    )
-    .unwrap();
-    let oracle = common::exact::ExactSurface::new((3, 2), &knots_u, &knots_v, &points, &weights);
-    for u in [0.125, 0.375, 0.5, 0.75, 0.9375] {
-        let exact = oracle.evaluate(u, 0.5);
-        assert_eq!(exact.dv, DVec3::ZERO, "the fold is exact at u = {u}");
-        let step_u = if u > 0.5 { -1.0 } else { 1.0 };
-        let limit = oracle
-            .limit_normal(u, 0.5, step_u, 1.0)
-            .expect("a first-order limit");
-        let ours = surface.evaluate(u, 0.5);
-        assert!(
-            ours.position.distance(exact.position) <= 1e-12 * 8.0 + 4.0 * f64::EPSILON * 131072.0
-        );
-        let turned = angle(ours.normal, limit);
-        assert!(
-            turned <= 1e-6,
-            "u = {u}: normal {} is {turned:e} rad from the limit {limit}",
-            ours.normal
-        );
+    for (ratio, fold) in [(1.0, 0.5), (9.0, 0.25)] {
+        let (mut points, mut weights) = (Vec::new(), Vec::new());
+        for j in 0..3 {
+            for i in 0..4 {
+                let (p, w) = row(j, i);
+                points.push(p + offset);
+                weights.push(if j == 2 { ratio * w } else { w });
+            }
+        }
+        let surface = BSplineSurface::try_new(
+            KnotVector::try_new(3, knots_u.clone()).unwrap(),
+            KnotVector::try_new(2, knots_v.clone()).unwrap(),
+            &points,
+            Some(&weights),
+        )
+        .unwrap();
+        let oracle =
+            common::exact::ExactSurface::new((3, 2), &knots_u, &knots_v, &points, &weights);
+        for u in [0.125, 0.375, 0.5, 0.75, 0.9375] {
+            let exact = oracle.evaluate(u, fold);
+            assert_eq!(exact.dv, DVec3::ZERO, "the fold is exact at ({u}, {fold})");
+            let step_u = if u > 0.5 { -1.0 } else { 1.0 };
+            let limit = oracle
+                .limit_normal(u, fold, step_u, 1.0)
+                .expect("a first-order limit");
+            let ours = surface.evaluate(u, fold);
+            assert!(
+                ours.position.distance(exact.position)
+                    <= 1e-12 * 8.0 + 4.0 * f64::EPSILON * 131072.0
+            );
+            let turned = angle(ours.normal, limit);
+            assert!(
+                turned <= 1e-6,
+                "({u}, {fold}): normal {} is {turned:e} rad from the limit {limit}",
+                ours.normal
+            );
+        }
     }
 }
 
-/// A double cone inside one rational span: S = apex + (2v − 1)·C(u), rows apex ∓ C_i with
-/// the same weights, so at v = ½ the apex has S_u = 0 while S_v = 2C ≠ 0 — the transpose of
-/// the fold above. The dominant control point there is a row's, not the apex, so the
-/// first-order limit's terms in S × S_v count (they cancel exactly in the true A₁; a wrong
-/// coefficient on either leaves a multiple of C_k × C). Weights 2⁻⁶..2⁶, dyadic coordinates
-/// 2¹⁷ from the origin; normals at (u, ½) against the exact oracle's limit toward the centre.
+/// A double cone inside one rational span, the transpose of the fold above: rows apex − C_i
+/// and apex + C_i with weights w_i and `ratio`·w_i, so S = apex + f(v)·C(u) with f zero at
+/// v = 1/(1 + ratio) — ½ for equal weights, ¼ for threefold ones (where w_uv does not
+/// vanish) — where S_u = 0 while S_v ≠ 0. The dominant control point there is a row's, not
+/// the apex, so the first-order limit's terms in S × S_v count (they cancel exactly in the
+/// true A₁; a wrong coefficient on one leaves a multiple of C_k × C). Weights 2⁻⁶..2⁶ (times
+/// 3), dyadic coordinates 2¹⁷ from the origin; normals at the apex against the exact
+/// oracle's limit toward the centre, within 1e-6 rad.
 #[test]
 fn an_apex_inside_a_rational_span_takes_its_limit_normal() {
     let apex = DVec3::new(131072.0, -65536.0, 32768.0);
@@ -1874,36 +1881,41 @@ fn an_apex_inside_a_rational_span_takes_its_limit_normal() {
         DVec3::new(-1.0, 0.25, 0.5),
     ];
     let weights_u = [2.0, 0.015625, 64.0, 0.5];
-    let points: Vec<DVec3> = [-1.0, 1.0]
-        .iter()
-        .flat_map(|side| generator.iter().map(move |c| apex + *side * *c))
-        .collect();
-    let weights: Vec<f64> = weights_u.iter().chain(&weights_u).copied().collect();
     let knots_u = vec![0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0];
     let knots_v = vec![0.0, 0.0, 1.0, 1.0];
-    let surface = BSplineSurface::try_new(
-        KnotVector::try_new(3, knots_u.clone()).unwrap(),
-        KnotVector::try_new(1, knots_v.clone()).unwrap(),
-        &points,
-        Some(&weights),
-    )
-    .unwrap();
-    let oracle = common::exact::ExactSurface::new((3, 1), &knots_u, &knots_v, &points, &weights);
-    for u in [0.125, 0.375, 0.5, 0.75, 0.9375] {
-        let exact = oracle.evaluate(u, 0.5);
-        assert_eq!(exact.du, DVec3::ZERO, "the apex is exact at u = {u}");
-        let step_u = if u > 0.5 { -1.0 } else { 1.0 };
-        let limit = oracle
-            .limit_normal(u, 0.5, step_u, 1.0)
-            .expect("a first-order limit");
-        let ours = surface.evaluate(u, 0.5);
-        assert!(ours.position.distance(apex) <= 4.0 * f64::EPSILON * 131072.0);
-        let turned = angle(ours.normal, limit);
-        assert!(
-            turned <= 1e-6,
-            "u = {u}: normal {} is {turned:e} rad from the limit {limit}",
-            ours.normal
-        );
+    for (ratio, at) in [(1.0, 0.5), (3.0, 0.25)] {
+        let points: Vec<DVec3> = [-1.0, 1.0]
+            .iter()
+            .flat_map(|side| generator.iter().map(move |c| apex + *side * *c))
+            .collect();
+        let weights: Vec<f64> = (weights_u.iter().copied())
+            .chain(weights_u.iter().map(|w| ratio * w))
+            .collect();
+        let surface = BSplineSurface::try_new(
+            KnotVector::try_new(3, knots_u.clone()).unwrap(),
+            KnotVector::try_new(1, knots_v.clone()).unwrap(),
+            &points,
+            Some(&weights),
+        )
+        .unwrap();
+        let oracle =
+            common::exact::ExactSurface::new((3, 1), &knots_u, &knots_v, &points, &weights);
+        for u in [0.125, 0.375, 0.5, 0.75, 0.9375] {
+            let exact = oracle.evaluate(u, at);
+            assert_eq!(exact.du, DVec3::ZERO, "the apex is exact at ({u}, {at})");
+            let step_u = if u > 0.5 { -1.0 } else { 1.0 };
+            let limit = oracle
+                .limit_normal(u, at, step_u, 1.0)
+                .expect("a first-order limit");
+            let ours = surface.evaluate(u, at);
+            assert!(ours.position.distance(apex) <= 4.0 * f64::EPSILON * 131072.0);
+            let turned = angle(ours.normal, limit);
+            assert!(
+                turned <= 1e-6,
+                "({u}, {at}): normal {} is {turned:e} rad from the limit {limit}",
+                ours.normal
+            );
+        }
     }
 }
 
