@@ -459,6 +459,29 @@ fn teapot_normals_point_out_and_are_never_degenerate() {
     }
 }
 
+/// A surface with no tangent plane anywhere — every control point at one place, or all on
+/// one line — gets the documented +Z at every (u, v), finite, and its position; the point's
+/// degeneracy threshold is zero (its size is), which must still count a zero S_u × S_v as
+/// degenerate.
+#[test]
+fn surfaces_collapsed_to_a_point_or_a_line_face_up() {
+    let knots = || KnotVector::clamped_uniform(2, 3).unwrap();
+    let at = DVec3::new(3.0, -2.0, 0.5);
+    let point = BSplineSurface::try_new(knots(), knots(), &[at; 9], None).unwrap();
+    let line: Vec<DVec3> = (0..9)
+        .map(|k| at + DVec3::new(1.0, 2.0, -1.0) * (k % 3 + k / 3) as f64)
+        .collect();
+    let weights = [1.0, 2.0, 0.5, 1.5, 1.0, 0.25, 4.0, 1.0, 1.0];
+    let line = BSplineSurface::try_new(knots(), knots(), &line, Some(&weights)).unwrap();
+    for (u, v) in [(0.0, 0.0), (0.5, 0.25), (1.0, 0.75), (0.3, 1.0)] {
+        let s = point.evaluate(u, v);
+        assert_eq!(s.normal, DVec3::Z, "point at ({u}, {v})");
+        assert_eq!(s.position, at);
+        let s = line.evaluate(u, v);
+        assert_eq!(s.normal, DVec3::Z, "line at ({u}, {v})");
+    }
+}
+
 #[test]
 fn unclamped_uniform_surface_from_the_obj_spec_faces_up() {
     // The spec's uniform bicubic B-spline example: knots -3..4, surf 0 1 0 1, a flat 4×4 net.
