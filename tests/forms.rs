@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::EXACT_REL;
+use common::{EXACT_REL, angle};
 use glam::DVec3;
 use knotwork::geom::curves::{self, Continuity};
 use knotwork::geom::patches::{self, Blend, CoonsBoundaries, HermiteCorners};
@@ -458,6 +458,51 @@ fn direct_coons_evaluation() {
             assert!(
                 (a.normal - b.normal).length() < 1e-9,
                 "normal at ({u}, {v})"
+            );
+        }
+    }
+    // A boundary collapsed to a point (a pole along v = 0): the direct patch's limit normals
+    // there (from its own second derivatives) are the exact conversion's, which are the
+    // limits along the diagonal toward the centre (the conversion's normal 1e-7 along it).
+    // At the corners of the cubic blend, where α′ = 0, the first-order term vanishes too
+    // and the direct patch, having no third derivatives, samples S_u × S_v 1e-6 along the
+    // diagonal: 3.6e-6 and 3.1e-6 rad from the conversion's limit measured at (0, 0) and
+    // (1, 0); elsewhere 3e-16.
+    let pole = bezier_curve(1, &[DVec3::ZERO, DVec3::ZERO], None).unwrap();
+    let to_far_corner = bezier_curve(
+        3,
+        &[
+            DVec3::ZERO,
+            DVec3::new(1.2, 1., -0.5),
+            DVec3::new(2.5, 2., 0.4),
+            DVec3::new(2., 3., 0.),
+        ],
+        None,
+    )
+    .unwrap();
+    let fan = || CoonsBoundaries {
+        v0: &pole,
+        v1,
+        u0,
+        u1: &to_far_corner,
+    };
+    for (blend, cubic) in [(Blend::Linear, false), (Blend::Cubic, true)] {
+        let exact = patches::coons(fan(), &blend, 1e-12).unwrap();
+        let direct = patches::coons_patch(fan(), blend, 1e-12).unwrap();
+        for u in [0.0, 0.2, 0.5, 0.8, 1.0] {
+            let (a, b) = (direct.evaluate(u, 0.0), exact.evaluate(u, 0.0));
+            assert_eq!(a.du, DVec3::ZERO, "a pole at u = {u}");
+            let toward_centre = if u > 0.5 { -1e-7 } else { 1e-7 };
+            let near = exact.evaluate(u + toward_centre, 1e-7).normal;
+            // The normal turns by up to ~2 rad per unit here: 2.6e-7 measured over the step.
+            assert!(angle(b.normal, near) < 1e-6, "u = {u}: {}", b.normal);
+            let sampled_corner = cubic && (u == 0.0 || u == 1.0);
+            let bar = if sampled_corner { 1e-5 } else { 1e-9 };
+            assert!(
+                angle(a.normal, b.normal) < bar,
+                "pole normal at u = {u}: {} vs {}",
+                a.normal,
+                b.normal
             );
         }
     }
