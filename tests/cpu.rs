@@ -1816,6 +1816,70 @@ fn third_order_degeneracy_takes_the_sampled_limit() {
     }
 }
 
+/// A second-order degenerate corner: a bicubic patch whose v = 0 row is collapsed to a pole
+/// and whose next row leaves the pole's corner radially (P₁₁ − P₀₁ ∥ P₀₁ − pole), so at
+/// (0, 0) the first-order term vanishes exactly too and the limit comes from third
+/// derivatives. On a domain [0, 2] × [0, ½] (the diagonal's steps ±2 and ±½ weigh the
+/// third derivatives unequally), and transposed (where S_v's directional derivatives carry
+/// the term instead of S_u's): within 1e-9 rad of the exact normal 1e-12 along the diagonal.
+#[test]
+fn a_second_order_degenerate_corner_takes_its_limit_normal() {
+    let pole = DVec3::new(0.0, 0.0, 0.0);
+    let next = [
+        DVec3::new(1.0, 0.0, 0.25),
+        DVec3::new(1.5, 0.0, 0.375),
+        DVec3::new(1.0, 1.5, 0.5),
+        DVec3::new(0.5, 2.0, 0.0),
+    ];
+    let far = [
+        [
+            (-0.5, 1.0, 0.75),
+            (1.0, 2.0, 1.0),
+            (2.0, 2.5, 0.5),
+            (1.0, 3.0, -0.25),
+        ],
+        [
+            (-1.0, 2.0, 1.0),
+            (0.5, 3.0, 1.25),
+            (1.5, 3.5, 0.75),
+            (0.75, 4.0, 0.0),
+        ],
+    ];
+    let points: Vec<DVec3> = std::iter::repeat_n(pole, 4)
+        .chain(next)
+        .chain(far.iter().flatten().map(|&(x, y, z)| DVec3::new(x, y, z)))
+        .collect();
+    let weights = [
+        1.0, 2.0, 0.5, 1.0, 1.0, 0.5, 2.0, 1.0, 1.0, 1.0, 4.0, 1.0, 0.5, 1.0, 1.0, 2.0,
+    ];
+    let knots_u = vec![0.0, 0.0, 0.0, 0.0, 2.0, 2.0, 2.0, 2.0];
+    let knots_v = vec![0.0, 0.0, 0.0, 0.0, 0.5, 0.5, 0.5, 0.5];
+    let surface = BSplineSurface::try_new(
+        KnotVector::try_new(3, knots_u.clone()).unwrap(),
+        KnotVector::try_new(3, knots_v.clone()).unwrap(),
+        &points,
+        Some(&weights),
+    )
+    .unwrap();
+    let oracle = common::exact::ExactSurface::new((3, 3), &knots_u, &knots_v, &points, &weights);
+    assert_eq!(
+        oracle.limit_normal(0.0, 0.0, 2.0, 0.5),
+        None,
+        "first order vanishes"
+    );
+    let near = oracle.evaluate(2e-12, 0.5e-12).normal;
+    let ours = surface.evaluate(0.0, 0.0).normal;
+    let turned = angle(ours, near);
+    assert!(turned <= 1e-9, "{ours} is {turned:e} rad from {near}");
+    let transposed = surface.transposed().evaluate(0.0, 0.0).normal;
+    let turned = angle(transposed, -near);
+    assert!(
+        turned <= 1e-9,
+        "transposed: {transposed} is {turned:e} rad from {}",
+        -near
+    );
+}
+
 /// A fold inside a rational patch: each control column of a bicubic × quadratic patch runs
 /// out and back (its first and last points equal, the last weight `ratio` times the first),
 /// so the surface turns back on itself where the homogeneous H_v is parallel to H, at
