@@ -1723,14 +1723,25 @@ fn rational_bezier_with_oracle(
     weights: &[f64],
 ) -> (BSplineSurface, common::exact::ExactSurface) {
     let knots = [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0];
+    rational_with_oracle((3, 3), &knots, &knots, points, weights)
+}
+
+/// A rational surface of `degrees` (u, v) and the exact oracle of the same input.
+fn rational_with_oracle(
+    (p, q): (usize, usize),
+    knots_u: &[f64],
+    knots_v: &[f64],
+    points: &[DVec3],
+    weights: &[f64],
+) -> (BSplineSurface, common::exact::ExactSurface) {
     let surface = BSplineSurface::try_new(
-        KnotVector::try_new(3, knots.to_vec()).unwrap(),
-        KnotVector::try_new(3, knots.to_vec()).unwrap(),
+        KnotVector::try_new(p, knots_u.to_vec()).unwrap(),
+        KnotVector::try_new(q, knots_v.to_vec()).unwrap(),
         points,
         Some(weights),
     )
     .unwrap();
-    let oracle = common::exact::ExactSurface::new((3, 3), &knots, &knots, points, weights);
+    let oracle = common::exact::ExactSurface::new((p, q), knots_u, knots_v, points, weights);
     (surface, oracle)
 }
 
@@ -1854,14 +1865,7 @@ fn a_second_order_degenerate_corner_takes_its_limit_normal() {
     ];
     let knots_u = vec![0.0, 0.0, 0.0, 0.0, 2.0, 2.0, 2.0, 2.0];
     let knots_v = vec![0.0, 0.0, 0.0, 0.0, 0.5, 0.5, 0.5, 0.5];
-    let surface = BSplineSurface::try_new(
-        KnotVector::try_new(3, knots_u.clone()).unwrap(),
-        KnotVector::try_new(3, knots_v.clone()).unwrap(),
-        &points,
-        Some(&weights),
-    )
-    .unwrap();
-    let oracle = common::exact::ExactSurface::new((3, 3), &knots_u, &knots_v, &points, &weights);
+    let (surface, oracle) = rational_with_oracle((3, 3), &knots_u, &knots_v, &points, &weights);
     assert_eq!(
         oracle.limit_normal(0.0, 0.0, 2.0, 0.5),
         None,
@@ -1919,15 +1923,7 @@ fn a_fold_inside_a_rational_patch_takes_its_limit_normal() {
                 weights.push(if j == 2 { ratio * w } else { w });
             }
         }
-        let surface = BSplineSurface::try_new(
-            KnotVector::try_new(3, knots_u.clone()).unwrap(),
-            KnotVector::try_new(2, knots_v.clone()).unwrap(),
-            &points,
-            Some(&weights),
-        )
-        .unwrap();
-        let oracle =
-            common::exact::ExactSurface::new((3, 2), &knots_u, &knots_v, &points, &weights);
+        let (surface, oracle) = rational_with_oracle((3, 2), &knots_u, &knots_v, &points, &weights);
         for u in [0.125, 0.375, 0.5, 0.75, 0.9375] {
             let exact = oracle.evaluate(u, fold);
             assert_eq!(exact.dv, DVec3::ZERO, "the fold is exact at ({u}, {fold})");
@@ -1978,15 +1974,7 @@ fn an_apex_inside_a_rational_span_takes_its_limit_normal() {
         let weights: Vec<f64> = (weights_u.iter().copied())
             .chain(weights_u.iter().map(|w| ratio * w))
             .collect();
-        let surface = BSplineSurface::try_new(
-            KnotVector::try_new(3, knots_u.clone()).unwrap(),
-            KnotVector::try_new(1, knots_v.clone()).unwrap(),
-            &points,
-            Some(&weights),
-        )
-        .unwrap();
-        let oracle =
-            common::exact::ExactSurface::new((3, 1), &knots_u, &knots_v, &points, &weights);
+        let (surface, oracle) = rational_with_oracle((3, 1), &knots_u, &knots_v, &points, &weights);
         for u in [0.125, 0.375, 0.5, 0.75, 0.9375] {
             let exact = oracle.evaluate(u, at);
             assert_eq!(exact.du, DVec3::ZERO, "the apex is exact at ({u}, {at})");
