@@ -497,7 +497,7 @@ fn direct_coons_evaluation() {
             // The normal turns by up to ~2 rad per unit here: 2.6e-7 measured over the step.
             assert!(angle(b.normal, near) < 1e-6, "u = {u}: {}", b.normal);
             let sampled_corner = cubic && (u == 0.0 || u == 1.0);
-            let bar = if sampled_corner { 1e-5 } else { 1e-9 };
+            let bar = if sampled_corner { 1e-5 } else { 1e-12 };
             assert!(
                 angle(a.normal, b.normal) < bar,
                 "pole normal at u = {u}: {} vs {}",
