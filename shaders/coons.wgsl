@@ -2,7 +2,7 @@
 //
 // curves.wgsl first samples every patch's four boundary curves (position, C′, C″ relative to
 // the patch origin) at the grid's columns and rows; the host (src/gpu/coons.rs) tabulates
-// the blend α, α′, α″ there in f64. One invocation per vertex combines them by the Coons
+// the blend α, 1 − α (without cancellation), α′, α″ there in f64. One invocation per vertex combines them by the Coons
 // formula
 //   S = α(v)S(u,0) + (1−α(v))S(u,1) + α(u)S(0,v) + (1−α(u))S(1,v) − corner terms,
 // differentiated factor by factor, takes unit(S_u × S_v) (its first-order limit where that
@@ -26,7 +26,7 @@ struct CoonsJob {
     // Its boundary samples: S(u,0) at grid_u columns, then S(u,1), then S(0,v) at grid_v
     // rows, then S(1,v) (units of samples).
     first_sample: u32,
-    // Its blend table: [α, α′, α″] per column, then per row (f32 units).
+    // Its blend table: [α, 1 − α, α′, α″] per column, then per row (f32 units).
     blend_table: u32,
     pad: u32,
 }
@@ -76,30 +76,32 @@ fn blend_coons(@builtin(global_invocation_id) gid: vec3<u32>,
     let v1 = 3u * (job.first_sample + nu + i);
     let u0 = 3u * (job.first_sample + 2u * nu + j);
     let u1 = 3u * (job.first_sample + 2u * nu + nv + j);
-    let bu = job.blend_table + 3u * i;
-    let bv = job.blend_table + 3u * (nu + j);
+    let bu = job.blend_table + 4u * i;
+    let bv = job.blend_table + 4u * (nu + j);
     let a = blends[bu];
+    let ca = blends[bu + 1u];
     let b = blends[bv];
-    let s = coons_term(job, a, 1.0 - a, b, 1.0 - b,
+    let cb = blends[bv + 1u];
+    let s = coons_term(job, a, ca, b, cb,
         samples[v0].xyz, samples[v1].xyz, samples[u0].xyz, samples[u1].xyz);
-    let au = blends[bu + 1u];
-    let bv1 = blends[bv + 1u];
-    let su = coons_term(job, au, -au, b, 1.0 - b,
+    let au = blends[bu + 2u];
+    let bv1 = blends[bv + 2u];
+    let su = coons_term(job, au, -au, b, cb,
         samples[v0 + 1u].xyz, samples[v1 + 1u].xyz, samples[u0].xyz, samples[u1].xyz);
-    let sv = coons_term(job, a, 1.0 - a, bv1, -bv1,
+    let sv = coons_term(job, a, ca, bv1, -bv1,
         samples[v0].xyz, samples[v1].xyz, samples[u0 + 1u].xyz, samples[u1 + 1u].xyz);
     let u = f32(i) / f32(nu - 1u);
     let v = f32(j) / f32(nv - 1u);
     var normal = cross(su, sv);
     if (dot(normal, normal) <= job.degenerate_sq) {
         // The limit toward the centre of [0, 1]² (grid_common.wgsl).
-        let auu = blends[bu + 2u];
-        let bvv = blends[bv + 2u];
-        let suu = coons_term(job, auu, -auu, b, 1.0 - b,
+        let auu = blends[bu + 3u];
+        let bvv = blends[bv + 3u];
+        let suu = coons_term(job, auu, -auu, b, cb,
             samples[v0 + 2u].xyz, samples[v1 + 2u].xyz, samples[u0].xyz, samples[u1].xyz);
         let suv = coons_term(job, au, -au, bv1, -bv1,
             samples[v0 + 1u].xyz, samples[v1 + 1u].xyz, samples[u0 + 1u].xyz, samples[u1 + 1u].xyz);
-        let svv = coons_term(job, a, 1.0 - a, bvv, -bvv,
+        let svv = coons_term(job, a, ca, bvv, -bvv,
             samples[v0].xyz, samples[v1].xyz, samples[u0 + 2u].xyz, samples[u1 + 2u].xyz);
         normal = first_order_limit_normal(su, sv, suu, suv, svv, vec2<f32>(1.0), vec2<f32>(u, v),
                                           job.degenerate_sq);

@@ -465,9 +465,10 @@ fn direct_coons_evaluation() {
     // there (from its own second derivatives) are the exact conversion's, which are the
     // limits along the diagonal toward the centre (the conversion's normal 1e-7 along it).
     // At the corners of the cubic blend, where α′ = 0, the first-order term vanishes too
-    // and the direct patch, having no third derivatives, samples S_u × S_v 1e-6 along the
-    // diagonal: 3.6e-6 and 3.1e-6 rad from the conversion's limit measured at (0, 0) and
-    // (1, 0); elsewhere 3e-16.
+    // and the limit is the second-order term's, from the patch's third derivatives (measured
+    // ≤ 3.2e-16 rad from the conversion's). A blend given as a function has no third
+    // derivative: there the normal is sampled 1e-6 along the diagonal, 3.6e-6 and 3.1e-6 rad
+    // from the limit at (0, 0) and (1, 0).
     let pole = bezier_curve(1, &[DVec3::ZERO, DVec3::ZERO], None).unwrap();
     let to_far_corner = bezier_curve(
         3,
@@ -486,8 +487,14 @@ fn direct_coons_evaluation() {
         u0,
         u1: &to_far_corner,
     };
-    for (blend, cubic) in [(Blend::Linear, false), (Blend::Cubic, true)] {
-        let exact = patches::coons(fan(), &blend, 1e-12).unwrap();
+    let cubic_function: fn(f64) -> [f64; 3] = |t| Blend::Cubic.derivatives(t);
+    // (the blend, its polynomial for the conversion, whether it has no third derivative)
+    for (blend, polynomial, sampled) in [
+        (Blend::Linear, Blend::Linear, false),
+        (Blend::Cubic, Blend::Cubic, false),
+        (Blend::Function(cubic_function), Blend::Cubic, true),
+    ] {
+        let exact = patches::coons(fan(), &polynomial, 1e-12).unwrap();
         let direct = patches::coons_patch(fan(), blend, 1e-12).unwrap();
         for u in [0.0, 0.2, 0.5, 0.8, 1.0] {
             let (a, b) = (direct.evaluate(u, 0.0), exact.evaluate(u, 0.0));
@@ -496,7 +503,7 @@ fn direct_coons_evaluation() {
             let near = exact.evaluate(u + toward_centre, 1e-7).normal;
             // The normal turns by up to ~2 rad per unit here: 2.6e-7 measured over the step.
             assert!(angle(b.normal, near) < 1e-6, "u = {u}: {}", b.normal);
-            let sampled_corner = cubic && (u == 0.0 || u == 1.0);
+            let sampled_corner = sampled && (u == 0.0 || u == 1.0);
             let bar = if sampled_corner { 1e-5 } else { 1e-12 };
             assert!(
                 angle(a.normal, b.normal) < bar,
@@ -505,6 +512,31 @@ fn direct_coons_evaluation() {
                 b.normal
             );
         }
+    }
+    // Just off the pole the cross product is tiny but not noise: its terms are the blend's
+    // small values, 1 − α(v) ≈ 3v² among them. Formed as 1 − α that term kept a thousandth of
+    // its digits at v = 1e-7 and the direct cubic patch's normal was 1.7e-4 rad from the
+    // conversion's at (1e-7, 1e-7); from the blend's Bernstein form, ≤ 2.6e-10 measured.
+    let direct = patches::coons_patch(fan(), Blend::Cubic, 1e-12).unwrap();
+    let exact = patches::coons(fan(), &Blend::Cubic, 1e-12).unwrap();
+    for h in [1e-4, 1e-5, 1e-6, 1e-7] {
+        for (u, v) in [(h, h), (1.0 - h, h), (0.3, h)] {
+            let (a, b) = (direct.evaluate(u, v).normal, exact.evaluate(u, v).normal);
+            assert!(
+                angle(a, b) < 1e-9,
+                "near the pole at ({u}, {v}): {a} vs {b}"
+            );
+        }
+    }
+    // The cosine blend (no conversion) has α′ = 0 at its ends too: its pole corners' normals
+    // are the second-order limits, against the normal 1e-7 along the diagonal, which
+    // converges to them linearly (measured 1.6e-8 and 2.0e-7 rad; the sampled fallback
+    // would be ~3e-6 off, 1 − α formed by cancellation 2.4e-4).
+    let cosine_fan = patches::coons_patch(fan(), Blend::Cosine, 1e-12).unwrap();
+    for (u, toward_centre) in [(0.0, 1e-7), (1.0, -1e-7)] {
+        let limit = cosine_fan.evaluate(u, 0.0).normal;
+        let near = cosine_fan.evaluate(u + toward_centre, 1e-7).normal;
+        assert!(angle(limit, near) < 1e-6, "cosine pole corner u = {u}");
     }
     let cosine = patches::coons_patch(bounds(), Blend::Cosine, 1e-12).unwrap();
     let at = |c: &BSplineCurve, t: f64| c.point(c.range().lerp(t));
@@ -540,6 +572,8 @@ fn direct_coons_evaluation() {
         assert!((a - 0.5 * (1.0 + (PI * t).cos())).abs() < 1e-15);
         assert!((a1 + 0.5 * PI * (PI * t).sin()).abs() < 1e-14);
         assert!((a2 + 0.5 * PI * PI * (PI * t).cos()).abs() < 1e-14);
+        let a3 = Blend::Cosine.third_derivative(t).unwrap();
+        assert!((a3 - 0.5 * PI * PI * PI * (PI * t).sin()).abs() < 1e-13);
     }
     // Polynomial blends: the notes' cubic α = 1 − 3t² + 2t³, α′ = 6t² − 6t, α″ = 12t − 6.
     for t in params(11) {
@@ -547,6 +581,55 @@ fn direct_coons_evaluation() {
         assert!((a - (1.0 - 3.0 * t * t + 2.0 * t * t * t)).abs() < 1e-15);
         assert!((a1 - (6.0 * t * t - 6.0 * t)).abs() < 1e-14);
         assert!((a2 - (12.0 * t - 6.0)).abs() < 1e-14);
+        assert_eq!(Blend::Cubic.third_derivative(t), Some(12.0));
+        // The quintic α = 1 − 10t³ + 15t⁴ − 6t⁵: α‴ = −60 + 360t − 360t².
+        let a3 = Blend::Quintic.third_derivative(t).unwrap();
+        assert!((a3 - (-60.0 + 360.0 * t - 360.0 * t * t)).abs() < 1e-12);
+        assert_eq!(Blend::Linear.third_derivative(t), Some(0.0));
+    }
+    // Near either end the small one of α and 1 − α keeps its own relative precision: at
+    // distance d from the end, the cubic's is 3d² − 2d³ and the cosine's sin²(πd/2).
+    for d in [1e-9, 1e-7, 1e-4, 0.1] {
+        let far_end = 1.0 - d;
+        let d_exact = 1.0 - far_end; // exact (Sterbenz): the distance far_end really has
+        let close = |x: f64, y: f64, what: &str| {
+            assert!(
+                (x - y).abs() <= 1e-14 * y.abs(),
+                "{what} at d = {d}: {x} vs {y}"
+            );
+        };
+        let cubic_small = |d: f64| 3.0 * d * d - 2.0 * d * d * d;
+        close(
+            Blend::Cubic.sample(d).complement,
+            cubic_small(d),
+            "cubic 1 − α",
+        );
+        close(
+            Blend::Cubic.sample(far_end).derivatives[0],
+            cubic_small(d_exact),
+            "cubic α",
+        );
+        close(
+            Blend::Cubic.sample(far_end).derivatives[1],
+            -6.0 * d_exact * (1.0 - d_exact),
+            "cubic α′",
+        );
+        let cosine_small = |d: f64| (0.5 * PI * d).sin().powi(2);
+        close(
+            Blend::Cosine.sample(d).complement,
+            cosine_small(d),
+            "cosine 1 − α",
+        );
+        close(
+            Blend::Cosine.sample(far_end).derivatives[0],
+            cosine_small(d_exact),
+            "cosine α",
+        );
+        close(
+            Blend::Cosine.sample(far_end).derivatives[1],
+            -0.5 * PI * (PI * d_exact).sin(),
+            "cosine α′",
+        );
     }
     assert!(matches!(
         patches::coons(bounds(), &Blend::Cosine, 1e-12).unwrap_err(),

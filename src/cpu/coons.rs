@@ -49,7 +49,7 @@ fn tessellate_patch(
         .params()
         .iter()
         .zip(&samples.column_blends)
-        .map(|(&u, &blend)| patch.rail_with_blend(u, false, blend))
+        .map(|(&u, blend)| patch.rail_with_blend(u, false, blend.derivatives, blend.complement))
         .collect();
     positions
         .par_chunks_mut(columns.len())
@@ -57,7 +57,8 @@ fn tessellate_patch(
         .enumerate()
         .for_each(|(j, (positions, normals))| {
             let v = rows.params()[j];
-            let row = patch.rail_with_blend(v, true, samples.row_blends[j]);
+            let blend = samples.row_blends[j];
+            let row = patch.rail_with_blend(v, true, blend.derivatives, blend.complement);
             for (i, column) in column_rails.iter().enumerate() {
                 let sample = patch.sample_from(column, &row, columns.params()[i], v);
                 positions[i] = sample.position;

@@ -75,7 +75,7 @@ fn patch_bytes(patch: &CoonsPatch, nu: u32, nv: u32) -> [(&'static str, u64); 8]
     [
         ("the vertices of one patch", nu * nv * VERTEX_BYTES),
         ("the indices of one patch", 6 * (nu - 1) * (nv - 1) * 4),
-        ("the blend table of one patch", 3 * (nu + nv) * 4),
+        ("the blend table of one patch", 4 * (nu + nv) * 4),
         ("a patch record", size_of::<CoonsJob>() as u64),
         samples,
         points,
@@ -142,7 +142,10 @@ fn push_patch(
     }
     let blend_table = chunk.blends.len() as u32;
     for blend in item.column_blends.iter().chain(&item.row_blends) {
-        chunk.blends.extend(blend.map(|x| x as f32));
+        let [a, a1, a2] = blend.derivatives;
+        chunk
+            .blends
+            .extend([a, blend.complement, a1, a2].map(|x| x as f32));
     }
     chunk.jobs.push(CoonsJob {
         origin: placement.kernel_origin(origin).as_vec3().to_array(),

@@ -24,7 +24,7 @@ use seams::Joined;
 use tables::{AxisTables, KnotIds, TableKey};
 
 use crate::error::{Error, Result};
-use crate::geom::patches::CoonsPatch;
+use crate::geom::patches::{BlendSample, CoonsPatch};
 use crate::geom::{BSplineCurve, BSplineSurface, Interval, SamplingLimits};
 use crate::mesh::{MeshPart, TessOptions, Tolerance};
 use rayon::prelude::*;
@@ -786,16 +786,16 @@ fn model_diagonal(surfaces: &[BSplineSurface]) -> f64 {
 }
 
 /// One directly evaluated Coons patch's samples over (u, v) ∈ [0, 1]²: its four boundary
-/// curves at the grid's columns (S(u,0), S(u,1)) and rows (S(0,v), S(1,v)), the blend
-/// [α, α′, α″] at each column and row, and where its output goes.
+/// curves at the grid's columns (S(u,0), S(u,1)) and rows (S(0,v), S(1,v)), the blend at
+/// each column and row, and where its output goes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CoonsSamples {
     pub part: MeshPart,
     /// In the order of [`CoonsPatch::boundaries`]: v = 0 and v = 1 at the columns, u = 0
     /// and u = 1 at the rows.
     pub boundaries: [Arc<AxisSamples>; 4],
-    pub column_blends: Vec<[f64; 3]>,
-    pub row_blends: Vec<[f64; 3]>,
+    pub column_blends: Vec<BlendSample>,
+    pub row_blends: Vec<BlendSample>,
 }
 
 /// The plan for a list of directly evaluated Coons patches.
@@ -826,9 +826,9 @@ impl CoonsPlan {
         let items = (patches.iter().zip(&layout.parts).zip(&keys))
             .map(|((patch, &part), keys)| {
                 let (nu, nv) = (part.grid_u as usize, part.grid_v as usize);
-                let blends = |n: usize| -> Vec<[f64; 3]> {
+                let blends = |n: usize| -> Vec<BlendSample> {
                     (0..n)
-                        .map(|k| patch.blend().derivatives(k as f64 / (n - 1) as f64))
+                        .map(|k| patch.blend().sample(k as f64 / (n - 1) as f64))
                         .collect()
                 };
                 CoonsSamples {
