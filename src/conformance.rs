@@ -1306,7 +1306,41 @@ pub fn coons_suite() -> Vec<CoonsCase> {
         };
         coons_patch(boundaries, Blend::Cosine, 1e-12).unwrap()
     };
+    // A curved fan: u = 0 collapses to a point and the spokes and rim leave the plane, so
+    // on the rows next to the pole S_v is (1 − α(u))·S(1, v)′ plus terms as small — the
+    // blend table's 1 − α, not f32's 1 − α, keeps it (at u = 1/128 the cubic's 1 − α is
+    // 1.8e-4, which 1 − α in f32 keeps to 3e-4 of itself).
+    let curved_fan = {
+        let spoke = |to: DVec3, lift: f64| {
+            cubic([
+                DVec3::ZERO,
+                to / 3.0 + DVec3::new(0.0, 0.0, lift),
+                2.0 * to / 3.0 + DVec3::new(0.0, 0.0, 0.5 * lift),
+                to,
+            ])
+        };
+        let point = bezier_curve(1, &[DVec3::ZERO, DVec3::ZERO], None).unwrap();
+        let (x, y) = (DVec3::new(2.0, 0.0, 0.3), DVec3::new(0.0, 2.0, -0.2));
+        let rim = cubic([
+            x,
+            x + DVec3::new(0.2, 1.0, 0.6),
+            y + DVec3::new(1.0, 0.3, -0.5),
+            y,
+        ]);
+        let boundaries = CoonsBoundaries {
+            v0: &spoke(x, 0.8),
+            v1: &spoke(y, -0.6),
+            u0: &point,
+            u1: &rim,
+        };
+        coons_patch(boundaries, Blend::Cubic, 1e-12).unwrap()
+    };
     vec![
+        CoonsCase {
+            name: "Coons: curved fan, fine grid (cubic blend)".into(),
+            patches: vec![curved_fan],
+            options: TessOptions::DEFAULT.with_grid(129, 65),
+        },
         CoonsCase {
             name: "Coons: tangent corner (cosine blend)".into(),
             patches: vec![tangent_corner],

@@ -31,6 +31,9 @@ pub(crate) struct CoonsJob {
     pub degenerate_sq: f32,
     /// S(0,0), S(1,0), S(0,1), S(1,1) relative to `origin`.
     pub corners: [[f32; 3]; 4],
+    /// The f64 normals at those corners, for a corner where S_u × S_v vanishes: its limit
+    /// may need third derivatives (α′ = 0 there), which the kernel does not form.
+    pub corner_normals: [[f32; 3]; 4],
     pub grid_u: u32,
     pub grid_v: u32,
     pub first_vertex: u32,
@@ -151,6 +154,8 @@ fn push_patch(
         origin: placement.kernel_origin(origin).as_vec3().to_array(),
         degenerate_sq: degenerate_sq as f32,
         corners: patch.local_corners().map(|c| c.as_vec3().to_array()),
+        corner_normals: [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+            .map(|(u, v)| patch.evaluate(u, v).normal.as_vec3().to_array()),
         grid_u: nu,
         grid_v: nv,
         first_vertex: chunk.vertex_count as u32,
