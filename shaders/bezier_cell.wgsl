@@ -36,8 +36,9 @@ struct CellSample {
 // Evaluates cell c at local (s, t) in [0, 1]². The cell's points are its net H and the
 // differences of H along u, along v, and the second differences (uu, uv, vv), each formed in
 // f64 on the host: derivatives sum differences (the hodographs' nets), so a cell 1e-6 of its
-// surface wide keeps its derivatives' digits. Degrees 1..=15.
-fn evaluate_cell(c: u32, s: f32, t: f32) -> CellSample {
+// surface wide keeps its derivatives' digits. Degrees 1..=15. `fallback`: the normal where
+// the first-order limit vanishes too (grid_common.wgsl).
+fn evaluate_cell(c: u32, s: f32, t: f32, fallback: vec3<f32>) -> CellSample {
     let p = cell_u32(c, CELL_DEGREE_U);
     let q = cell_u32(c, CELL_DEGREE_V);
     let net = cell_u32(c, CELL_NET);
@@ -105,7 +106,7 @@ fn evaluate_cell(c: u32, s: f32, t: f32) -> CellSample {
         let suv = (huv.xyz - hu.w * sv - hv.w * su - huv.w * local) / w;
         let svv = (hvv.xyz - 2.0 * hv.w * sv - hvv.w * local) / w;
         normal = first_order_limit_normal(su, sv, suu, suv, svv, vec2<f32>(1.0, 1.0),
-                                          vec2<f32>(s, t), degenerate_sq);
+                                          vec2<f32>(s, t), degenerate_sq, fallback);
     }
     return CellSample(local, normalize(normal));
 }

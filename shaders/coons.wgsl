@@ -5,9 +5,9 @@
 // the blend α, 1 − α (without cancellation), α′, α″ there in f64. One invocation per vertex combines them by the Coons
 // formula
 //   S = α(v)S(u,0) + (1−α(v))S(u,1) + α(u)S(0,v) + (1−α(u))S(1,v) − corner terms,
-// differentiated factor by factor, takes unit(S_u × S_v) (where that vanishes, its
-// first-order limit, or at a corner the host's f64 limit), adds the origin last, and writes
-// the two triangles of the cell it starts.
+// differentiated factor by factor, takes unit(S_u × S_v) (its first-order limit where that
+// vanishes: grid_common.wgsl), adds the origin last, and writes the two triangles of the
+// cell it starts.
 // Only core WGSL and f32.
 
 // Mirrors src/gpu/coons.rs `CoonsJob`: all scalars, 144 bytes.
@@ -20,8 +20,7 @@ struct CoonsJob {
     c10_x: f32, c10_y: f32, c10_z: f32,
     c01_x: f32, c01_y: f32, c01_z: f32,
     c11_x: f32, c11_y: f32, c11_z: f32,
-    // The host's f64 normals at those corners, for a corner where S_u × S_v vanishes: its
-    // limit may need third derivatives (α′ = 0 there), which this kernel does not form.
+    // The host's f64 normals at those corners (grid_common.wgsl's fallback_normal).
     n00_x: f32, n00_y: f32, n00_z: f32,
     n10_x: f32, n10_y: f32, n10_z: f32,
     n01_x: f32, n01_y: f32, n01_z: f32,
@@ -58,16 +57,6 @@ fn coons_term(job: CoonsJob, fu: f32, gu: f32, fv: f32, gv: f32,
     let c11 = vec3<f32>(job.c11_x, job.c11_y, job.c11_z);
     return fv * v0 + gv * v1 + fu * u0 + gu * u1
         - (fu * fv * c00 + gu * fv * c10 + fu * gv * c01 + gu * gv * c11);
-}
-
-// The host's normal at corner (u, v) = (at_u1 ? 1 : 0, at_v1 ? 1 : 0).
-fn corner_normal(job: CoonsJob, at_u1: bool, at_v1: bool) -> vec3<f32> {
-    if (at_v1) {
-        return select(vec3<f32>(job.n01_x, job.n01_y, job.n01_z),
-                      vec3<f32>(job.n11_x, job.n11_y, job.n11_z), at_u1);
-    }
-    return select(vec3<f32>(job.n00_x, job.n00_y, job.n00_z),
-                  vec3<f32>(job.n10_x, job.n10_y, job.n10_z), at_u1);
 }
 
 @compute @workgroup_size(64)
@@ -110,10 +99,7 @@ fn blend_coons(@builtin(global_invocation_id) gid: vec3<u32>,
     let u = f32(i) / f32(nu - 1u);
     let v = f32(j) / f32(nv - 1u);
     var normal = cross(su, sv);
-    let corner = (i == 0u || i == nu - 1u) && (j == 0u || j == nv - 1u);
-    if (dot(normal, normal) <= job.degenerate_sq && corner) {
-        normal = corner_normal(job, i > 0u, j > 0u);
-    } else if (dot(normal, normal) <= job.degenerate_sq) {
+    if (dot(normal, normal) <= job.degenerate_sq) {
         // The limit toward the centre of [0, 1]² (grid_common.wgsl).
         let auu = blends[bu + 3u];
         let bvv = blends[bv + 3u];
@@ -123,8 +109,11 @@ fn blend_coons(@builtin(global_invocation_id) gid: vec3<u32>,
             samples[v0 + 1u].xyz, samples[v1 + 1u].xyz, samples[u0 + 1u].xyz, samples[u1 + 1u].xyz);
         let svv = coons_term(job, a, ca, bvv, -bvv,
             samples[v0].xyz, samples[v1].xyz, samples[u0 + 2u].xyz, samples[u1 + 2u].xyz);
+        let corners = array<vec3<f32>, 4>(
+            vec3<f32>(job.n00_x, job.n00_y, job.n00_z), vec3<f32>(job.n10_x, job.n10_y, job.n10_z),
+            vec3<f32>(job.n01_x, job.n01_y, job.n01_z), vec3<f32>(job.n11_x, job.n11_y, job.n11_z));
         normal = first_order_limit_normal(su, sv, suu, suv, svv, vec2<f32>(1.0), vec2<f32>(u, v),
-                                          job.degenerate_sq);
+                                          job.degenerate_sq, fallback_normal(corners, i, j, nu, nv));
     }
     normal = normalize(normal);
     let origin = vec3<f32>(job.origin_x, job.origin_y, job.origin_z);

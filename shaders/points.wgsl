@@ -27,7 +27,7 @@ fn evaluate_samples(@builtin(global_invocation_id) gid: vec3<u32>,
     let index = gid.x + gid.y * groups.x * WORKGROUP;
     if (index >= arrayLength(&samples)) { return; }
     let sample = samples[index];
-    let evaluated = evaluate_cell(bitcast<u32>(sample.x), sample.y, sample.z);
+    let evaluated = evaluate_cell(bitcast<u32>(sample.x), sample.y, sample.z, vec3<f32>(0.0, 0.0, 1.0));
     results[2u * index] = vec4<f32>(evaluated.local, evaluated.normal.x);
     results[2u * index + 1u] = vec4<f32>(evaluated.normal.yz, 0.0, 0.0);
 }

@@ -32,7 +32,7 @@
 //   connect_cells        — per grid cell: two counter-clockwise triangles.
 // Only core WGSL and f32: it runs on WebGPU as well as native adapters.
 
-// Mirrors src/gpu/pack.rs `Piece`: all scalars, 96 bytes.
+// Mirrors src/gpu/surfaces.rs `Piece`: all scalars, 144 bytes.
 struct Piece {
     origin_x: f32, origin_y: f32, origin_z: f32,
     // |S_u × S_v|² at or below this (model units² per parameter²) counts as degenerate.
@@ -53,6 +53,12 @@ struct Piece {
     // general path), column runs per row (both paths), and the offsets of their tables (f32
     // units).
     segments: u32, runs: u32, segment_table: u32, run_table: u32,
+    // The host's f64 normals at the corners (0, 0), (1, 0), (0, 1), (1, 1) of the surface's
+    // range (grid_common.wgsl's fallback_normal).
+    n00_x: f32, n00_y: f32, n00_z: f32,
+    n10_x: f32, n10_y: f32, n10_z: f32,
+    n01_x: f32, n01_y: f32, n01_z: f32,
+    n11_x: f32, n11_y: f32, n11_z: f32,
 }
 
 // Mirrors src/gpu/pack.rs `ChunkParams`: where this chunk's bound ranges begin, so that
@@ -290,7 +296,7 @@ fn evaluate_vertices(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgro
             }
             if (!within_rounding(frame, rounding)) { continue; }
             let uv = vec2<f32>(tables[column], v_fraction);
-            let normal = limit_normal(piece, column, base, frame, uv);
+            let normal = limit_normal(piece, column, base, frame, uv, vec2<u32>(i, piece.first_row + at.y));
             store_vertex(2u * (row_out + i), origin + (reference + frame.s), normalize(normal), uv);
         }
     }
@@ -298,8 +304,9 @@ fn evaluate_vertices(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgro
 
 // The limit normal where S_u × S_v vanishes (see grid_common.wgsl), from the second
 // derivatives of the contracted control columns starting at `base`; `uv` is the grid
-// fraction.
-fn limit_normal(piece: Piece, column: u32, base: u32, frame: Frame, uv: vec2<f32>) -> vec3<f32> {
+// fraction, `at` the vertex's (column, row) in the whole grid.
+fn limit_normal(piece: Piece, column: u32, base: u32, frame: Frame, uv: vec2<f32>,
+                at: vec2<u32>) -> vec3<f32> {
     let p = piece.degree_u;
     var auu = vec4<f32>(0.0);
     var auv = vec4<f32>(0.0);
@@ -312,12 +319,13 @@ fn limit_normal(piece: Piece, column: u32, base: u32, frame: Frame, uv: vec2<f32
         auv += tables[column + 3u + p + k] * t_v;
         avv += tables[column + 2u + k] * t_vv;
     }
-    return limit_normal_from(piece, frame, auu, auv, avv, uv);
+    return limit_normal_from(piece, frame, auu, auv, avv, uv, at);
 }
 
-// The limit normal from the homogeneous second derivatives; `uv` is the grid fraction.
+// The limit normal from the homogeneous second derivatives; `uv` is the grid fraction, `at`
+// the vertex's (column, row) in the whole grid.
 fn limit_normal_from(piece: Piece, frame: Frame, auu: vec4<f32>, auv: vec4<f32>, avv: vec4<f32>,
-                     uv: vec2<f32>) -> vec3<f32> {
+                     uv: vec2<f32>, at: vec2<u32>) -> vec3<f32> {
     // The first-order term of grid_common.wgsl's first_order_limit_normal, times w, formed
     // from the homogeneous derivatives with the quotient rule's terms along S_u in S_uv and
     // along S_v dropped where they would cross themselves (exactly zero), instead of
@@ -335,7 +343,10 @@ fn limit_normal_from(piece: Piece, frame: Frame, auu: vec4<f32>, auv: vec4<f32>,
     let first = step_u * along_u + step_v * along_v;
     let w = frame.a.w;
     if (dot(first, first) <= piece.degenerate_sq * w * w) {
-        return vec3<f32>(0.0, 0.0, 1.0);
+        let corners = array<vec3<f32>, 4>(
+            vec3<f32>(piece.n00_x, piece.n00_y, piece.n00_z), vec3<f32>(piece.n10_x, piece.n10_y, piece.n10_z),
+            vec3<f32>(piece.n01_x, piece.n01_y, piece.n01_z), vec3<f32>(piece.n11_x, piece.n11_y, piece.n11_z));
+        return fallback_normal(corners, at.x, at.y, piece.grid_u, piece.grid_v);
     }
     return first;
 }
@@ -458,7 +469,8 @@ fn evaluate_bezier_runs(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_work
                 let auv = d * vec4<f32>(-wt.x, wt.x - wt.y, wt.y - wt.z, wt.z) * inv_width;
                 let avv = e * bt;
                 let uv = vec2<f32>(u_first + f32(step) * u_step, v_fraction);
-                let normal = limit_normal_from(piece, frame, auu, auv, avv, uv);
+                let normal = limit_normal_from(piece, frame, auu, auv, avv, uv,
+                                               vec2<u32>(first + step, piece.first_row + row));
                 store_vertex(2u * (row_out + first + step), origin + (reference + frame.s), normalize(normal), uv);
             }
         }

@@ -3,7 +3,7 @@
 //! reference, with the bars the GPU path promises.
 
 use crate::error::{Error, Result};
-use crate::geom::patches::CoonsPatch;
+use crate::geom::patches::{self, CoonsPatch};
 use crate::geom::{
     BSplineCurve, BSplineSurface, Interval, KnotVector, bezier_curve, bezier_surface, curves,
     shapes,
@@ -156,7 +156,7 @@ pub struct ViewCase {
 
 /// Surface cases of [`suite`] seen by a camera 2.5 diagonals away at half a pixel on an
 /// 800 × 600 viewport: rational with extreme weights, poles, creases and tiny spans, far
-/// from the origin, high degree (≤ [`MAX_VIEW_DEGREE`]).
+/// from the origin, high degree (≤ [`MAX_VIEW_DEGREE`]), second-order corners.
 pub fn view_suite() -> Vec<ViewCase> {
     let wanted = [
         "bicubic, weights 0.01..100",
@@ -165,6 +165,7 @@ pub fn view_suite() -> Vec<ViewCase> {
         "tiny knot spans (1e-6)",
         "offset 1e5 from the origin",
         "rational, high degree, unclamped × clamped",
+        "second-order corners (collapsed edge, zero-slope neighbour)",
     ];
     suite()
         .into_iter()
@@ -872,8 +873,87 @@ pub fn suite() -> Vec<Case> {
         surfaces: classic_forms(),
         options: grid(21),
     });
+    cases.push(Case {
+        name: "second-order corners (collapsed edge, zero-slope neighbour)".into(),
+        surfaces: second_order_corners(),
+        options: grid(33),
+    });
+    cases.push(Case {
+        name: "adaptive: second-order corners, tolerance 1e-3 of the size".into(),
+        surfaces: second_order_corners(),
+        options: TessOptions::DEFAULT.with_tolerance(Tolerance::Relative(1e-3)),
+    });
     cases.extend(cross_product_cases(grid(11)));
     cases
+}
+
+/// The boundaries S(u,0), S(u,1), S(0,v), S(1,v) of a curved fan: u = 0 collapses to a point
+/// and the spokes and rim leave the plane. With the cubic blend, on the rows next to the pole
+/// S_v is (1 − α(u))·S(1, v)′ plus terms as small — the GPU's blend table carries 1 − α
+/// (formed in f32 it would keep the cubic's 1.8e-4 at u = 1/128 only to 1.6e-4 of itself) —
+/// and at the corners on the pole α′ = 0 makes the first-order limit vanish: the normal there
+/// takes third derivatives.
+fn curved_fan() -> [BSplineCurve; 4] {
+    let cubic = |points: [DVec3; 4]| bezier_curve(3, &points, None).unwrap();
+    let spoke = |to: DVec3, lift: f64| {
+        cubic([
+            DVec3::ZERO,
+            to / 3.0 + DVec3::new(0.0, 0.0, lift),
+            2.0 * to / 3.0 + DVec3::new(0.0, 0.0, 0.5 * lift),
+            to,
+        ])
+    };
+    let point = bezier_curve(1, &[DVec3::ZERO, DVec3::ZERO], None).unwrap();
+    let (x, y) = (DVec3::new(2.0, 0.0, 0.3), DVec3::new(0.0, 2.0, -0.2));
+    let rim = cubic([
+        x,
+        x + DVec3::new(0.2, 1.0, 0.6),
+        y + DVec3::new(1.0, 0.3, -0.5),
+        y,
+    ]);
+    [spoke(x, 0.8), spoke(y, -0.6), point, rim]
+}
+
+/// Surfaces with second-order degenerate corners, where S_u × S_v and the first-order term
+/// of its expansion both vanish, so the limit normal takes third derivatives (the GPU's
+/// kernels take the host's there): a bicubic patch whose v = 0 row collapses to a pole and
+/// whose next row leaves the pole's corner radially, and the curved fan's Coons patch with
+/// the cubic blend converted exactly (degree 6 × 3: the general path).
+fn second_order_corners() -> Vec<BSplineSurface> {
+    let pole = DVec3::ZERO;
+    let next = [
+        DVec3::new(1.0, 0.0, 0.25),
+        DVec3::new(1.5, 0.0, 0.375),
+        DVec3::new(1.0, 1.5, 0.5),
+        DVec3::new(0.5, 2.0, 0.0),
+    ];
+    let far = [
+        DVec3::new(-0.5, 1.0, 0.75),
+        DVec3::new(1.0, 2.0, 1.0),
+        DVec3::new(2.0, 2.5, 0.5),
+        DVec3::new(1.0, 3.0, -0.25),
+        DVec3::new(-1.0, 2.0, 1.0),
+        DVec3::new(0.5, 3.0, 1.25),
+        DVec3::new(1.5, 3.5, 0.75),
+        DVec3::new(0.75, 4.0, 0.0),
+    ];
+    let points: Vec<DVec3> = std::iter::repeat_n(pole, 4)
+        .chain(next)
+        .chain(far)
+        .collect();
+    let [v0, v1, u0, u1] = curved_fan();
+    let fan = patches::coons(
+        patches::CoonsBoundaries {
+            v0: &v0,
+            v1: &v1,
+            u0: &u0,
+            u1: &u1,
+        },
+        &patches::Blend::Cubic,
+        1e-12,
+    )
+    .unwrap();
+    vec![bezier_surface(3, 3, &points, None).unwrap(), fan]
 }
 
 /// The name every case of the degeneracy cross product starts with.
@@ -1306,32 +1386,13 @@ pub fn coons_suite() -> Vec<CoonsCase> {
         };
         coons_patch(boundaries, Blend::Cosine, 1e-12).unwrap()
     };
-    // A curved fan: u = 0 collapses to a point and the spokes and rim leave the plane, so
-    // on the rows next to the pole S_v is (1 − α(u))·S(1, v)′ plus terms as small — the
-    // blend table's 1 − α, not f32's 1 − α, keeps it (at u = 1/128 the cubic's 1 − α is
-    // 1.8e-4, which 1 − α in f32 keeps to 3e-4 of itself).
     let curved_fan = {
-        let spoke = |to: DVec3, lift: f64| {
-            cubic([
-                DVec3::ZERO,
-                to / 3.0 + DVec3::new(0.0, 0.0, lift),
-                2.0 * to / 3.0 + DVec3::new(0.0, 0.0, 0.5 * lift),
-                to,
-            ])
-        };
-        let point = bezier_curve(1, &[DVec3::ZERO, DVec3::ZERO], None).unwrap();
-        let (x, y) = (DVec3::new(2.0, 0.0, 0.3), DVec3::new(0.0, 2.0, -0.2));
-        let rim = cubic([
-            x,
-            x + DVec3::new(0.2, 1.0, 0.6),
-            y + DVec3::new(1.0, 0.3, -0.5),
-            y,
-        ]);
+        let [v0, v1, u0, u1] = curved_fan();
         let boundaries = CoonsBoundaries {
-            v0: &spoke(x, 0.8),
-            v1: &spoke(y, -0.6),
-            u0: &point,
-            u1: &rim,
+            v0: &v0,
+            v1: &v1,
+            u0: &u0,
+            u1: &u1,
         };
         coons_patch(boundaries, Blend::Cubic, 1e-12).unwrap()
     };

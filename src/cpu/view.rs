@@ -3,10 +3,10 @@
 //! its surface, in f64), with the plan's triangles — the mesh the GPU draws for that frame.
 
 use crate::error::{Error, Result};
-use crate::geom::{BSplineSurface, bezier_surface};
+use crate::geom::BSplineSurface;
 use crate::mesh::{Mesh, MeshPart};
 use crate::plan::view::{Rate, ViewPlan};
-use glam::{DVec2, DVec3};
+use glam::DVec2;
 use rayon::prelude::*;
 
 /// The frame of `plan` (made for `surfaces`) at `rates` (one per cell, as
@@ -36,12 +36,7 @@ pub fn execute_view(plan: &ViewPlan, surfaces: &[BSplineSurface], rates: &[Rate]
     let cells = plan
         .cells
         .par_iter()
-        .map(|cell| {
-            let patch = &cell.patch;
-            let points: Vec<DVec3> = patch.points.iter().map(|h| h.truncate() / h.w).collect();
-            let weights: Vec<f64> = patch.points.iter().map(|h| h.w).collect();
-            bezier_surface(patch.degree_u, patch.degree_v, &points, Some(&weights))
-        })
+        .map(|cell| cell.patch.unit_surface())
         .collect::<Result<Vec<_>>>()?;
     let evaluated: Vec<_> = samples
         .par_iter()

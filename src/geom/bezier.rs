@@ -101,6 +101,14 @@ impl BezierPatch {
         let h = de_casteljau(&column, t);
         h.truncate() / h.w
     }
+
+    /// The patch as a surface of its own on the local parameters [0, 1]², for evaluation
+    /// with derivatives and limit normals (directions of limits taken within the patch).
+    pub fn unit_surface(&self) -> Result<BSplineSurface> {
+        let points: Vec<DVec3> = self.points.iter().map(|h| h.truncate() / h.w).collect();
+        let weights: Vec<f64> = self.points.iter().map(|h| h.w).collect();
+        bezier_surface(self.degree_u, self.degree_v, &points, Some(&weights))
+    }
 }
 
 impl BSplineSurface {

@@ -135,7 +135,11 @@ mod tests {
             layout(CURVES_WGSL, "CurveJob"),
             (size_of::<CurveJob>() as u32, 4)
         );
-        assert_eq!(size_of::<Piece>(), 96);
+        assert_eq!(
+            layout(COONS_WGSL, "CoonsJob"),
+            (size_of::<coons::CoonsJob>() as u32, 4)
+        );
+        assert_eq!(size_of::<Piece>(), 144);
         assert_eq!(size_of::<ChunkParams>(), 32);
         assert_eq!(surfaces::TILE, 64);
     }

@@ -70,6 +70,10 @@ pub struct Piece {
     pub runs: u32,
     pub segment_table: u32,
     pub run_table: u32,
+    /// The f64 normals at the corners (0, 0), (1, 0), (0, 1), (1, 1) of the surface's
+    /// range: what a degenerate corner whose first-order limit vanishes gets (its limit takes
+    /// third derivatives, which the kernel does not form).
+    pub corner_normals: [[f32; 3]; 4],
 }
 
 /// Per-chunk, per-pass uniform (`ChunkParams` in tessellate.wgsl): where the chunk's bound
@@ -407,6 +411,14 @@ pub(crate) fn pack(
         }
         let row_stride = 2 + 3 * (surface.degree_v() as u32 + 1);
         let degenerate_sq = degenerate_cross_sq(surface.cross_scale(), f64::from(f32::EPSILON));
+        let (range_u, range_v) = (surface.range_u(), surface.range_v());
+        let corner_normals = [
+            (range_u.start, range_v.start),
+            (range_u.end, range_v.start),
+            (range_u.start, range_v.end),
+            (range_u.end, range_v.end),
+        ]
+        .map(|(u, v)| surface.evaluate(u, v).normal.as_vec3().to_array());
         let mut first_row = 0;
         while first_row < nv {
             let rows = rows_per_piece.min(nv - first_row);
@@ -442,6 +454,7 @@ pub(crate) fn pack(
                 runs,
                 segment_table,
                 run_table,
+                corner_normals,
             });
             packed.piece_surfaces.push(surface_index);
             packed.piece_tables.push(tables);

@@ -32,7 +32,7 @@ pub const VIEW_WGSL: &str = concat!(
 );
 
 /// Words of a cell record in the plan buffer (CELL_WORDS in view.wgsl).
-const CELL_WORDS: usize = 24;
+const CELL_WORDS: usize = 36;
 /// Words of an edge record (EDGE_WORDS in view.wgsl).
 const EDGE_WORDS: usize = 5;
 
@@ -196,7 +196,7 @@ impl ViewBatch {
                 check_room(what, &target.buffer, target.offset, bytes)?;
             }
         }
-        let (words, points) = pack(plan);
+        let (words, points) = pack(plan)?;
         let counts = FrameParams {
             view_projection: [0.0; 16],
             viewport: [0.0; 2],
@@ -506,7 +506,7 @@ impl ViewBatch {
 /// The plan as the kernels read it: cell, edge and corner records as u32 words (floats by
 /// their bits), and each cell's homogeneous control points relative to its centre, weights
 /// scaled to a largest of 1, followed by their first and second differences (formed in f64).
-fn pack(plan: &ViewPlan) -> (Vec<u32>, Vec<[f32; 4]>) {
+fn pack(plan: &ViewPlan) -> Result<(Vec<u32>, Vec<[f32; 4]>)> {
     let mut words = Vec::with_capacity(
         plan.cells.len() * CELL_WORDS + plan.edges.len() * EDGE_WORDS + 2 * plan.corners.len(),
     );
@@ -539,6 +539,13 @@ fn pack(plan: &ViewPlan) -> (Vec<u32>, Vec<[f32; 4]>) {
         words.push(aligned);
         words.extend(cell.sides.map(|(edge, _)| edge));
         words.extend(cell.corners);
+        // The f64 normals at the cell's corners, for a corner whose limit takes third
+        // derivatives (grid_common.wgsl's fallback_normal).
+        let surface = patch.unit_surface()?;
+        for (s, t) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+            let normal = surface.evaluate(s, t).normal.as_vec3();
+            words.extend([normal.x, normal.y, normal.z].map(f32::to_bits));
+        }
     }
     for edge in &plan.edges {
         words.extend([
@@ -552,7 +559,7 @@ fn pack(plan: &ViewPlan) -> (Vec<u32>, Vec<[f32; 4]>) {
     for &(cell, corner) in &plan.corners {
         words.extend([cell, corner]);
     }
-    (words, points)
+    Ok((words, points))
 }
 
 /// Appends `patch`'s homogeneous control points relative to `centre` (weights scaled to a
