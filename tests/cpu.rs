@@ -1884,6 +1884,41 @@ fn a_second_order_degenerate_corner_takes_its_limit_normal() {
     );
 }
 
+/// A second-order degenerate corner off any collapsed edge: S = (u³, v + u², v²) on
+/// [0, 2] × [0, ½] has S_u = 0 along u = 0 and, at (0, 0), S_uu ∥ S_v, so the first-order
+/// term vanishes there and the limit is the second-order term's, in closed form: S_u × S_v =
+/// (4uv, −6u²v, 3u²), along the diagonal (2t, ½t) the direction (4ab, 0, 3a²) with (a, b) =
+/// (2, ½): (1, 0, 3)/√10. Unlike at collapsed edges, S_uuu counts (through su2 × S_v) and
+/// the steps are not ±1, so the terms' coefficients a², b² show; transposed, S_vvv counts
+/// instead (through S_u × sv2) and the normal is the opposite.
+#[test]
+fn a_second_order_point_off_collapsed_edges_takes_its_limit_normal() {
+    // Bezier form on s = u/2, t = 2v: x = 8s³, y = 4s² + t/2, z = t²/4, each a sum of a
+    // function of s and one of t, so P_ij = (x_i, y_i + y′_j, z_j).
+    let (x, y) = ([0.0, 0.0, 0.0, 8.0], [0.0, 0.0, 4.0 / 3.0, 4.0]);
+    let (y_t, z) = ([0.0, 0.25, 0.5], [0.0, 0.0, 0.25]);
+    let points: Vec<DVec3> = (0..3)
+        .flat_map(|j| (0..4).map(move |i| DVec3::new(x[i], y[i] + y_t[j], z[j])))
+        .collect();
+    let surface = piecewise_bezier_surface(3, 2, &[0.0, 2.0], &[0.0, 0.5], &points, None).unwrap();
+    // The form is the closed one: a point and its cross product inside.
+    let (u, v) = (0.7, 0.3);
+    let inside = surface.evaluate(u, v);
+    assert!((inside.position - DVec3::new(u * u * u, v + u * u, v * v)).length() < 1e-14);
+    let exact_cross = DVec3::new(4.0 * u * v, -6.0 * u * u * v, 3.0 * u * u);
+    assert!(angle(inside.du.cross(inside.dv), exact_cross) < 1e-14);
+    let (a, b) = (2.0, 0.5);
+    let limit = DVec3::new(4.0 * a * b, 0.0, 3.0 * a * a).normalize();
+    let ours = surface.evaluate(0.0, 0.0).normal;
+    assert!(angle(ours, limit) < 1e-12, "{ours} vs {limit}");
+    let transposed = surface.transposed().evaluate(0.0, 0.0).normal;
+    assert!(
+        angle(transposed, -limit) < 1e-12,
+        "transposed: {transposed} vs {}",
+        -limit
+    );
+}
+
 /// A fold inside a rational patch: each control column of a bicubic × quadratic patch runs
 /// out and back (its first and last points equal, the last weight `ratio` times the first),
 /// so the surface turns back on itself where the homogeneous H_v is parallel to H, at
