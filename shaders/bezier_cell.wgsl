@@ -3,12 +3,15 @@
 // declares `points` (the cells' nets, vec4<f32>) and `cell_u32(c, word)`, `cell_f32(c, word)`
 // over records whose words CELL_DEGENERATE, CELL_DEGREE_U, CELL_DEGREE_V and CELL_NET hold
 // |S_u × S_v|² at or below which a point is degenerate, the degrees, and the first point of
-// the cell's nets (see src/gpu/view.rs `push_cell_nets`).
+// the cell's nets (see src/gpu/view.rs `push_cell_nets`), and whose 12 words from
+// CELL_CORNER_NORMALS the host's f64 normals at the cell's corners (0, 0), (1, 0), (0, 1),
+// (1, 1) (`corner_normal_words`).
 
 const CELL_DEGENERATE: u32 = 7u;
 const CELL_DEGREE_U: u32 = 12u;
 const CELL_DEGREE_V: u32 = 13u;
 const CELL_NET: u32 = 14u;
+const CELL_CORNER_NORMALS: u32 = 24u;
 
 // The Bernstein polynomials of degree n at x (entries 0..=n), by de Casteljau's triangle.
 fn bernstein(n: u32, x: f32) -> array<f32, 16> {
@@ -36,9 +39,8 @@ struct CellSample {
 // Evaluates cell c at local (s, t) in [0, 1]². The cell's points are its net H and the
 // differences of H along u, along v, and the second differences (uu, uv, vv), each formed in
 // f64 on the host: derivatives sum differences (the hodographs' nets), so a cell 1e-6 of its
-// surface wide keeps its derivatives' digits. Degrees 1..=15. `fallback`: the normal where
-// the first-order limit vanishes too (grid_common.wgsl).
-fn evaluate_cell(c: u32, s: f32, t: f32, fallback: vec3<f32>) -> CellSample {
+// surface wide keeps its derivatives' digits. Degrees 1..=15.
+fn evaluate_cell(c: u32, s: f32, t: f32) -> CellSample {
     let p = cell_u32(c, CELL_DEGREE_U);
     let q = cell_u32(c, CELL_DEGREE_V);
     let net = cell_u32(c, CELL_NET);
@@ -105,8 +107,18 @@ fn evaluate_cell(c: u32, s: f32, t: f32, fallback: vec3<f32>) -> CellSample {
         let suu = (huu.xyz - 2.0 * hu.w * su - huu.w * local) / w;
         let suv = (huv.xyz - hu.w * sv - hv.w * su - huv.w * local) / w;
         let svv = (hvv.xyz - 2.0 * hv.w * sv - hvv.w * local) / w;
+        // Where the first-order term vanishes too: the host's normal at a corner of the cell
+        // (a 2 × 2 grid whose vertices, 0 or 1 each way, are its corners).
+        var corners: array<vec3<f32>, 4>;
+        for (var k = 0u; k < 4u; k++) {
+            let word = CELL_CORNER_NORMALS + 3u * k;
+            corners[k] = vec3<f32>(cell_f32(c, word), cell_f32(c, word + 1u), cell_f32(c, word + 2u));
+        }
+        let i = select(2u, u32(s), s == 0.0 || s == 1.0);
+        let j = select(2u, u32(t), t == 0.0 || t == 1.0);
         normal = first_order_limit_normal(su, sv, suu, suv, svv, vec2<f32>(1.0, 1.0),
-                                          vec2<f32>(s, t), degenerate_sq, fallback);
+                                          vec2<f32>(s, t), degenerate_sq,
+                                          fallback_normal(corners, i, j, 2u, 2u));
     }
     return CellSample(local, normalize(normal));
 }

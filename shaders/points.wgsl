@@ -7,7 +7,7 @@
 // Only core WGSL and f32: it runs on WebGPU as well as native adapters.
 
 // Cells of CELL_WORDS words: the words bezier_cell.wgsl names (CELL_DEGENERATE,
-// CELL_DEGREE_U, CELL_DEGREE_V, CELL_NET), the others unused.
+// CELL_DEGREE_U, CELL_DEGREE_V, CELL_NET, CELL_CORNER_NORMALS..+12), the others unused.
 @group(0) @binding(0) var<storage, read> cells: array<u32>;
 @group(0) @binding(1) var<storage, read> points: array<vec4<f32>>;
 // Per sample: (cell (bits), s, t, 0).
@@ -15,7 +15,7 @@
 // Two vec4 per sample: (point − cell centre, normal x), (normal y, normal z, 0, 0).
 @group(0) @binding(3) var<storage, read_write> results: array<vec4<f32>>;
 
-const CELL_WORDS: u32 = 16u;
+const CELL_WORDS: u32 = 36u;
 const WORKGROUP: u32 = 64u;
 
 fn cell_u32(c: u32, word: u32) -> u32 { return cells[c * CELL_WORDS + word]; }
@@ -27,7 +27,7 @@ fn evaluate_samples(@builtin(global_invocation_id) gid: vec3<u32>,
     let index = gid.x + gid.y * groups.x * WORKGROUP;
     if (index >= arrayLength(&samples)) { return; }
     let sample = samples[index];
-    let evaluated = evaluate_cell(bitcast<u32>(sample.x), sample.y, sample.z, vec3<f32>(0.0, 0.0, 1.0));
+    let evaluated = evaluate_cell(bitcast<u32>(sample.x), sample.y, sample.z);
     results[2u * index] = vec4<f32>(evaluated.local, evaluated.normal.x);
     results[2u * index + 1u] = vec4<f32>(evaluated.normal.yz, 0.0, 0.0);
 }

@@ -515,15 +515,7 @@ fn scan_triangles(@builtin(local_invocation_index) lid: u32) {
 
 // Evaluates cell c at local (s, t) into vertex `index` (evaluate_cell, bezier_cell.wgsl).
 fn write_vertex(index: u32, c: u32, s: f32, t: f32) {
-    // The host's normals at the cell's corners (words 24..36) where a limit needs them: the
-    // cell as a 2 × 2 grid whose vertices (0 or 1 each way) are its corners.
-    var corners: array<vec3<f32>, 4>;
-    for (var k = 0u; k < 4u; k++) {
-        corners[k] = vec3<f32>(cell_f32(c, 24u + 3u * k), cell_f32(c, 25u + 3u * k), cell_f32(c, 26u + 3u * k));
-    }
-    let i = select(2u, u32(s), s == 0.0 || s == 1.0);
-    let j = select(2u, u32(t), t == 0.0 || t == 1.0);
-    let sample = evaluate_cell(c, s, t, fallback_normal(corners, i, j, 2u, 2u));
+    let sample = evaluate_cell(c, s, t);
     let local = sample.local;
     let normal = sample.normal;
     let centre = vec3<f32>(cell_f32(c, 0u), cell_f32(c, 1u), cell_f32(c, 2u));

@@ -919,7 +919,7 @@ fn curved_fan() -> [BSplineCurve; 4] {
 /// kernels take the host's there): a bicubic patch whose v = 0 row collapses to a pole and
 /// whose next row leaves the pole's corner radially, and the curved fan's Coons patch with
 /// the cubic blend converted exactly (degree 6 × 3: the general path).
-fn second_order_corners() -> Vec<BSplineSurface> {
+pub fn second_order_corners() -> Vec<BSplineSurface> {
     let pole = DVec3::ZERO;
     let next = [
         DVec3::new(1.0, 0.0, 0.25),

@@ -430,7 +430,7 @@ fn trimmed_faces_and_shells_are_evaluated_on_the_gpu() {
 #[test]
 fn scattered_samples_chunk_and_fall_back_to_the_cpu() {
     let Some(context) = gpu() else { return };
-    // Twelve rational bicubic patches (one cell each: 64 bytes of record, 1 040 of nets).
+    // Twelve rational bicubic patches (one cell each: 144 bytes of record, 1 040 of nets).
     let surfaces: Vec<BSplineSurface> = (0..12)
         .map(|f| {
             let points: Vec<DVec3> = (0..16)
@@ -491,6 +491,35 @@ fn scattered_samples_chunk_and_fall_back_to_the_cpu() {
         knotwork::gpu::evaluate_samples(context, &faces, tiny).unwrap(),
         f64_results
     );
+}
+
+/// Scattered samples at second-order degenerate corners (conformance's: the limit takes
+/// third derivatives) get the host's f64 normals there, as the grid kernels do: within
+/// 1e-5 rad of the CPU's at every corner of the range (+Z before: 2.85 rad off).
+#[test]
+fn scattered_samples_at_second_order_corners_take_the_hosts_normals() {
+    let Some(context) = gpu() else { return };
+    let surfaces = conformance::second_order_corners();
+    let params: Vec<Vec<glam::DVec2>> = surfaces
+        .iter()
+        .map(|s| {
+            let (ru, rv) = (s.range_u(), s.range_v());
+            [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0), (0.3, 0.6)]
+                .map(|(a, b)| glam::DVec2::new(ru.lerp(a), rv.lerp(b)))
+                .to_vec()
+        })
+        .collect();
+    let faces: Vec<knotwork::plan::FaceSamples> = (surfaces.iter().zip(&params))
+        .map(|(surface, params)| knotwork::plan::FaceSamples { surface, params })
+        .collect();
+    let gpu = knotwork::gpu::evaluate_samples(context, &faces, context.limits()).unwrap();
+    let cpu = knotwork::cpu::evaluate_samples(&faces);
+    for (f, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
+        for (k, (a, b)) in g.iter().zip(c).enumerate() {
+            let turned = a.1.angle_between(b.1);
+            assert!(turned <= 1e-5, "face {f}, sample {k}: {} vs {}", a.1, b.1);
+        }
+    }
 }
 
 #[test]

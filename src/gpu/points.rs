@@ -10,7 +10,7 @@ use super::chunks::additive_chunk_ranges;
 use super::context::{GpuContext, bind_buffers, dispatch_flat, scoped};
 use super::readback::{BufferPool, mapped};
 use super::surfaces::Limits;
-use super::view::push_cell_nets;
+use super::view::{corner_normal_words, push_cell_nets};
 use crate::error::Result;
 use crate::geom::{BSplineSurface, BezierPatch, degenerate_cross_sq};
 use crate::plan::FaceSamples;
@@ -21,13 +21,15 @@ pub(crate) const ENTRY_POINT: &str = "evaluate_samples";
 /// Invocations per workgroup (`@workgroup_size` in points.wgsl), one per sample.
 const WORKGROUP: u32 = 64;
 /// Words of a cell record (`CELL_WORDS` in points.wgsl).
-const CELL_WORDS: usize = 16;
+const CELL_WORDS: usize = 36;
 /// The words of a record bezier_cell.wgsl reads (`CELL_DEGENERATE`, `CELL_DEGREE_U`,
 /// `CELL_DEGREE_V`, `CELL_NET`).
 const CELL_DEGENERATE: usize = 7;
 const CELL_DEGREE_U: usize = 12;
 const CELL_DEGREE_V: usize = 13;
 const CELL_NET: usize = 14;
+/// The first of the 12 words of the cell's corner normals (`CELL_CORNER_NORMALS`).
+const CELL_CORNER_NORMALS: usize = 24;
 /// Input bytes per sample: (cell, s, t, 0).
 const SAMPLE_BYTES: u64 = 16;
 /// Output bytes per sample: (point − centre, normal x), (normal y, z, 0, 0).
@@ -135,7 +137,7 @@ struct Chunk {
 }
 
 impl Chunk {
-    fn push(&mut self, index: usize, face: &FaceSamples, cells: &FaceCells) {
+    fn push(&mut self, index: usize, face: &FaceSamples, cells: &FaceCells) -> Result<()> {
         let first_cell = (self.cells.len() / CELL_WORDS) as u32;
         for (patch, &centre) in cells.patches.iter().zip(&cells.centres) {
             let first_point = push_cell_nets(patch, centre, &mut self.points);
@@ -149,6 +151,7 @@ impl Chunk {
             record[CELL_DEGREE_U] = patch.degree_u as u32;
             record[CELL_DEGREE_V] = patch.degree_v as u32;
             record[CELL_NET] = first_point;
+            record[CELL_CORNER_NORMALS..].copy_from_slice(&corner_normal_words(patch)?);
             self.cells.extend(record);
         }
         for &p in face.params {
@@ -163,6 +166,7 @@ impl Chunk {
             self.centres.push(cells.centres[cell]);
         }
         self.faces.push((index, face.params.len()));
+        Ok(())
     }
 }
 
@@ -209,11 +213,11 @@ pub fn evaluate_samples(
         .map(|range| {
             let mut chunk = Chunk::default();
             for (index, cells, _) in &on_gpu[range] {
-                chunk.push(*index, &faces[*index], cells);
+                chunk.push(*index, &faces[*index], cells)?;
             }
-            chunk
+            Ok(chunk)
         })
-        .collect();
+        .collect::<Result<_>>()?;
     let mut pool = BufferPool::default();
     let device = &context.device;
     let outputs = scoped(device, || {

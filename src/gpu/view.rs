@@ -539,13 +539,7 @@ fn pack(plan: &ViewPlan) -> Result<(Vec<u32>, Vec<[f32; 4]>)> {
         words.push(aligned);
         words.extend(cell.sides.map(|(edge, _)| edge));
         words.extend(cell.corners);
-        // The f64 normals at the cell's corners, for a corner whose limit takes third
-        // derivatives (grid_common.wgsl's fallback_normal).
-        let surface = patch.unit_surface()?;
-        for (s, t) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
-            let normal = surface.evaluate(s, t).normal.as_vec3();
-            words.extend([normal.x, normal.y, normal.z].map(f32::to_bits));
-        }
+        words.extend(corner_normal_words(patch)?);
     }
     for edge in &plan.edges {
         words.extend([
@@ -560,6 +554,22 @@ fn pack(plan: &ViewPlan) -> Result<(Vec<u32>, Vec<[f32; 4]>)> {
         words.extend([cell, corner]);
     }
     Ok((words, points))
+}
+
+/// The f64 normals at the corners (0, 0), (1, 0), (0, 1), (1, 1) of a cell `patch`, as the
+/// 12 words from `CELL_CORNER_NORMALS` (bezier_cell.wgsl) of its record: what a corner gets
+/// where its limit normal takes third derivatives (grid_common.wgsl's `fallback_normal`).
+pub(super) fn corner_normal_words(patch: &crate::geom::BezierPatch) -> Result<[u32; 12]> {
+    let surface = patch.unit_surface()?;
+    let mut words = [0; 12];
+    for (k, (s, t)) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+        .into_iter()
+        .enumerate()
+    {
+        let normal = surface.evaluate(s, t).normal.as_vec3();
+        words[3 * k..3 * k + 3].copy_from_slice(&normal.to_array().map(f32::to_bits));
+    }
+    Ok(words)
 }
 
 /// Appends `patch`'s homogeneous control points relative to `centre` (weights scaled to a
