@@ -598,38 +598,26 @@ fn direct_coons_evaluation() {
                 "{what} at d = {d}: {x} vs {y}"
             );
         };
-        let cubic_small = |d: f64| 3.0 * d * d - 2.0 * d * d * d;
-        close(
-            Blend::Cubic.sample(d).complement,
-            cubic_small(d),
-            "cubic 1 − α",
-        );
-        close(
-            Blend::Cubic.sample(far_end).derivatives[0],
-            cubic_small(d_exact),
-            "cubic α",
-        );
-        close(
-            Blend::Cubic.sample(far_end).derivatives[1],
-            -6.0 * d_exact * (1.0 - d_exact),
-            "cubic α′",
-        );
-        let cosine_small = |d: f64| (0.5 * PI * d).sin().powi(2);
-        close(
-            Blend::Cosine.sample(d).complement,
-            cosine_small(d),
-            "cosine 1 − α",
-        );
-        close(
-            Blend::Cosine.sample(far_end).derivatives[0],
-            cosine_small(d_exact),
-            "cosine α",
-        );
-        close(
-            Blend::Cosine.sample(far_end).derivatives[1],
-            -0.5 * PI * (PI * d_exact).sin(),
-            "cosine α′",
-        );
+        // (blend, its small end at distance d, α′ at distance d from t = 1)
+        let cases: [(Blend, fn(f64) -> f64, fn(f64) -> f64); 2] = [
+            (
+                Blend::Cubic,
+                |d| 3.0 * d * d - 2.0 * d * d * d,
+                |d| -6.0 * d * (1.0 - d),
+            ),
+            (
+                Blend::Cosine,
+                |d| (0.5 * PI * d).sin().powi(2),
+                |d| -0.5 * PI * (PI * d).sin(),
+            ),
+        ];
+        for (blend, small, slope) in cases {
+            let at_far_end = blend.sample(far_end);
+            let what = |name: &str| format!("{blend:?} {name}");
+            close(blend.sample(d).complement, small(d), &what("1 − α"));
+            close(at_far_end.derivatives[0], small(d_exact), &what("α"));
+            close(at_far_end.derivatives[1], slope(d_exact), &what("α′"));
+        }
     }
     assert!(matches!(
         patches::coons(bounds(), &Blend::Cosine, 1e-12).unwrap_err(),
