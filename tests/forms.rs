@@ -956,21 +956,13 @@ fn surface_split_preserves_the_surface() {
     ));
 }
 
-/// `surface` with its v knots mapped affinely onto [v0, v1] and each control point and
-/// weight replaced by `edit(i, j, point, weight)`.
+/// `surface` with the knots `knots_v` along v and each control point and weight replaced by
+/// `edit(i, j, point, weight)`.
 fn rebuilt(
     surface: &BSplineSurface,
-    (v0, v1): (f64, f64),
+    knots_v: &KnotVector,
     edit: impl Fn(usize, usize, DVec3, f64) -> (DVec3, f64),
 ) -> BSplineSurface {
-    let (a, b) = surface.knots_v().domain();
-    let knots_v: Vec<f64> = surface
-        .knots_v()
-        .knots()
-        .iter()
-        .map(|k| v0 + (k - a) / (b - a) * (v1 - v0))
-        .collect();
-    let knots_v = KnotVector::try_new(surface.degree_v(), knots_v).unwrap();
     let (mut points, mut weights) = (Vec::new(), Vec::new());
     for j in 0..surface.count_v() {
         for i in 0..surface.count_u() {
@@ -979,7 +971,22 @@ fn rebuilt(
             weights.push(w);
         }
     }
-    BSplineSurface::try_new(surface.knots_u().clone(), knots_v, &points, Some(&weights)).unwrap()
+    BSplineSurface::try_new(
+        surface.knots_u().clone(),
+        knots_v.clone(),
+        &points,
+        Some(&weights),
+    )
+    .unwrap()
+}
+
+/// `surface`'s knots along v mapped linearly onto the domain [v0, v1].
+fn knots_v_on(surface: &BSplineSurface, (v0, v1): (f64, f64)) -> KnotVector {
+    let (a, b) = surface.knots_v().domain();
+    let knots: Vec<f64> = (surface.knots_v().knots().iter())
+        .map(|k| v0 + (k - a) / (b - a) * (v1 - v0))
+        .collect();
+    KnotVector::try_new(surface.degree_v(), knots).unwrap()
 }
 
 /// Splitting exactly at a range end is refused: the halves would be empty.
@@ -1005,7 +1012,8 @@ fn splits_at_the_range_ends_are_refused() {
 #[test]
 fn reseaming_moves_the_seam_of_closed_surfaces_only() {
     let torus = shapes::torus(DVec3::ZERO, 2.0, 0.5);
-    let closed = rebuilt(&torus, (2.0, 5.0), |_, _, p, w| (p, w));
+    let on_2_5 = knots_v_on(&torus, (2.0, 5.0));
+    let closed = rebuilt(&torus, &on_2_5, |_, _, p, w| (p, w));
     let c = 3.2;
     let moved = closed.reseamed_v(c).expect("a full torus closes along v");
     assert_eq!(moved.range_v(), Interval::new(c, c + 3.0));
@@ -1031,7 +1039,7 @@ fn reseaming_moves_the_seam_of_closed_surfaces_only() {
 
     let last = closed.count_v() - 1;
     let size = closed.control_box_diagonal();
-    let nudged = rebuilt(&torus, (2.0, 5.0), |_, j, p, w| {
+    let nudged = rebuilt(&torus, &on_2_5, |_, j, p, w| {
         (
             if j == last {
                 p + DVec3::X * 1e-9 * size
@@ -1041,7 +1049,7 @@ fn reseaming_moves_the_seam_of_closed_surfaces_only() {
             w,
         )
     });
-    let reweighted = rebuilt(&torus, (2.0, 5.0), |_, j, p, w| {
+    let reweighted = rebuilt(&torus, &on_2_5, |_, j, p, w| {
         (p, if j == last { w * 1.001 } else { w })
     });
     let section = shapes::torus_section(
@@ -1057,17 +1065,7 @@ fn reseaming_moves_the_seam_of_closed_surfaces_only() {
         .with_range(closed.range_u(), Interval::new(2.0, 4.5))
         .unwrap();
     let unclamped_knots = KnotVector::uniform(2, closed.count_v()).unwrap();
-    let (points, weights): (Vec<DVec3>, Vec<f64>) = (0..closed.count_v())
-        .flat_map(|j| (0..closed.count_u()).map(move |i| (i, j)))
-        .map(|(i, j)| (closed.control_point(i, j), closed.weight(i, j)))
-        .unzip();
-    let unclamped = BSplineSurface::try_new(
-        closed.knots_u().clone(),
-        unclamped_knots,
-        &points,
-        Some(&weights),
-    )
-    .unwrap();
+    let unclamped = rebuilt(&closed, &unclamped_knots, |_, _, p, w| (p, w));
     for (what, surface) in [
         ("nudged last row", &nudged),
         ("last row's weights differ", &reweighted),
@@ -1081,7 +1079,7 @@ fn reseaming_moves_the_seam_of_closed_surfaces_only() {
 
     // Size ~2.6e3 and weights ~1e3: agreement to half of 1e-12 relative is closed.
     let scaled = |edit_last: bool| {
-        rebuilt(&torus, (2.0, 5.0), move |_, j, p, w| {
+        rebuilt(&torus, &on_2_5, move |_, j, p, w| {
             let (p, w) = (p * 512.0, w * 1024.0);
             if edit_last && j == last {
                 (p + DVec3::X * 0.5e-12 * (512.0 * size), w * (1.0 + 0.5e-12))
