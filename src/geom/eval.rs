@@ -662,6 +662,40 @@ mod tests {
     use crate::geom::{Interval, KnotVector, bezier_curve, curves};
     use std::f64::consts::PI;
 
+    /// `point_and_cross` is `evaluate`'s point and S_u × S_v, by its own sums (first
+    /// derivatives only): on a rational bicubic × quadratic surface with weights 0.25..4 on
+    /// non-uniform knots, 1e3 from the origin, within 1e-13 of the size and of |S_u × S_v|.
+    #[test]
+    fn point_and_cross_matches_evaluate() {
+        let (nu, nv) = (5, 4);
+        let points: Vec<DVec3> = (0..nu * nv)
+            .map(|k| {
+                let (i, j) = ((k % nu) as f64, (k / nu) as f64);
+                DVec3::new(1e3 + i, -2e3 + j + 0.3 * i, (0.7 * i + 1.3 * j).sin())
+            })
+            .collect();
+        let weights: Vec<f64> = (0..nu * nv)
+            .map(|k| [0.25, 1.0, 4.0, 0.5, 2.0][k % 5])
+            .collect();
+        let knots_u = KnotVector::try_new(3, vec![0., 0., 0., 0., 0.3, 1., 1., 1., 1.]).unwrap();
+        let knots_v = KnotVector::try_new(2, vec![0., 0., 0., 0.6, 1., 1., 1.]).unwrap();
+        let surface = BSplineSurface::try_new(knots_u, knots_v, &points, Some(&weights)).unwrap();
+        let size = surface.control_box_diagonal();
+        for (u, v) in [(0.0, 0.0), (0.1, 0.7), (0.3, 0.6), (0.55, 0.2), (1.0, 0.9)] {
+            let sample = surface.evaluate(u, v);
+            let (point, cross) = surface.point_and_cross(u, v);
+            let expected = sample.du.cross(sample.dv);
+            assert!(
+                (point - sample.position).length() <= 1e-13 * size,
+                "point at ({u}, {v})"
+            );
+            assert!(
+                (cross - expected).length() <= 1e-13 * expected.length(),
+                "cross at ({u}, {v}): {cross} vs {expected}"
+            );
+        }
+    }
+
     /// A directly evaluated Coons patch's third derivatives — the rails' (a rational arc's
     /// included) and the blend's, combined term by term — equal those of its exact B-spline
     /// conversion, which come from the surface's own Leibniz rule on homogeneous derivatives.
