@@ -599,7 +599,8 @@ fn direct_coons_evaluation() {
             );
         };
         // (blend, its small end at distance d, α′ at distance d from t = 1)
-        let cases: [(Blend, fn(f64) -> f64, fn(f64) -> f64); 2] = [
+        type OfDistance = fn(f64) -> f64;
+        let cases: [(Blend, OfDistance, OfDistance); 2] = [
             (
                 Blend::Cubic,
                 |d| 3.0 * d * d - 2.0 * d * d * d,
