@@ -319,6 +319,10 @@ fn ruled_between_rational_and_polynomial_curves() {
         let want = (1.0 - v) * arc.point(u) + v * cubic.point(u);
         assert_close(ruled.point(u, v), want, 4.0, "ruled");
     }
+    // Rational where either curve is (its weights are the product of theirs).
+    assert!(ruled.is_rational());
+    assert!(patches::ruled(&cubic, &arc).unwrap().is_rational());
+    assert!(!patches::ruled(&cubic, &cubic).unwrap().is_rational());
 }
 
 /// Four boundary curves of a Coons patch, mixing a rational arc, a quadratic, a cubic and a
@@ -623,6 +627,15 @@ fn direct_coons_evaluation() {
     assert!(matches!(
         patches::coons(bounds(), &Blend::Cosine, 1e-12).unwrap_err(),
         Error::BlendNotPolynomial
+    ));
+    // Finite coefficients whose evaluation overflows (terms of ±1e308): NaN at both ends,
+    // which compares false with anything — only the finiteness check refuses it.
+    let overflowing = Blend::Polynomial(vec![1.0, 1e308, -1e308, 0.0]);
+    let [at_zero, at_one] = [0.0, 1.0].map(|t| overflowing.derivatives(t)[0]);
+    assert!(at_zero.is_nan() && at_one.is_nan());
+    assert!(matches!(
+        overflowing.check().unwrap_err(),
+        Error::InvalidBlend { .. }
     ));
     let not_a_blend: fn(f64) -> [f64; 3] = |t| [t, 1.0, 0.0];
     assert!(matches!(
