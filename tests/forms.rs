@@ -637,6 +637,22 @@ fn direct_coons_evaluation() {
         overflowing.check().unwrap_err(),
         Error::InvalidBlend { .. }
     ));
+    // Each end on its own, held to 1e-12: α(0) or α(1) off by 2e-12 is refused, by 5e-13
+    // accepted.
+    let ends =
+        |at_zero: f64, at_one: f64| Blend::Polynomial(vec![at_zero, at_one - at_zero]).check();
+    for (at_zero, at_one) in [(0.5, 0.0), (1.0, 0.5), (1.0 + 2e-12, 0.0), (1.0, 2e-12)] {
+        assert!(
+            matches!(ends(at_zero, at_one), Err(Error::InvalidBlend { .. })),
+            "α(0) = {at_zero}, α(1) = {at_one} accepted"
+        );
+    }
+    for (at_zero, at_one) in [(1.0 + 5e-13, 0.0), (1.0, 5e-13), (1.0 - 5e-13, -5e-13)] {
+        assert!(
+            ends(at_zero, at_one).is_ok(),
+            "α(0) = {at_zero}, α(1) = {at_one}"
+        );
+    }
     let not_a_blend: fn(f64) -> [f64; 3] = |t| [t, 1.0, 0.0];
     assert!(matches!(
         patches::coons_patch(bounds(), Blend::Function(not_a_blend), 1e-12).unwrap_err(),
