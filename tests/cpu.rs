@@ -1827,38 +1827,19 @@ fn third_order_degeneracy_takes_the_sampled_limit() {
     }
 }
 
-/// A second-order degenerate corner: a bicubic patch whose v = 0 row is collapsed to a pole
-/// and whose next row leaves the pole's corner radially (P₁₁ − P₀₁ ∥ P₀₁ − pole), so at
-/// (0, 0) the first-order term vanishes exactly too and the limit comes from third
-/// derivatives. On a domain [0, 2] × [0, ½] (the diagonal's steps ±2 and ±½ weigh the
-/// third derivatives unequally), and transposed (where S_v's directional derivatives carry
-/// the term instead of S_u's): within 1e-9 rad of the exact normal 1e-12 along the diagonal.
+/// A second-order degenerate corner: the conformance suite's bicubic net whose v = 0 row is
+/// collapsed to a pole and whose next row leaves the pole's corner radially (P₁₁ − P₀₁ ∥
+/// P₀₁ − pole), so at (0, 0) the first-order term vanishes exactly too and the limit comes
+/// from third derivatives — here with weights, on a domain [0, 2] × [0, ½] (the diagonal's
+/// steps ±2 and ±½ weigh the third derivatives unequally), and transposed (where S_v's
+/// directional derivatives carry the term instead of S_u's): within 1e-9 rad of the exact
+/// normal 1e-12 along the diagonal.
 #[test]
 fn a_second_order_degenerate_corner_takes_its_limit_normal() {
-    let pole = DVec3::new(0.0, 0.0, 0.0);
-    let next = [
-        DVec3::new(1.0, 0.0, 0.25),
-        DVec3::new(1.5, 0.0, 0.375),
-        DVec3::new(1.0, 1.5, 0.5),
-        DVec3::new(0.5, 2.0, 0.0),
-    ];
-    let far = [
-        [
-            (-0.5, 1.0, 0.75),
-            (1.0, 2.0, 1.0),
-            (2.0, 2.5, 0.5),
-            (1.0, 3.0, -0.25),
-        ],
-        [
-            (-1.0, 2.0, 1.0),
-            (0.5, 3.0, 1.25),
-            (1.5, 3.5, 0.75),
-            (0.75, 4.0, 0.0),
-        ],
-    ];
-    let points: Vec<DVec3> = std::iter::repeat_n(pole, 4)
-        .chain(next)
-        .chain(far.iter().flatten().map(|&(x, y, z)| DVec3::new(x, y, z)))
+    let corner = &knotwork::conformance::second_order_corners()[0];
+    let points: Vec<DVec3> = (0..4)
+        .flat_map(|j| (0..4).map(move |i| (i, j)))
+        .map(|(i, j)| corner.control_point(i, j))
         .collect();
     let weights = [
         1.0, 2.0, 0.5, 1.0, 1.0, 0.5, 2.0, 1.0, 1.0, 1.0, 4.0, 1.0, 0.5, 1.0, 1.0, 2.0,

@@ -197,11 +197,11 @@ impl Blend {
     /// [`Blend::Cosine`]; `None` for [`Blend::Function`], which gives only α..α″.
     pub fn third_derivative(&self, t: f64) -> Option<f64> {
         match (self, self.coefficients()) {
-            // Horner on α‴ = Σ i(i−1)(i−2) cᵢ tⁱ⁻³.
-            (_, Some(c)) => Some(c.iter().enumerate().skip(3).rev().fold(0.0, |a3, (i, &c)| {
-                let i = i as f64;
-                a3 * t + i * (i - 1.0) * (i - 2.0) * c
-            })),
+            (_, Some(c)) => {
+                let mut derivatives = [0.0; 4];
+                bernstein_derivatives(&bernstein_polygon(c), t, &mut derivatives);
+                Some(derivatives[3])
+            }
             (Blend::Function(_), None) => None,
             (_, None) => Some(0.5 * PI * PI * PI * (PI * t).sin()),
         }
@@ -222,40 +222,52 @@ pub struct BlendSample {
     pub complement: f64,
 }
 
-/// [`Blend::sample`] of the polynomial Σ cᵢ tⁱ (at least one coefficient), in Bernstein form
-/// on [0, 1]: bₖ = Σᵢ₌₀..ₖ C(k, i)·cᵢ / C(n, i) (exact for the built-in blends, whose bₖ are
-/// 0 and 1), 1 − α from the coefficients 1 − bₖ, and every value by de Casteljau's convex
-/// combinations (1 − t)·a + t·b, which keep a sum of terms of one sign to its own relative
-/// precision at either end.
+/// [`Blend::sample`] of the polynomial Σ cᵢ tⁱ (at least one coefficient): α, α′, α″ from
+/// [`bernstein_derivatives`] and 1 − α from the coefficients 1 − bₖ.
 fn polynomial_sample(c: &[f64], t: f64) -> BlendSample {
+    let alpha = bernstein_polygon(c);
+    let mut derivatives = [0.0; 3];
+    bernstein_derivatives(&alpha, t, &mut derivatives);
+    let mut complement: Vec<f64> = alpha.iter().map(|b| 1.0 - b).collect();
+    BlendSample {
+        derivatives,
+        complement: convex_de_casteljau(&mut complement, t),
+    }
+}
+
+/// The Bernstein form on [0, 1] of the polynomial Σ cᵢ tⁱ (at least one coefficient): bₖ =
+/// Σᵢ₌₀..ₖ C(k, i)·cᵢ / C(n, i) — exact for the built-in blends, whose bₖ are 0 and 1.
+fn bernstein_polygon(c: &[f64]) -> Vec<f64> {
     let n = c.len() - 1;
-    let alpha: Vec<f64> = (0..=n)
+    (0..=n)
         .map(|k| {
             (0..=k)
                 .map(|i| binomial(k, i) * c[i] / binomial(n, i))
                 .sum()
         })
-        .collect();
-    let complement: Vec<f64> = alpha.iter().map(|b| 1.0 - b).collect();
-    // The k-th derivative: n!/(n − k)! times the polygon of k-th forward differences.
-    let derivative = |k: usize| {
-        if k > n {
-            return 0.0;
-        }
-        let mut differences = alpha.clone();
-        for level in 1..=k {
-            for i in 0..=n - level {
+        .collect()
+}
+
+/// The value and derivatives at t ∈ [0, 1] of the Bernstein polygon `b` (at least one
+/// coefficient) into `out[k]`, k < `out.len()`: the k-th derivative is n!/(n − k)! times
+/// the polygon of b's k-th forward differences, each evaluated by de Casteljau's convex
+/// combinations, which keep a sum of terms of one sign to its own relative precision at
+/// either end.
+fn bernstein_derivatives(b: &[f64], t: f64, out: &mut [f64]) {
+    let n = b.len() - 1;
+    let mut differences = b.to_vec();
+    let mut scratch = Vec::with_capacity(b.len());
+    out.fill(0.0);
+    for (k, derivative) in out.iter_mut().enumerate().take(n + 1) {
+        if k > 0 {
+            for i in 0..=n - k {
                 differences[i] = differences[i + 1] - differences[i];
             }
         }
+        scratch.clear();
+        scratch.extend_from_slice(&differences[..=n - k]);
         let falling: f64 = (0..k).map(|i| (n - i) as f64).product();
-        falling * convex_de_casteljau(&mut differences[..=n - k], t)
-    };
-    let (first, second) = (derivative(1), derivative(2));
-    let (mut alpha, mut complement) = (alpha, complement);
-    BlendSample {
-        derivatives: [convex_de_casteljau(&mut alpha, t), first, second],
-        complement: convex_de_casteljau(&mut complement, t),
+        *derivative = falling * convex_de_casteljau(&mut scratch, t);
     }
 }
 
