@@ -797,6 +797,40 @@ mod tests {
         largest
     }
 
+    /// The triangle bound depends on the corners' differences only: moved by 2²⁷ or by
+    /// (−2³⁰, 2²⁰) in the parameters (a knot vector far from 0), corners on a 2⁻⁴ grid give
+    /// the same bound to 1e-12 — the moved corners are exact, and so are their differences
+    /// from the lowest corner, where scaling the absolute coordinates first would leave
+    /// only the rounding of their 2²⁸-sized products.
+    #[test]
+    fn the_triangle_bound_does_not_depend_on_where_the_parameters_lie() {
+        let corners = [
+            DVec2::new(0.0, 0.0),
+            DVec2::new(0.375, 0.125),
+            DVec2::new(0.0625, 0.5),
+        ];
+        let mixed = DerivativeBound {
+            uu: 3.0,
+            uv: 0.5,
+            vv: 2.0,
+            ..Default::default()
+        };
+        let unmixed = DerivativeBound { uv: 0.0, ..mixed };
+        for bound in [mixed, unmixed] {
+            let here = bound.triangle_deviation(corners);
+            for offset in [
+                DVec2::splat(2f64.powi(27)),
+                DVec2::new(-(2f64.powi(30)), 2f64.powi(20)),
+            ] {
+                let there = bound.triangle_deviation(corners.map(|c| c + offset));
+                assert!(
+                    (there - here).abs() <= 1e-12 * here,
+                    "{bound:?} moved by {offset}: {there} where {here}"
+                );
+            }
+        }
+    }
+
     /// On z = ½·(A·u² + B·v²) the triangle bound is the exact largest deviation (the
     /// interpolant's error is ½·(R² − |q − c|²) in (√A·u, √B·v)); with a mixed term it still
     /// holds; and for the halves of a grid cell it is the cell's bound.
