@@ -73,8 +73,8 @@ impl DerivativeBound {
     /// The deviation bound (model units) of a triangle whose corners lie on S at the
     /// parameters `corners` (inside the rectangle): ½·r², r the radius of the smallest circle
     /// around the corners in the coordinates (√a·u, √b·v), where a = M_uu + α·M_uv and
-    /// b = M_vv + M_uv/α (2·|d_u d_v| ≤ α·d_u² + d_v²/α for any α > 0; the least of a few α
-    /// is kept). With the module's rule, |S(x) − L(x)| ≤ ½·Σ λᵢ·|qᵢ − q|² in those
+    /// b = M_vv + M_uv/α (2·|d_u d_v| ≤ α·d_u² + d_v²/α for any α > 0; the least over α =
+    /// the corners' box's height over width, √(M_vv/M_uu) and 1 is kept). With the module's rule, |S(x) − L(x)| ≤ ½·Σ λᵢ·|qᵢ − q|² in those
     /// coordinates, which is R² − |q − c|² for the circumcircle (c, R) and peaks at r² over
     /// the triangle. For either half of a grid cell of size (h, k) it is
     /// [`deviation`](Self::deviation)`(h, k)`; a well-shaped triangle of the same area gets
@@ -890,6 +890,46 @@ mod tests {
                 "{got} vs {expected}"
             );
         }
+    }
+
+    /// The mixed term's bound is the least over its three α: each gives the unmixed bound
+    /// of (M_uu + α·M_uv, M_vv + M_uv/α). The triangle and bound are one where α =
+    /// √(M_vv/M_uu) = √12 is the least, 7 % under α = 1 and the box's ratio (found by
+    /// search over triangles on a ⅛ grid).
+    #[test]
+    fn the_mixed_triangle_bound_is_the_least_over_its_alphas() {
+        let corners = [
+            DVec2::new(0.5, 0.125),
+            DVec2::new(0.625, 1.0),
+            DVec2::new(1.0, 0.5),
+        ];
+        let mixed = DerivativeBound {
+            uu: 0.25,
+            uv: 1.0,
+            vv: 3.0,
+            ..Default::default()
+        };
+        let unmixed_at = |alpha: f64| {
+            DerivativeBound {
+                uu: mixed.uu + alpha * mixed.uv,
+                uv: 0.0,
+                vv: mixed.vv + mixed.uv / alpha,
+                ..Default::default()
+            }
+            .triangle_deviation(corners)
+        };
+        let alphas = [0.875 / 0.5, (mixed.vv / mixed.uu).sqrt(), 1.0];
+        let least = alphas
+            .map(unmixed_at)
+            .into_iter()
+            .fold(f64::INFINITY, f64::min);
+        let got = mixed.triangle_deviation(corners);
+        assert!((got - least).abs() <= 1e-14 * least, "{got} vs {least}");
+        let others = unmixed_at(alphas[0]).min(unmixed_at(alphas[2]));
+        assert!(
+            others >= 1.05 * least,
+            "√(M_vv/M_uu) decides here: {others} vs {least}"
+        );
     }
 
     /// A triangle's excess is the worst of its deviation, its longest edge and its widest
