@@ -945,8 +945,11 @@ mod tests {
             normal_v: 0.25,
             ..Default::default()
         };
-        let corners = [DVec2::ZERO, DVec2::new(1.0, 0.0), DVec2::new(0.0, 1.0)];
-        // Right isosceles, legs 1: r² = ½, deviation ¼; edges (1, 0), (1, 1), (0, 1).
+        // Right isosceles, legs 1, away from the origin and with its longest edge closing
+        // the loop (corner 2 back to corner 0): r² = ½, deviation ¼; edges (1, 0), (0, 1),
+        // (1, 1).
+        let corners =
+            [(1.0, 0.0), (0.0, 0.0), (0.0, 1.0)].map(|(u, v)| DVec2::new(3.0 + u, 5.0 + v));
         let deviation = bound.triangle_deviation(corners);
         assert!((deviation - 0.25).abs() < 1e-15, "{deviation}");
         let limits = |tolerance, max_edge, max_angle| SamplingLimits {
@@ -960,5 +963,163 @@ mod tests {
         assert_eq!(excess(limits(1.0, 2.5, f64::INFINITY)), 2.0);
         // The widest turn, (1, 1): 0.5 + 0.25.
         assert_eq!(excess(limits(1.0, f64::INFINITY, 0.25)), 3.0);
+    }
+
+    /// `segments` gives the fewest cells that meet the limits: the least n_u·n_v over a
+    /// search of every (n_u, n_v) up to the cap, and the cells it gives meet them. The cases
+    /// bind each limit in turn: the mixed quadratic; a linear edge limit whose v rate is not
+    /// 1; a surface so flat over a wide rectangle that one cell does; no M_vv beside M_uv;
+    /// a split of u that leaves v whole ((2, 1) where (1, 3) came first); and a deviation
+    /// whose closed-form spacing rounds to a count one short (found by search), which the
+    /// stepping past rounding must catch.
+    #[test]
+    fn segments_are_the_fewest_cells_that_meet_the_limits() {
+        let quadratic = |uu, uv, vv| DerivativeBound {
+            uu,
+            uv,
+            vv,
+            ..Default::default()
+        };
+        let edge = DerivativeBound {
+            u: 1.0,
+            v: 0.5,
+            ..Default::default()
+        };
+        let limits = |tolerance, max_edge| SamplingLimits {
+            tolerance,
+            max_edge,
+            max_angle: f64::INFINITY,
+        };
+        let cases = [
+            (
+                quadratic(1.0, 0.5, 2.0),
+                (1.0, 2.0),
+                limits(0.01, f64::INFINITY),
+            ),
+            (edge, (3.0, 2.0), limits(f64::INFINITY, 0.3)),
+            (
+                quadratic(1e-3, 0.0, 1e-3),
+                (10.0, 10.0),
+                limits(1.0, f64::INFINITY),
+            ),
+            (
+                quadratic(1.0, 0.25, 0.0),
+                (1.0, 1.0),
+                limits(1e-3, f64::INFINITY),
+            ),
+            (edge, (1.0, 1.0), limits(f64::INFINITY, 1.2)),
+            (
+                quadratic(0.0, 0.0, 1.1394882591841724),
+                (1.0, 1.0),
+                limits(0.0004396173839445109, f64::INFINITY),
+            ),
+        ];
+        let cap = 64;
+        for (k, (bound, (width_u, width_v), limits)) in cases.into_iter().enumerate() {
+            let allows = |n_u: u32, n_v: u32| {
+                bound.allows(width_u / f64::from(n_u), width_v / f64::from(n_v), limits)
+            };
+            let fewest = (1..=cap)
+                .filter_map(|n_u| (1..=cap).find(|&n_v| allows(n_u, n_v)).map(|n_v| n_u * n_v))
+                .min()
+                .expect("the cases meet their limits under the cap");
+            let (n_u, n_v) = bound.segments((width_u, width_v), limits, cap);
+            assert!(
+                allows(n_u, n_v),
+                "case {k}: ({n_u}, {n_v}) misses the limits"
+            );
+            assert_eq!(n_u * n_v, fewest, "case {k}: ({n_u}, {n_v})");
+        }
+    }
+
+    /// The bound by magnitudes holds, nearly tight, where the weights' own differences
+    /// carry it: a straight strip run at uneven speed (degree 2 along u, weights 1, 2, 1:
+    /// S_uu up to 9.92 against a bound of 10.14, of which W_uu·R/w_min gives 2) and a twisted
+    /// bilinear patch with weights (1, ½; ½, 1) (S_uv up to 15.7 against 16.1, W_uv·R/w_min
+    /// 2.3 of it). Each term the quotient rule adds is needed there.
+    #[test]
+    fn the_bound_by_magnitudes_holds_where_the_weights_bend_the_parametrisation() {
+        let rational = |degree_u: usize, corners: &[(f64, f64, f64, f64)]| BezierPatch {
+            degree_u,
+            degree_v: 1,
+            points: (corners.iter())
+                .map(|&(x, y, z, w)| DVec4::new(x * w, y * w, z * w, w))
+                .collect(),
+            range_u: Interval::new(0.0, 1.0),
+            range_v: Interval::new(0.0, 1.0),
+        };
+        let strip = rational(
+            2,
+            &[
+                (0.0, 0.0, 0.0, 1.0),
+                (0.5, 0.0, 0.0, 2.0),
+                (1.0, 0.0, 0.0, 1.0),
+                (0.0, 0.0625, 0.0, 1.0),
+                (0.5, 0.0625, 0.0, 2.0),
+                (1.0, 0.0625, 0.0, 1.0),
+            ],
+        );
+        let twisted = rational(
+            1,
+            &[
+                (1.0, 0.0, 0.5, 1.0),
+                (0.0, -0.5, -1.0, 0.5),
+                (0.0, 1.0, -1.0, 0.5),
+                (1.0, 0.0, 0.5, 1.0),
+            ],
+        );
+        for (name, patch, component, within) in
+            [("strip", strip, 2, 0.95), ("twisted", twisted, 3, 0.95)]
+        {
+            let bound = patch.magnitude_bound();
+            let bounds = [bound.u, bound.v, bound.uu, bound.uv, bound.vv];
+            let most = sampled(&patch);
+            for c in 0..5 {
+                // (Second differences where S is straight: rounding of ~1e-7.)
+                assert!(
+                    most[c] <= bounds[c] * (1.0 + 1e-5) + 1e-6,
+                    "{name}, component {c}: {} > {}",
+                    most[c],
+                    bounds[c]
+                );
+            }
+            assert!(
+                most[component] >= within * bounds[component],
+                "{name}: {} against {}",
+                most[component],
+                bounds[component]
+            );
+        }
+    }
+
+    /// Both bounds of a rational patch stay the same when it is moved 2²⁰ away, as its
+    /// derivatives do: to 1e-9 of each (measured: 2e-11; the moved homogeneous points are
+    /// rounded to ~2²⁰·2⁻⁵² ≈ 2e-10 of the patch's size 4).
+    #[test]
+    fn the_bounds_do_not_depend_on_where_the_patch_lies() {
+        let near = patch();
+        let offset = DVec3::new(1048576.0, -524288.0, 262144.0);
+        let far = BezierPatch {
+            points: (near.points.iter())
+                .map(|h| ((h.truncate() / h.w + offset) * h.w).extend(h.w))
+                .collect(),
+            ..near.clone()
+        };
+        let fields = |b: DerivativeBound| [b.u, b.v, b.uu, b.uv, b.vv];
+        for (name, here, there) in [
+            ("magnitudes", near.magnitude_bound(), far.magnitude_bound()),
+            (
+                "quotient",
+                near.quotient_bound().expect("positive weights"),
+                far.quotient_bound().expect("positive weights"),
+            ),
+        ] {
+            for (c, (a, b)) in fields(here).into_iter().zip(fields(there)).enumerate() {
+                assert!(
+                    (a - b).abs() <= 1e-9 * a,
+                    "{name}, component {c}: {a} vs {b}"
+                );
+            }
+        }
     }
 }
