@@ -1122,4 +1122,25 @@ mod tests {
             }
         }
     }
+
+    /// An overall scale of the weights leaves a rational patch as it was, and the bound by
+    /// magnitudes with it (to rounding); at weights ~1e-120 the cube of w underflows to
+    /// zero, and the quotient bound is refused rather than divided by it: the kept bound is
+    /// the magnitudes'.
+    #[test]
+    fn weights_whose_cube_underflows_keep_the_bound_by_magnitudes() {
+        let patch = patch();
+        let tiny = BezierPatch {
+            points: patch.points.iter().map(|h| *h * 1e-120).collect(),
+            ..patch.clone()
+        };
+        let fields = |b: DerivativeBound| [b.u, b.v, b.uu, b.uv, b.vv];
+        let (here, there) = (patch.magnitude_bound(), tiny.magnitude_bound());
+        for (c, (a, b)) in fields(here).into_iter().zip(fields(there)).enumerate() {
+            assert!((a - b).abs() <= 1e-14 * a, "component {c}: {a} vs {b}");
+        }
+        assert!(patch.quotient_bound().is_some());
+        assert_eq!(tiny.quotient_bound(), None);
+        assert_eq!(tiny.derivative_bound(), there);
+    }
 }
