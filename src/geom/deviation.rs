@@ -1143,4 +1143,31 @@ mod tests {
         assert_eq!(tiny.quotient_bound(), None);
         assert_eq!(tiny.derivative_bound(), there);
     }
+
+    /// Ruled patches (degree 1 along v, weights equal along v) get |S_uv| from their rows'
+    /// differences: 0 on a quarter cylinder (to rounding; the general bound by magnitudes,
+    /// whose quotient-rule terms W_u·G_v do not cancel, is 6 there), and on a quarter
+    /// of a cone (z in [1, 2]), whose S_uv is the radial rate, it holds.
+    #[test]
+    fn ruled_patches_bound_their_twist_by_their_rows_differences() {
+        use crate::geom::shapes::{elliptic_cone, elliptic_cylinder};
+        let quarter = Interval::new(0.0, std::f64::consts::FRAC_PI_2);
+        let first = |surface: crate::geom::BSplineSurface| surface.bezier_patches()[0].clone();
+        let cylinder = first(
+            elliptic_cylinder(DVec3::ZERO, 2.0, 2.0, quarter, Interval::new(0.0, 3.0)).unwrap(),
+        );
+        let cone =
+            first(elliptic_cone(DVec3::ZERO, 1.0, 1.0, quarter, Interval::new(1.0, 2.0)).unwrap());
+        for patch in [&cylinder, &cone] {
+            assert_eq!((patch.degree_u, patch.degree_v), (2, 1));
+        }
+        let twist = cylinder.magnitude_bound().uv;
+        assert!(twist <= 1e-12, "{twist:e}");
+        let cone_twist = cone.magnitude_bound().uv;
+        let most = sampled(&cone)[3];
+        assert!(
+            most > 0.5 && most <= cone_twist * (1.0 + 1e-5) + 1e-9,
+            "{most} vs {cone_twist}"
+        );
+    }
 }
