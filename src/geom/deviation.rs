@@ -1147,7 +1147,8 @@ mod tests {
     /// Ruled patches (degree 1 along v, weights equal along v) get |S_uv| from their rows'
     /// differences: 0 on a quarter cylinder (to rounding; the general bound by magnitudes,
     /// whose quotient-rule terms W_u·G_v do not cancel, is 6 there), and on a quarter
-    /// of a cone (z in [1, 2]), whose S_uv is the radial rate, it holds, within 1.9×.
+    /// of a cone (z in [1, 2]), whose S_uv is the radial rate, it holds, within 1.9×. The
+    /// same with u and v exchanged.
     #[test]
     fn ruled_patches_bound_their_twist_by_their_rows_differences() {
         use crate::geom::shapes::{elliptic_cone, elliptic_cylinder};
@@ -1161,17 +1162,32 @@ mod tests {
         for patch in [&cylinder, &cone] {
             assert_eq!((patch.degree_u, patch.degree_v), (2, 1));
         }
-        let twist = cylinder.magnitude_bound().uv;
-        assert!(twist <= 1e-12, "{twist:e}");
-        let cone_twist = cone.magnitude_bound().uv;
-        let most = sampled(&cone)[3];
-        assert!(
-            most > 0.5 && most <= cone_twist * (1.0 + 1e-5) + 1e-9,
-            "{most} vs {cone_twist}"
-        );
-        // As tight as a first derivative's bound of the quarter circle of differences
-        // (1.83× here; the largest weight term |w₁ − w₀|, not a sum, and each row's own
-        // weight on its own difference from the centre).
-        assert!(cone_twist <= 1.9 * most, "{cone_twist} vs {most}");
+        // The same patches with u and v exchanged: ruled along u.
+        let transposed = |patch: &BezierPatch| BezierPatch {
+            degree_u: patch.degree_v,
+            degree_v: patch.degree_u,
+            points: (0..patch.points.len())
+                .map(|k| patch.points[(k % 2) * 3 + k / 2])
+                .collect(),
+            range_u: patch.range_v,
+            range_v: patch.range_u,
+        };
+        for (name, cylinder, cone) in [
+            ("ruled along v", cylinder.clone(), cone.clone()),
+            ("ruled along u", transposed(&cylinder), transposed(&cone)),
+        ] {
+            let twist = cylinder.magnitude_bound().uv;
+            assert!(twist <= 1e-12, "{name}: {twist:e}");
+            let cone_twist = cone.magnitude_bound().uv;
+            let most = sampled(&cone)[3];
+            assert!(
+                most > 0.5 && most <= cone_twist * (1.0 + 1e-5) + 1e-9,
+                "{name}: {most} vs {cone_twist}"
+            );
+            // As tight as a first derivative's bound of the quarter circle of differences
+            // (1.83× here; the largest weight term |w₁ − w₀|, not a sum, and each row's own
+            // weight on its own difference from the centre).
+            assert!(cone_twist <= 1.9 * most, "{name}: {cone_twist} vs {most}");
+        }
     }
 }
