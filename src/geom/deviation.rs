@@ -1036,7 +1036,8 @@ mod tests {
     /// carry it: a straight strip run at uneven speed (degree 2 along u, weights 1, 2, 1:
     /// S_uu up to 9.92 against a bound of 10.14, of which W_uu·R/w_min gives 2) and a twisted
     /// bilinear patch with weights (1, ½; ½, 1) (S_uv up to 15.7 against 16.1, W_uv·R/w_min
-    /// 2.3 of it). Each term the quotient rule adds is needed there.
+    /// 2.3 of it), and a twisted ruled one with weights 1, 4 along u (S_uv up to 3.98
+    /// against its rows' bound of 4). Each term the quotient rule adds is needed there.
     #[test]
     fn the_bound_by_magnitudes_holds_where_the_weights_bend_the_parametrisation() {
         let rational = |degree_u: usize, corners: &[(f64, f64, f64, f64)]| BezierPatch {
@@ -1068,9 +1069,22 @@ mod tests {
                 (1.0, 0.0, 0.5, 1.0),
             ],
         );
-        for (name, patch, component, within) in
-            [("strip", strip, 2, 0.95), ("twisted", twisted, 3, 0.95)]
-        {
+        // Ruled (weights equal along v), its rows' differences (0, 1, 0) and (0, 1, 1) over
+        // weights 1 and 4: S_uv = 4·(0, 0, 1)/w(u)², the ruled bound's W·R term exact.
+        let ruled = rational(
+            1,
+            &[
+                (0.0, 0.0, 0.0, 1.0),
+                (1.0, 0.0, 0.0, 4.0),
+                (0.0, 1.0, 0.0, 1.0),
+                (1.0, 1.0, 1.0, 4.0),
+            ],
+        );
+        for (name, patch, component, within) in [
+            ("strip", strip, 2, 0.95),
+            ("twisted", twisted, 3, 0.95),
+            ("ruled", ruled, 3, 0.99),
+        ] {
             let bound = patch.magnitude_bound();
             let bounds = [bound.u, bound.v, bound.uu, bound.uv, bound.vv];
             let most = sampled(&patch);
