@@ -123,3 +123,125 @@ pub(super) fn centre_value<T: Value>(p: &Bernstein<T>) -> T {
         .collect();
     halve(rows)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    /// Σᵢⱼ C(du,i)·sⁱ(1−s)^(du−i) · C(dv,j)·tʲ(1−t)^(dv−j) · c_ij: the polynomial's value at
+    /// local parameters (s, t) ∈ [0, 1]², summed term by term.
+    fn value<T: Value>(p: &Bernstein<T>, s: f64, t: f64) -> T {
+        let basis = |n: usize, k: usize, x: f64| {
+            binomial(n, k) * x.powi(k as i32) * (1.0 - x).powi((n - k) as i32)
+        };
+        let mut sum = T::default();
+        for j in 0..=p.dv {
+            for i in 0..=p.du {
+                sum = sum + p.at(i, j) * (basis(p.du, i, s) * basis(p.dv, j, t));
+            }
+        }
+        sum
+    }
+
+    /// A scalar polynomial of degree (2, 1) and a vector one of degree (1, 3), with
+    /// coefficients of both signs and different sizes.
+    fn operands() -> (Bernstein<f64>, Bernstein<DVec3>) {
+        let scalar = Bernstein::new(2, 1, vec![1.0, -0.5, 2.0, 0.25, 3.0, -1.5]);
+        let vector = Bernstein::new(
+            1,
+            3,
+            (0..8)
+                .map(|k| {
+                    let k = k as f64;
+                    DVec3::new(k - 3.0, 0.5 * k * k - 2.0, (k * 0.7).sin())
+                })
+                .collect(),
+        );
+        (scalar, vector)
+    }
+
+    fn grid() -> impl Iterator<Item = (f64, f64)> {
+        (0..=6).flat_map(|a| (0..=6).map(move |b| (a as f64 / 6.0, b as f64 / 6.0)))
+    }
+
+    /// Products are the pointwise products of their operands, for a scalar times a vector
+    /// and for the cross and dot products of vectors, to 1e-13 of their size; their degrees
+    /// add.
+    #[test]
+    fn products_are_pointwise_products() {
+        let (scalar, vector) = operands();
+        let scaled = scalar.product(&vector, |x: f64, v: DVec3| v * x);
+        let crossed = vector.product(&vector.derivative(false, 2.0), |a: DVec3, b: DVec3| {
+            a.cross(b)
+        });
+        let dotted = vector.product(&vector, |a: DVec3, b: DVec3| a.dot(b));
+        assert_eq!((scaled.du, scaled.dv), (3, 4));
+        assert_eq!((crossed.du, crossed.dv), (1, 6));
+        assert_eq!((dotted.du, dotted.dv), (2, 6));
+        for (s, t) in grid() {
+            let (x, v) = (value(&scalar, s, t), value(&vector, s, t));
+            let v_u = value(&vector.derivative(false, 2.0), s, t);
+            for (got, want) in [
+                (value(&scaled, s, t), v * x),
+                (value(&crossed, s, t), v.cross(v_u)),
+                (DVec3::splat(value(&dotted, s, t)), DVec3::splat(v.dot(v))),
+            ] {
+                assert!(
+                    (got - want).length() <= 1e-13 * (1.0 + want.length()),
+                    "({s}, {t}): {got} vs {want}"
+                );
+            }
+        }
+    }
+
+    /// The derivative along u and along v over a piece of width w is the polynomial's rate
+    /// in that parameter (central differences of its values, step 1e-5, to 1e-8), and the
+    /// difference of two polynomials is that of their values.
+    #[test]
+    fn derivatives_and_differences_are_pointwise() {
+        let (_, vector) = operands();
+        let other = Bernstein::new(
+            1,
+            3,
+            vector
+                .coefficients
+                .iter()
+                .map(|c| DVec3::new(c.y, c.z, c.x) * 0.5)
+                .collect(),
+        );
+        let (width_u, width_v) = (0.5, 4.0);
+        let (d_u, d_v) = (
+            vector.derivative(false, width_u),
+            vector.derivative(true, width_v),
+        );
+        assert_eq!((d_u.du, d_u.dv, d_v.du, d_v.dv), (0, 3, 1, 2));
+        let step = 1e-5;
+        for (s, t) in grid() {
+            let (s, t) = (0.01 + 0.98 * s, 0.01 + 0.98 * t);
+            let rate_u = (value(&vector, s + step, t) - value(&vector, s - step, t))
+                / (2.0 * step * width_u);
+            let rate_v = (value(&vector, s, t + step) - value(&vector, s, t - step))
+                / (2.0 * step * width_v);
+            assert!(
+                (value(&d_u, s, t) - rate_u).length() <= 1e-8,
+                "({s}, {t}) along u"
+            );
+            assert!(
+                (value(&d_v, s, t) - rate_v).length() <= 1e-8,
+                "({s}, {t}) along v"
+            );
+            let difference = value(&vector.minus(&other), s, t);
+            let want = value(&vector, s, t) - value(&other, s, t);
+            assert!((difference - want).length() <= 1e-14 * (1.0 + want.length()));
+        }
+    }
+
+    /// The centre value is the value at (½, ½), of a polynomial of unequal degrees.
+    #[test]
+    fn the_centre_value_is_the_value_at_the_centre() {
+        let (scalar, vector) = operands();
+        assert!((centre_value(&scalar) - value(&scalar, 0.5, 0.5)).abs() <= 1e-15);
+        assert!((centre_value(&vector) - value(&vector, 0.5, 0.5)).length() <= 1e-14);
+    }
+}
