@@ -74,11 +74,11 @@ impl DerivativeBound {
     /// parameters `corners` (inside the rectangle): ½·r², r the radius of the smallest circle
     /// around the corners in the coordinates (√a·u, √b·v), where a = M_uu + α·M_uv and
     /// b = M_vv + M_uv/α (2·|d_u d_v| ≤ α·d_u² + d_v²/α for any α > 0; the least over α =
-    /// the corners' box's height over width, √(M_vv/M_uu) and 1 is kept). With the module's rule, |S(x) − L(x)| ≤ ½·Σ λᵢ·|qᵢ − q|² in those
-    /// coordinates, which is R² − |q − c|² for the circumcircle (c, R) and peaks at r² over
-    /// the triangle. For either half of a grid cell of size (h, k) it is
-    /// [`deviation`](Self::deviation)`(h, k)`; a well-shaped triangle of the same area gets
-    /// less.
+    /// the corners' box's height over width, √(M_vv/M_uu) and 1 is kept). With the module's
+    /// rule, |S(x) − L(x)| ≤ ½·Σ λᵢ·|qᵢ − q|² in those coordinates, which is R² − |q − c|²
+    /// for the circumcircle (c, R) and peaks at r² over the triangle. For either half of a
+    /// grid cell of size (h, k) it is [`deviation`](Self::deviation)`(h, k)`; a well-shaped
+    /// triangle of the same area gets less.
     pub fn triangle_deviation(&self, corners: [DVec2; 3]) -> f64 {
         let low = corners[0].min(corners[1]).min(corners[2]);
         let extent = corners[0].max(corners[1]).max(corners[2]) - low;
@@ -224,15 +224,15 @@ impl DerivativeBound {
 
 impl BezierPatch {
     /// Bounds of the first and second derivatives of the patch over its parameter ranges,
-    /// from its control net (convex-hull property of Bezier derivatives): |S_u| ≤ G_u below. Polynomial: M_uu =
-    /// p(p−1)/Δu² · max|Δ²_u P| (M_uv, M_vv likewise). Rational, in homogeneous coordinates
-    /// relative to the centre C of the control points' box, with R = max|P − C|, w_min the
-    /// least weight and D, W the same difference bounds of w·(P − C) and of w: |S_u| ≤ G_u =
-    /// (D_u + W_u·R)/w_min and, from the quotient rule, M_uu ≤ (D_uu + 2·W_u·G_u + W_uu·R)
-    /// / w_min, M_uv ≤ (D_uv + W_u·G_v + W_v·G_u + W_uv·R) / w_min. With equal weights W = 0
-    /// and this is the polynomial bound. Needs positive weights. For a rational patch each
-    /// component is also bounded by [`quotient_bound`](Self::quotient_bound) and the
-    /// smaller kept.
+    /// from its control net (convex-hull property of Bezier derivatives): |S_u| ≤ G_u below.
+    /// Polynomial: M_uu = p(p−1)/Δu² · max|Δ²_u P| (M_uv, M_vv likewise). Rational, in
+    /// homogeneous coordinates relative to the centre C of the control points' box, with
+    /// R = max|P − C|, w_min the least weight and D, W the same difference bounds of
+    /// w·(P − C) and of w: |S_u| ≤ G_u = (D_u + W_u·R)/w_min and, from the quotient rule,
+    /// M_uu ≤ (D_uu + 2·W_u·G_u + W_uu·R) / w_min, M_uv ≤ (D_uv + W_u·G_v + W_v·G_u +
+    /// W_uv·R) / w_min. With equal weights W = 0 and this is the polynomial bound. Needs
+    /// positive weights. For a rational patch each component is also bounded by
+    /// [`quotient_bound`](Self::quotient_bound) and the smaller kept.
     pub fn derivative_bound(&self) -> DerivativeBound {
         self.tightened(self.magnitude_bound())
     }
