@@ -648,6 +648,30 @@ mod tests {
         assert_eq!(whole.restricted_u(0.0, 1.0).points, whole.points);
     }
 
+    /// |S_u|, |S_v|, |S_uu|, |S_uv|, |S_vv| of a bound, in the order [`sampled`] gives them.
+    fn components(bound: DerivativeBound) -> [f64; 5] {
+        [bound.u, bound.v, bound.uu, bound.uv, bound.vv]
+    }
+
+    /// Each component of `there` within `relative` of the same one of `here`.
+    fn assert_same_bounds(
+        name: &str,
+        here: DerivativeBound,
+        there: DerivativeBound,
+        relative: f64,
+    ) {
+        for (c, (a, b)) in components(here)
+            .into_iter()
+            .zip(components(there))
+            .enumerate()
+        {
+            assert!(
+                (a - b).abs() <= relative * a,
+                "{name}, component {c}: {a} vs {b}"
+            );
+        }
+    }
+
     /// The largest |S_u|, |S_v|, |S_uu|, |S_uv|, |S_vv| at 17 × 17 points of a patch, by
     /// central differences of its points (step 1e-4 of its widths).
     fn sampled(patch: &BezierPatch) -> [f64; 5] {
@@ -698,21 +722,11 @@ mod tests {
             let magnitudes = cell.magnitude_bound();
             let kept = cell.derivative_bound();
             let most = sampled(cell);
-            let bounds = [
-                quotient.u,
-                quotient.v,
-                quotient.uu,
-                quotient.uv,
-                quotient.vv,
-            ];
-            let loose = [
-                magnitudes.u,
-                magnitudes.v,
-                magnitudes.uu,
-                magnitudes.uv,
-                magnitudes.vv,
-            ];
-            let kept = [kept.u, kept.v, kept.uu, kept.uv, kept.vv];
+            let (bounds, loose, kept) = (
+                components(quotient),
+                components(magnitudes),
+                components(kept),
+            );
             for c in 0..5 {
                 assert!(
                     most[c] <= bounds[c] * (1.0 + 1e-5) + 1e-9,
@@ -763,12 +777,11 @@ mod tests {
         });
         let bounds = quarters.as_flattened().iter().map(|q| q.magnitude_bound());
         let union = bounds.clone().reduce(DerivativeBound::max).unwrap();
-        let fields = |b: &DerivativeBound| [b.u, b.v, b.uu, b.uv, b.vv];
         let most = sampled(&whole);
-        let own = fields(&whole.magnitude_bound());
+        let own = components(whole.magnitude_bound());
         for c in 0..5 {
-            let largest = bounds.clone().map(|b| fields(&b)[c]).fold(0.0, f64::max);
-            assert_eq!(fields(&union)[c], largest);
+            let largest = bounds.clone().map(|b| components(b)[c]).fold(0.0, f64::max);
+            assert_eq!(components(union)[c], largest);
             assert!(most[c] <= largest * (1.0 + 1e-5) + 1e-9, "component {c}");
             assert!(largest < own[c], "component {c}: {largest} ≥ {}", own[c]);
         }
@@ -1086,8 +1099,7 @@ mod tests {
             ("twisted", twisted, 3, 0.95),
             ("ruled", ruled, 3, 0.99),
         ] {
-            let bound = patch.magnitude_bound();
-            let bounds = [bound.u, bound.v, bound.uu, bound.uv, bound.vv];
+            let bounds = components(patch.magnitude_bound());
             let most = sampled(&patch);
             for c in 0..5 {
                 // (Second differences where S is straight: rounding of ~1e-7.)
@@ -1120,7 +1132,6 @@ mod tests {
                 .collect(),
             ..near.clone()
         };
-        let fields = |b: DerivativeBound| [b.u, b.v, b.uu, b.uv, b.vv];
         for (name, here, there) in [
             ("magnitudes", near.magnitude_bound(), far.magnitude_bound()),
             (
@@ -1129,12 +1140,7 @@ mod tests {
                 far.quotient_bound().expect("positive weights"),
             ),
         ] {
-            for (c, (a, b)) in fields(here).into_iter().zip(fields(there)).enumerate() {
-                assert!(
-                    (a - b).abs() <= 1e-9 * a,
-                    "{name}, component {c}: {a} vs {b}"
-                );
-            }
+            assert_same_bounds(name, here, there, 1e-9);
         }
     }
 
@@ -1149,11 +1155,8 @@ mod tests {
             points: patch.points.iter().map(|h| *h * 1e-120).collect(),
             ..patch.clone()
         };
-        let fields = |b: DerivativeBound| [b.u, b.v, b.uu, b.uv, b.vv];
-        let (here, there) = (patch.magnitude_bound(), tiny.magnitude_bound());
-        for (c, (a, b)) in fields(here).into_iter().zip(fields(there)).enumerate() {
-            assert!((a - b).abs() <= 1e-14 * a, "component {c}: {a} vs {b}");
-        }
+        let there = tiny.magnitude_bound();
+        assert_same_bounds("magnitudes", patch.magnitude_bound(), there, 1e-14);
         assert!(patch.quotient_bound().is_some());
         assert_eq!(tiny.quotient_bound(), None);
         assert_eq!(tiny.derivative_bound(), there);

@@ -172,16 +172,15 @@ mod tests {
     fn products_are_pointwise_products() {
         let (scalar, vector) = operands();
         let scaled = scalar.product(&vector, |x: f64, v: DVec3| v * x);
-        let crossed = vector.product(&vector.derivative(false, 2.0), |a: DVec3, b: DVec3| {
-            a.cross(b)
-        });
+        let rate = vector.derivative(false, 2.0);
+        let crossed = vector.product(&rate, |a: DVec3, b: DVec3| a.cross(b));
         let dotted = vector.product(&vector, |a: DVec3, b: DVec3| a.dot(b));
         assert_eq!((scaled.du, scaled.dv), (3, 4));
         assert_eq!((crossed.du, crossed.dv), (1, 6));
         assert_eq!((dotted.du, dotted.dv), (2, 6));
         for (s, t) in grid() {
             let (x, v) = (value(&scalar, s, t), value(&vector, s, t));
-            let v_u = value(&vector.derivative(false, 2.0), s, t);
+            let v_u = value(&rate, s, t);
             for (got, want) in [
                 (value(&scaled, s, t), v * x),
                 (value(&crossed, s, t), v.cross(v_u)),
