@@ -986,6 +986,35 @@ fn surface_split_preserves_the_surface() {
     ));
 }
 
+/// The control box of a surface made from another's control points (split, transposed,
+/// reseamed) is the box of its own control points, also far from the origin where the points
+/// are kept relative to the parent's origin.
+#[test]
+fn derived_surfaces_keep_their_control_boxes() {
+    let far = DVec3::new(1.0e5, -2.0e5, 3.0e5);
+    let torus = shapes::torus(far, 2.0, 0.5);
+    let (a, b) = torus.split_u(0.3).unwrap();
+    let (c, d) = torus.split_v(0.55).unwrap();
+    let reseamed = torus.reseamed_v(0.4).expect("a torus closes along v");
+    let derived = [&a, &b, &c, &d, &torus.transposed(), &reseamed];
+    for (k, surface) in derived.into_iter().enumerate() {
+        let points = (0..surface.count_v())
+            .flat_map(|j| (0..surface.count_u()).map(move |i| surface.control_point(i, j)));
+        let want = points.fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p), hi.max(p))
+        });
+        let (lo, hi) = surface.control_box();
+        // The points are rounded once when made absolute: a few ulps of the offset.
+        let ulps = 4.0 * f64::EPSILON * far.abs().max_element();
+        assert!(
+            lo.abs_diff_eq(want.0, ulps) && hi.abs_diff_eq(want.1, ulps),
+            "surface {k}: box {lo} .. {hi}, control points span {} .. {}",
+            want.0,
+            want.1
+        );
+    }
+}
+
 /// `surface` with the knots `knots_v` along v and each control point and weight replaced by
 /// `edit(i, j, point, weight)`.
 fn rebuilt(
