@@ -263,7 +263,7 @@ impl BezierPatch {
         let (p, q) = (self.degree_u, self.degree_v);
         let row = p + 1;
         // (w·(P − C), w) of every control point, formed once (on the stack for a bicubic
-        // patch): the stencils below read each several times.
+        // patch), and the differences below from them.
         let mut on_stack = [DVec4::ZERO; 16];
         let mut on_heap = Vec::new();
         let relative: &mut [DVec4] = match self.points.len() {
@@ -280,54 +280,52 @@ impl BezierPatch {
         for (r, h) in relative.iter_mut().zip(&self.points) {
             *r = (h.truncate() - h.w * centre).extend(h.w);
         }
-        let at = |i: usize, j: usize| relative[j * row + i];
-        // The largest |vector part| and |weight| of a difference stencil over the net.
-        fn largest(
-            columns: usize,
-            rows: usize,
-            stencil: impl Fn(usize, usize) -> DVec4,
-        ) -> (f64, f64) {
-            // Plain comparisons: the same as f64::max on these (never NaN-first) values,
-            // without its NaN handling in the innermost loop of the planner.
-            let (mut vector, mut weight) = (0.0f64, 0.0f64);
-            for j in 0..rows {
-                for i in 0..columns {
-                    let d = stencil(i, j);
-                    let (v, w) = (d.truncate().length_squared(), d.w.abs());
-                    if v > vector {
-                        vector = v;
-                    }
-                    if w > weight {
-                        weight = w;
-                    }
+        // First differences along u (p per row of the net) and along v (rows of p + 1),
+        // the second differences from them: uu along each row of those along u, uv and vv
+        // between consecutive rows of those along u and along v. Each kind's largest
+        // |vector part| and |weight| is what the bound takes.
+        let mut first_on_stack = [DVec4::ZERO; 24];
+        let mut first_on_heap = Vec::new();
+        let (along_u, along_v) = (p * (q + 1), row * q);
+        let first: &mut [DVec4] = match along_u + along_v {
+            n if n <= first_on_stack.len() => &mut first_on_stack[..n],
+            n => {
+                first_on_heap.resize(n, DVec4::ZERO);
+                &mut first_on_heap
+            }
+        };
+        let (steps_u, steps_v) = first.split_at_mut(along_u);
+        let [
+            mut first_u,
+            mut first_v,
+            mut second_uu,
+            mut second_uv,
+            mut second_vv,
+        ] = [Largest::default(); 5];
+        if p >= 1 {
+            for (points, steps) in relative.chunks_exact(row).zip(steps_u.chunks_exact_mut(p)) {
+                for i in 0..p {
+                    steps[i] = points[i + 1] - points[i];
+                    first_u.take(steps[i]);
+                }
+                for i in 1..p {
+                    second_uu.take(steps[i] - steps[i - 1]);
                 }
             }
-            (vector.sqrt(), weight)
+            for (next, this) in steps_u[p..].iter().zip(&*steps_u) {
+                second_uv.take(next - this);
+            }
         }
-        let first_u = largest(p, q + 1, |i, j| at(i + 1, j) - at(i, j));
-        let first_v = largest(p + 1, q, |i, j| at(i, j + 1) - at(i, j));
-        let (zero, pf, qf) = ((0.0, 0.0), p as f64, q as f64);
-        let second_uu = if p >= 2 {
-            largest(p - 1, q + 1, |i, j| {
-                at(i + 2, j) - 2.0 * at(i + 1, j) + at(i, j)
-            })
-        } else {
-            zero
-        };
-        let second_vv = if q >= 2 {
-            largest(p + 1, q - 1, |i, j| {
-                at(i, j + 2) - 2.0 * at(i, j + 1) + at(i, j)
-            })
-        } else {
-            zero
-        };
-        let second_uv = if p >= 1 && q >= 1 {
-            largest(p, q, |i, j| {
-                at(i + 1, j + 1) - at(i + 1, j) - at(i, j + 1) + at(i, j)
-            })
-        } else {
-            zero
-        };
+        for ((d, next), this) in steps_v.iter_mut().zip(&relative[row..]).zip(&*relative) {
+            *d = next - this;
+            first_v.take(*d);
+        }
+        for (next, this) in steps_v.get(row..).unwrap_or_default().iter().zip(&*steps_v) {
+            second_vv.take(next - this);
+        }
+        let [first_u, first_v, second_uu, second_uv, second_vv] =
+            [first_u, first_v, second_uu, second_uv, second_vv].map(Largest::get);
+        let (pf, qf) = (p as f64, q as f64);
         let (wu, wv) = (self.range_u.width(), self.range_v.width());
         let scale_u = pf / wu;
         let scale_v = qf / wv;
@@ -554,6 +552,32 @@ fn restrict_in_place(
                 points[at(k)] = points[at(k - 1)].lerp(points[at(k)], t);
             }
         }
+    }
+}
+
+/// The largest |vector part| and |weight| of the differences given to [`Largest::take`].
+#[derive(Clone, Copy, Default)]
+struct Largest {
+    vector_squared: f64,
+    weight: f64,
+}
+
+impl Largest {
+    #[inline]
+    fn take(&mut self, d: DVec4) {
+        // Plain comparisons: the same as f64::max on these (never NaN-first) values,
+        // without its NaN handling in the innermost loop of the planner.
+        let (v, w) = (d.truncate().length_squared(), d.w.abs());
+        if v > self.vector_squared {
+            self.vector_squared = v;
+        }
+        if w > self.weight {
+            self.weight = w;
+        }
+    }
+
+    fn get(self) -> (f64, f64) {
+        (self.vector_squared.sqrt(), self.weight)
     }
 }
 

@@ -408,21 +408,27 @@ impl CellGrid {
                 self.cells[self.cells.len() - 1].range_v.end,
             )
         };
-        let mut samples = Vec::new();
-        for c in 0..count {
+        // Cell c along the side: its place and itself.
+        let cell_at = |c: usize| {
             let (a, b) = match side {
                 Side::Bottom => (c, 0),
                 Side::Top => (c, self.rows - 1),
                 Side::Left => (0, c),
                 Side::Right => (self.columns - 1, c),
             };
-            let cell = &self.cells[b * self.columns + a];
+            (a, b, &self.cells[b * self.columns + a])
+        };
+        // A cell's interval and segments along the side.
+        let along = |cell: &Cell| match along_u {
+            true => (cell.range_u, cell.segments.0),
+            false => (cell.range_v, cell.segments.1),
+        };
+        let total: usize = (0..count).map(|c| along(cell_at(c).2).1 as usize).sum();
+        let mut samples = Vec::with_capacity(total + 1);
+        for c in 0..count {
+            let (a, b, cell) = cell_at(c);
             let (n_u, n_v) = cell.segments;
-            let (piece, n) = if along_u {
-                (cell.range_u, n_u)
-            } else {
-                (cell.range_v, n_v)
-            };
+            let (piece, n) = along(cell);
             let last = if c + 1 == count { n } else { n - 1 };
             for s in 0..=last {
                 let (i, j) = match side {
@@ -519,7 +525,10 @@ impl CellGrid {
         let band = rows.start * self.columns..rows.end * self.columns;
         // Reused from cell to cell: the indices of the cell's boundary vertices, the
         // samples its sides lack, and the two chains a grid cell with extras is zipped from.
-        let mut ring = Vec::new();
+        let perimeter = (self.cells[band.clone()].iter())
+            .map(|cell| 2 * (cell.segments.0 as usize + cell.segments.1 as usize + 2))
+            .max();
+        let mut ring = Vec::with_capacity(perimeter.unwrap_or(0));
         let mut lacking: [SideExtras; 4] = Default::default();
         let mut chains: [Vec<u32>; 2] = Default::default();
         for (k, cell) in self.cells[band.clone()].iter().enumerate() {

@@ -27,9 +27,9 @@ use crate::geom::analytic::Analytic;
 use crate::geom::brep::{Bound, Shell};
 use crate::geom::project::{SurfacePoints, SurfaceSamples, invert, invert_from_grid, nearest};
 use crate::geom::{BSplineSurface, Interval, SamplingLimits};
+use foldhash::{HashMap, HashMapExt};
 use glam::{DVec2, DVec3};
 use rayon::prelude::*;
-use std::collections::HashMap;
 use std::f64::consts::FRAC_PI_2;
 
 /// Deepest bisection of one piece of an edge.

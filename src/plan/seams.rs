@@ -15,8 +15,8 @@
 use super::adaptive::Side;
 use crate::error::{Error, Result};
 use crate::geom::{BSplineSurface, KnotVector};
+use foldhash::{HashMap, HashMapExt, HashSet, HashSetExt};
 use glam::DVec3;
-use std::collections::{HashMap, HashSet};
 
 /// Samples of two sides closer than this (as fractions of the side) are one.
 const SAME_FRACTION: f64 = 1e-12;

@@ -4,8 +4,8 @@
 
 use super::adaptive::sample_fraction;
 use crate::geom::{BasisDers, Interval, KnotVector, MAX_ORDER, basis_ders};
+use foldhash::HashMap;
 use rayon::prelude::*;
-use std::collections::HashMap;
 use std::hash::{Hash, Hasher};
 use std::sync::Arc;
 

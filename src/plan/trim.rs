@@ -32,10 +32,10 @@ use super::adaptive::{BoundEffort, CellGrid, surface_cells};
 use crate::error::{Error, Result};
 use crate::geom::analytic::Analytic;
 use crate::geom::{DerivativeBound, Interval, SamplingLimits, TrimmedSurface, degenerate_cross_sq};
+use foldhash::{HashMap, HashMapExt, HashSet, HashSetExt};
 use glam::{DVec2, DVec3};
 use spade::handles::FixedVertexHandle;
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
-use std::collections::{HashMap, HashSet};
 
 /// Most vertices the plan of one trimmed face may hold: a tolerance that needs more is refused.
 pub const MAX_TRIMMED_VERTICES: usize = 1 << 24;
