@@ -135,7 +135,9 @@ impl UsedVertices {
         }
         before.push(count);
         indices.resize(triangles.len(), 0);
-        (indices.par_iter_mut().zip(triangles)).for_each(|(new, &old)| *new = before[old as usize]);
+        (indices.par_iter_mut().zip(triangles))
+            .with_min_len(crate::plan::INDICES_PER_TASK)
+            .for_each(|(new, &old)| *new = before[old as usize]);
         let parts = (layout.parts.iter())
             .map(|part| {
                 let first = before[part.first_vertex as usize];
