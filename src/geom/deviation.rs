@@ -1251,4 +1251,50 @@ mod tests {
         assert!(quotient.v < 0.8 * cheap.v, "{quotient:?} vs {cheap:?}");
         assert_eq!(polynomial.derivative_bound(), cheap);
     }
+
+    /// The bound by magnitudes of a biquadratic net P_ij = (i², j², i·j) + offset over
+    /// [1, 3] × [−1, 0.5] is the surface's true largest derivatives, in closed form: its
+    /// second differences are constant ((2, 0, 0) along u, (0, 2, 0) along v, (0, 0, 1)
+    /// mixed), so S_uu = 2·Δ²/w_u² everywhere (likewise S_vv, S_uv = 4·Δ_uv/(w_u·w_v)), and
+    /// |S_u| = 2·|Δ_u|/w_u is largest at the corner where |Δ_u P| = |(3, 0, 2)| is (|S_v|
+    /// likewise, (0, 3, 2)). Each difference and each scale by the ranges' widths shows.
+    #[test]
+    fn the_bound_by_magnitudes_of_a_biquadratic_net_is_its_closed_form() {
+        let offset = DVec3::new(-40.0, 7.0, 1.0e3);
+        let points = (0..9)
+            .map(|k| {
+                let (i, j) = ((k % 3) as f64, (k / 3) as f64);
+                (DVec3::new(i * i, j * j, i * j) + offset).extend(1.0)
+            })
+            .collect();
+        let net = BezierPatch {
+            degree_u: 2,
+            degree_v: 2,
+            points,
+            range_u: Interval::new(1.0, 3.0),
+            range_v: Interval::new(-1.0, 0.5),
+        };
+        let (wu, wv) = (2.0, 1.5);
+        let want = [
+            2.0 * 13f64.sqrt() / wu,
+            2.0 * 13f64.sqrt() / wv,
+            4.0 / (wu * wu),
+            4.0 / (wu * wv),
+            4.0 / (wv * wv),
+        ];
+        let bound = components(net.magnitude_bound());
+        for (c, (got, want)) in bound.into_iter().zip(want).enumerate() {
+            assert!(
+                (got - want).abs() <= 1e-12 * want,
+                "component {c}: {got} vs {want}"
+            );
+        }
+        // And they are the surface's own largest values (central differences).
+        for (c, (most, want)) in sampled(&net).into_iter().zip(want).enumerate() {
+            assert!(
+                (most - want).abs() <= 1e-3 * want,
+                "component {c}: {most} vs {want}"
+            );
+        }
+    }
 }
