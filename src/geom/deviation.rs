@@ -1072,7 +1072,8 @@ mod tests {
 
     /// The bound by magnitudes holds, nearly tight, where the weights' own differences
     /// carry it: a straight strip run at uneven speed (degree 2 along u, weights 1, 2, 1:
-    /// S_uu up to 9.92 against a bound of 10.14, of which W_uu·R/w_min gives 2) and a twisted
+    /// S_uu up to 9.92 against a bound of 10.14, of which W_uu·R/w_min gives 2; the same
+    /// strip along v, S_vv) and a twisted
     /// bilinear patch with weights (1, ½; ½, 1) (S_uv up to 15.7 against 16.1, W_uv·R/w_min
     /// 2.3 of it), and a twisted ruled one with weights 1, 4 along u (S_uv up to 3.98
     /// against its rows' bound of 4). Each term the quotient rule adds is needed there.
@@ -1118,8 +1119,20 @@ mod tests {
                 (1.0, 1.0, 1.0, 4.0),
             ],
         );
+        // The strip run along v instead: S_vv's weight term the same way.
+        let (row, rows) = (strip.degree_u + 1, strip.degree_v + 1);
+        let strip_along_v = BezierPatch {
+            degree_u: strip.degree_v,
+            degree_v: strip.degree_u,
+            points: (0..row * rows)
+                .map(|k| strip.points[(k % rows) * row + k / rows])
+                .collect(),
+            range_u: strip.range_v,
+            range_v: strip.range_u,
+        };
         for (name, patch, component, within) in [
             ("strip", strip, 2, 0.95),
+            ("strip along v", strip_along_v, 4, 0.95),
             ("twisted", twisted, 3, 0.95),
             ("ruled", ruled, 3, 0.99),
         ] {
