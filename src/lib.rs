@@ -62,6 +62,7 @@ pub mod gpu;
 pub mod io;
 pub mod mesh;
 pub mod plan;
+mod pool;
 #[cfg(feature = "render")]
 pub mod render;
 pub mod scene;

@@ -25,6 +25,7 @@ use crate::geom::patches::CoonsPatch;
 use crate::geom::{BSplineCurve, BSplineSurface};
 use crate::mesh::{Mesh, Mesh32, Polyline, SplitMesh32, TessOptions, Vertex};
 use crate::plan::{CurvePlan, GridRows, SurfacePlan, check_item_count};
+use crate::pool::run_awake;
 use crate::scene::RunSink;
 use rayon::prelude::*;
 
@@ -57,8 +58,9 @@ pub fn execute_curves(plan: &CurvePlan, curves: &[BSplineCurve]) -> Result<Vec<P
         .collect())
 }
 
-/// The executors run on a thread of rayon's pool (`rayon::scope`), so that their parallel
-/// steps start there rather than each being handed over from the caller's thread.
+/// The executors run on a thread of rayon's pool ([`run_awake`]), so
+/// that their parallel steps start there rather than each being handed over from the
+/// caller's thread.
 impl Tessellator for CpuTessellator {
     /// Plan and execution on one thread of the pool: one hand-over for both.
     fn tessellate_each_into(
@@ -67,7 +69,7 @@ impl Tessellator for CpuTessellator {
         options: &[TessOptions],
         mesh: &mut Mesh,
     ) -> Result<()> {
-        rayon::scope(|_| execute_surfaces(&SurfacePlan::new(surfaces, options)?, surfaces, mesh))
+        run_awake(|| execute_surfaces(&SurfacePlan::new(surfaces, options)?, surfaces, mesh))
     }
 
     fn tessellate_each_into_f32(
@@ -76,9 +78,7 @@ impl Tessellator for CpuTessellator {
         options: &[TessOptions],
         mesh: &mut Mesh32,
     ) -> Result<()> {
-        rayon::scope(|_| {
-            execute_surfaces_f32(&SurfacePlan::new(surfaces, options)?, surfaces, mesh)
-        })
+        run_awake(|| execute_surfaces_f32(&SurfacePlan::new(surfaces, options)?, surfaces, mesh))
     }
 
     fn execute_surfaces(
@@ -87,7 +87,7 @@ impl Tessellator for CpuTessellator {
         surfaces: &[BSplineSurface],
         mesh: &mut Mesh,
     ) -> Result<()> {
-        rayon::scope(|_| execute_surfaces(plan, surfaces, mesh))
+        run_awake(|| execute_surfaces(plan, surfaces, mesh))
     }
 
     fn execute_surfaces_f32(
@@ -96,7 +96,7 @@ impl Tessellator for CpuTessellator {
         surfaces: &[BSplineSurface],
         mesh: &mut Mesh32,
     ) -> Result<()> {
-        rayon::scope(|_| execute_surfaces_f32(plan, surfaces, mesh))
+        run_awake(|| execute_surfaces_f32(plan, surfaces, mesh))
     }
 
     fn execute_surfaces_split_f32(
@@ -105,7 +105,7 @@ impl Tessellator for CpuTessellator {
         surfaces: &[BSplineSurface],
         mesh: &mut SplitMesh32,
     ) -> Result<()> {
-        rayon::scope(|_| execute_surfaces_split_f32(plan, surfaces, mesh))
+        run_awake(|| execute_surfaces_split_f32(plan, surfaces, mesh))
     }
 
     fn tessellate_coons_into(

@@ -27,6 +27,7 @@ use crate::error::{Error, Result};
 use crate::geom::patches::{BlendSample, CoonsPatch};
 use crate::geom::{BSplineCurve, BSplineSurface, Interval, SamplingLimits};
 use crate::mesh::{MeshPart, TessOptions, Tolerance};
+use crate::pool::run_awake;
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -152,7 +153,7 @@ impl SurfacePlan {
         options: &[TessOptions],
         seams: &[Seam],
     ) -> Result<Self> {
-        rayon::scope(|_| Self::from_sampling(surfaces, Self::sample(surfaces, options, seams)?))
+        run_awake(|| Self::from_sampling(surfaces, Self::sample(surfaces, options, seams)?))
     }
 
     /// The first step of [`SurfacePlan::with_seams`]: how each surface is sampled (its
@@ -164,7 +165,7 @@ impl SurfacePlan {
         options: &[TessOptions],
         seams: &[Seam],
     ) -> Result<SurfaceSampling> {
-        rayon::scope(|_| Self::sample_on_pool(surfaces, options, seams))
+        run_awake(|| Self::sample_on_pool(surfaces, options, seams))
     }
 
     /// [`SurfacePlan::sample`], called on a thread of rayon's pool: its parallel steps start
@@ -210,7 +211,7 @@ impl SurfacePlan {
     /// The rest of [`SurfacePlan::with_seams`]: the plan of `sampled`, made by
     /// [`SurfacePlan::sample`] for the same `surfaces`.
     pub fn from_sampling(surfaces: &[BSplineSurface], sampled: SurfaceSampling) -> Result<Self> {
-        rayon::scope(|_| Self::from_sampling_on_pool(surfaces, sampled))
+        run_awake(|| Self::from_sampling_on_pool(surfaces, sampled))
     }
 
     /// [`SurfacePlan::from_sampling`] on a thread of rayon's pool (see
