@@ -7,6 +7,8 @@
 
 mod common;
 
+use common::ScratchDir;
+
 use glam::DVec3;
 use knotwork::conformance::{self, NORMAL_BAR, POSITION_REL_BAR};
 use knotwork::gpu::Limits;
@@ -526,8 +528,7 @@ fn scattered_samples_at_second_order_corners_take_the_hosts_normals() {
 #[cfg(feature = "cli")]
 fn cli_gpu_backend_and_info() {
     let Some(_) = gpu() else { return };
-    let dir = std::env::temp_dir().join(format!("knotwork-gpu-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = ScratchDir::new("gpu-cli");
     let run = |args: &[&str]| {
         std::process::Command::new(env!("CARGO_BIN_EXE_knotwork"))
             .args(args)
@@ -606,8 +607,7 @@ fn cli_gpu_backend_and_info() {
 #[test]
 #[cfg(feature = "cli")]
 fn missing_adapter_is_an_error_for_gpu_and_a_fallback_for_auto() {
-    let dir = std::env::temp_dir().join(format!("knotwork-no-adapter-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = ScratchDir::new("no-adapter");
     let out = dir.join("out.obj");
     let run = |backend: &str| {
         std::process::Command::new(env!("CARGO_BIN_EXE_knotwork"))
@@ -658,7 +658,7 @@ fn cli_conformance_prints_a_table_and_a_verdict() {
     assert!(text.contains("verdict: this adapter conforms"), "{text}");
     // --export writes the inputs for other WebGPU implementations: a manifest naming every
     // case and each case's files.
-    let dir = std::env::temp_dir().join(format!("knotwork-export-{}", std::process::id()));
+    let dir = ScratchDir::new("export");
     let run = std::process::Command::new(env!("CARGO_BIN_EXE_knotwork"))
         .args(["conformance", "--export"])
         .arg(&dir)
@@ -681,7 +681,6 @@ fn cli_conformance_prints_a_table_and_a_verdict() {
         assert!(manifest.contains(&format!("{:?}", case.name)));
         assert!(dir.join(format!("case{index}.expected")).is_file());
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// Surfaces with grids of their own (a JSON scene) give the same layout on the GPU and
@@ -959,8 +958,7 @@ fn teapot_render_is_not_blank() {
             "corners show the background"
         );
     }
-    let dir = std::env::temp_dir().join(format!("knotwork-render-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = ScratchDir::new("render");
     let png = dir.join("teapot.png");
     let run = std::process::Command::new(env!("CARGO_BIN_EXE_knotwork"))
         .args([
@@ -1418,7 +1416,8 @@ fn gpu_runs_are_quiet_without_a_runtime_dir() {
     if gpu().is_none() {
         return;
     }
-    let out = std::env::temp_dir().join(format!("knotwork-quiet-{}.ply", std::process::id()));
+    let dir = ScratchDir::new("quiet");
+    let out = dir.join("teapot.ply");
     let run = std::process::Command::new(env!("CARGO_BIN_EXE_knotwork"))
         .args(["tessellate", "data/teapot.bpt", "--backend", "gpu", "-o"])
         .arg(&out)
@@ -1427,7 +1426,7 @@ fn gpu_runs_are_quiet_without_a_runtime_dir() {
         .unwrap();
     assert!(run.status.success());
     assert_eq!(String::from_utf8_lossy(&run.stderr), "");
-    std::fs::remove_file(&out).unwrap();
+    assert!(out.is_file(), "{} written", out.display());
 }
 
 /// `render` draws every item kind: a scene of only a directly evaluated Coons patch, or only
@@ -1900,7 +1899,7 @@ fn chromium_webgpu_runs_the_kernels_within_the_bars() {
         );
         return;
     };
-    let dir = std::env::temp_dir().join(format!("knotwork-webgpu-{}", std::process::id()));
+    let dir = ScratchDir::new("webgpu");
     let cases = conformance::export_suite(&dir).unwrap();
     let run = |only: &[&str]| {
         let output = std::process::Command::new("node")
@@ -1958,7 +1957,6 @@ fn chromium_webgpu_runs_the_kernels_within_the_bars() {
         format!("curves{curve}.0.points"),
         3,
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// An adaptive plan runs on the GPU as on the CPU: the teapot at tolerance 1e-3 and rational
@@ -2334,8 +2332,7 @@ fn file_seams_run_alike_on_both_executors() {
 fn streamed_gpu_files_are_the_files_written_from_memory() {
     use knotwork::io::{read_scene, stream_scene, write_mesh_as};
     let Some(context) = gpu() else { return };
-    let dir = std::env::temp_dir().join(format!("knotwork-gpu-stream-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = ScratchDir::new("gpu-stream");
     let gpu_tessellator = tessellator_on(context);
     let auto =
         knotwork::backend::tessellator(knotwork::backend::Backend::Auto, Box::new(|_| {})).unwrap();
@@ -2388,5 +2385,4 @@ fn streamed_gpu_files_are_the_files_written_from_memory() {
             }
         }
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }

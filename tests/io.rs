@@ -2,6 +2,8 @@
 
 mod common;
 
+use common::ScratchDir;
+
 use glam::DVec3;
 use knotwork::io::{
     Scene, format_f64, read_bpt, read_obj_freeform, read_scene, write_atomic, write_mesh,
@@ -10,13 +12,6 @@ use knotwork::{CpuTessellator, Error, Interval, TessOptions, Tessellator};
 use proptest::prelude::*;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn scratch_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("knotwork-io-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 fn obj(text: &str) -> Scene {
     read_obj_freeform(text).unwrap_or_else(|e| panic!("{e}"))
@@ -355,7 +350,7 @@ fn malformed_obj_gives_errors_with_lines() {
 
 #[test]
 fn file_errors_name_the_file_and_line() {
-    let dir = scratch_dir("file-errors");
+    let dir = ScratchDir::new("file-errors");
     let path = dir.join("broken.obj");
     std::fs::write(&path, format!("{NET}cstype bspline\ndeg 1 1\nsurf 0 1 0 1 1 2 3 9\nparm u 0 0 1 1\nparm v 0 0 1 1\nend\n")).unwrap();
     let err = read_scene(&path).unwrap_err();
@@ -392,7 +387,7 @@ fn obj_mesh_round_trips_every_double() {
     let mesh = CpuTessellator
         .tessellate(&scene.surface_list(), &TessOptions::DEFAULT.with_grid(9, 7))
         .unwrap();
-    let dir = scratch_dir("round-trip");
+    let dir = ScratchDir::new("round-trip");
     let path = dir.join("duck.obj");
     write_mesh(&path, &mesh).unwrap();
     let text = std::fs::read_to_string(&path).unwrap();
@@ -458,7 +453,7 @@ fn obj_mesh_round_trips_every_double() {
 
 #[test]
 fn failed_writes_leave_nothing_behind() {
-    let dir = scratch_dir("atomic");
+    let dir = ScratchDir::new("atomic");
     let path = dir.join("out.obj");
     std::fs::write(&path, "previous contents").unwrap();
     let err = write_atomic(&path, |w| {
@@ -512,7 +507,7 @@ fn succeeds(args: &[&str]) -> std::process::Output {
 
 #[test]
 fn cli_tessellates_the_teapot() {
-    let dir = scratch_dir("cli-ok");
+    let dir = ScratchDir::new("cli-ok");
     let out = dir.join("teapot.obj");
     let run = knotwork(&[
         "tessellate",
@@ -546,7 +541,7 @@ fn cli_tessellates_the_teapot() {
 
 #[test]
 fn cli_reports_bad_input_in_one_line_and_writes_nothing() {
-    let dir = scratch_dir("cli-bad");
+    let dir = ScratchDir::new("cli-bad");
     let input = dir.join("bad.obj");
     std::fs::write(&input, format!("{NET}cstype rat bspline\ndeg 1 1\nsurf 0 1 0 1 1 2 3 4\nparm u 0 0 1 0.5\nparm v 0 0 1 1\nend\n")).unwrap();
     let out = dir.join("out.obj");
@@ -602,7 +597,7 @@ fn ply_round_trips_through_an_independent_reader() {
     use ply_rs::parser::Parser;
     use ply_rs::ply::{DefaultElement, Property};
     let mesh = teapot_mesh(6);
-    let dir = scratch_dir("ply");
+    let dir = ScratchDir::new("ply");
     let path = dir.join("teapot.ply");
     write_mesh(&path, &mesh).unwrap();
     let ply = Parser::<DefaultElement>::new()
@@ -641,7 +636,7 @@ fn ply_round_trips_through_an_independent_reader() {
 #[test]
 fn stl_round_trips_through_an_independent_reader() {
     let mesh = teapot_mesh(6);
-    let dir = scratch_dir("stl");
+    let dir = ScratchDir::new("stl");
     let path = dir.join("teapot.stl");
     write_mesh(&path, &mesh).unwrap();
     let stl = stl_io::read_stl(&mut std::fs::File::open(&path).unwrap()).unwrap();
@@ -679,7 +674,7 @@ fn stl_round_trips_through_an_independent_reader() {
 #[test]
 fn glb_round_trips_and_validates() {
     let mesh = teapot_mesh(6);
-    let dir = scratch_dir("glb");
+    let dir = ScratchDir::new("glb");
     let path = dir.join("teapot.glb");
     write_mesh(&path, &mesh).unwrap();
     let bytes = std::fs::read(&path).unwrap();
@@ -857,7 +852,7 @@ fn welded_teapot_is_four_pieces_with_sixteen_open_patch_edges() {
 
 #[test]
 fn batch_cli_processes_a_folder_and_reports_bad_files() {
-    let dir = scratch_dir("batch");
+    let dir = ScratchDir::new("batch");
     let inputs = dir.join("in");
     std::fs::create_dir_all(&inputs).unwrap();
     std::fs::copy("data/teapot.bpt", inputs.join("teapot.bpt")).unwrap();
@@ -1054,7 +1049,8 @@ fn glb_has_one_mesh_per_surface_group() {
             items: 20..28,
         },
     ];
-    let path = scratch_dir("glb-groups").join("teapot.glb");
+    let dir = ScratchDir::new("glb-groups");
+    let path = dir.join("teapot.glb");
     write_mesh_as(&path, &mesh, &groups, None).unwrap();
     let bytes = std::fs::read(&path).unwrap();
     let gltf = gltf::Gltf::from_slice(&bytes).unwrap();
@@ -1090,7 +1086,7 @@ fn classic_forms_scene_writes_polylines() {
     // The cosine-blend Coons patch has no B-spline form: it is evaluated directly and its
     // triangles follow the surfaces'.
     assert_eq!(scene.coons_patch_list().len(), 1);
-    let dir = scratch_dir("forms");
+    let dir = ScratchDir::new("forms");
     let obj_path = dir.join("forms.obj");
     let run = knotwork(&[
         "tessellate",
@@ -1241,7 +1237,7 @@ fn f32_meshes_write_as_their_f64_sources() {
     });
     let mesh32 = knotwork::Mesh32::from(&mesh);
     assert_eq!(knotwork::Mesh32::from(&mesh32.to_f64()), mesh32);
-    let dir = scratch_dir("f32");
+    let dir = ScratchDir::new("f32");
     for extension in ["glb", "obj"] {
         let (a, b) = (
             dir.join(format!("a.{extension}")),
@@ -1326,7 +1322,7 @@ fn obj_groups_follow_the_items() {
     let mesh = CpuTessellator
         .tessellate_scene(&ducky, &knotwork::SceneOptions::default())
         .unwrap();
-    let dir = scratch_dir("obj-groups");
+    let dir = ScratchDir::new("obj-groups");
     let path = dir.join("ducky.obj");
     knotwork::io::write_mesh_as(&path, &mesh, &ducky.groups(), None).unwrap();
     let text = std::fs::read_to_string(&path).unwrap();
@@ -1351,7 +1347,7 @@ fn obj_groups_follow_the_items() {
 /// that writes nothing.
 #[test]
 fn cli_refuses_a_folder_without_surface_files() {
-    let dir = scratch_dir("empty-folder");
+    let dir = ScratchDir::new("empty-folder");
     std::fs::write(dir.join("duck1.nurbs"), "not a format knotwork reads").unwrap();
     let out = dir.join("out");
     let run = knotwork(&[
@@ -1377,12 +1373,12 @@ fn cli_refuses_a_folder_without_surface_files() {
 /// lost: the run refuses, naming it, and the file is as it was.
 #[test]
 fn cli_refuses_writing_a_mesh_over_its_input() {
-    let dir = scratch_dir("over-input");
+    let dir = ScratchDir::new("over-input");
     let input = dir.join("special_curves.obj");
     std::fs::copy("data/special_curves.obj", &input).unwrap();
     let before = std::fs::read(&input).unwrap();
     let dotted = dir.join(".").join("special_curves.obj");
-    for output in [&input, &dotted, &dir] {
+    for output in [input.as_path(), &dotted, &dir] {
         let run = knotwork(&[
             "tessellate",
             input.to_str().unwrap(),
@@ -1405,7 +1401,7 @@ fn cli_refuses_writing_a_mesh_over_its_input() {
 /// anything, naming both; several inputs with an output that names a file are refused too.
 #[test]
 fn cli_refuses_colliding_outputs_before_writing() {
-    let dir = scratch_dir("collide");
+    let dir = ScratchDir::new("collide");
     let other = dir.join("other");
     std::fs::create_dir_all(&other).unwrap();
     std::fs::copy("data/teapot.bpt", other.join("teapot.bpt")).unwrap();
@@ -1447,7 +1443,7 @@ fn cli_refuses_colliding_outputs_before_writing() {
 /// writer truncates the other's bytes).
 #[test]
 fn temporary_files_are_unique_per_write() {
-    let dir = scratch_dir("temporaries");
+    let dir = ScratchDir::new("temporaries");
     let path = dir.join("mesh.obj");
     let temporaries = || {
         std::fs::read_dir(&dir)
@@ -1478,7 +1474,7 @@ fn temporary_files_are_unique_per_write() {
 /// what was expected.
 #[test]
 fn cli_summaries_and_messages_read_well() {
-    let dir = scratch_dir("grammar");
+    let dir = ScratchDir::new("grammar");
     let run = knotwork(&[
         "tessellate",
         "data/peer_bicubic_32x32.obj",
@@ -1516,7 +1512,7 @@ fn cli_summaries_and_messages_read_well() {
 /// output folder is named as such, and render writes PNG files only; nothing is written.
 #[test]
 fn conflicting_formats_and_missing_folders_are_named() {
-    let dir = scratch_dir("conflicts");
+    let dir = ScratchDir::new("conflicts");
     let glb = dir.join("a.glb");
     let run = knotwork(&[
         "tessellate",
@@ -1558,7 +1554,7 @@ fn conflicting_formats_and_missing_folders_are_named() {
 /// A batch over a folder says which files of other formats it left alone.
 #[test]
 fn batches_name_the_files_they_skip() {
-    let dir = scratch_dir("skipped");
+    let dir = ScratchDir::new("skipped");
     let input = dir.join("in");
     std::fs::create_dir_all(&input).unwrap();
     std::fs::copy("data/teapot.bpt", input.join("teapot.bpt")).unwrap();
@@ -1617,8 +1613,7 @@ fn json_errors_name_the_item_and_the_field() {
 /// on one item, or a zero one, are errors naming the item.
 #[test]
 fn tolerances_reach_the_plan_from_the_cli_and_json() {
-    let dir = std::env::temp_dir().join(format!("knotwork-tolerance-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = ScratchDir::new("tolerance");
     let out = dir.join("teapot.obj");
     let out = out.to_str().unwrap();
     let run = succeeds(&[
@@ -1798,7 +1793,6 @@ fn tolerances_reach_the_plan_from_the_cli_and_json() {
         zero.contains("surface 0: tolerance 0e0 is invalid"),
         "{zero}"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// A memory budget before allocation: the teapot at 4000x4000 (5.1e8 vertices, 45 GB as
@@ -1807,7 +1801,7 @@ fn tolerances_reach_the_plan_from_the_cli_and_json() {
 /// refuses the same way through SceneOptions::memory_budget, from the layout alone.
 #[test]
 fn memory_budgets_refuse_before_allocating() {
-    let dir = scratch_dir("budget");
+    let dir = ScratchDir::new("budget");
     let out = dir.join("t.obj");
     let started = std::time::Instant::now();
     let run = knotwork(&[
@@ -1914,7 +1908,7 @@ fn fuzz_corpus_replays() {
 /// good to 8e-3); the glb validates.
 #[test]
 fn far_models_keep_their_precision_in_obj_and_glb() {
-    let dir = scratch_dir("far");
+    let dir = ScratchDir::new("far");
     let centre = DVec3::new(1.0e5 + 0.3, -7.0e4, 3.0e4 + 0.125);
     let scene = dir.join("far.json");
     std::fs::write(
@@ -2021,7 +2015,7 @@ fn far_models_keep_their_precision_in_obj_and_glb() {
 /// vertices; split by 1.1e-6 they stay apart.
 #[test]
 fn weld_tolerance_is_one_millionth_of_the_diagonal() {
-    let dir = scratch_dir("weld-tolerance");
+    let dir = ScratchDir::new("weld-tolerance");
     let diagonal = 5f64.sqrt(); // the two unit squares side by side: 2 × 1
     for (fraction, merged) in [(0.9e-6, "2 vertices merged"), (1.1e-6, "0 vertices merged")] {
         // The box grows by the gap too: place the second square so the diagonal stays √5
@@ -3023,7 +3017,7 @@ fn faces_that_cannot_be_planned_are_skipped_and_named() {
     let why = knotwork::cpu::trimmed_face_plan(&scene, &lenient, face).unwrap_err();
     assert!(why.to_string().contains("crosses"), "{why}");
 
-    let dir = scratch_dir("cli-unplannable");
+    let dir = ScratchDir::new("cli-unplannable");
     let input = dir.join("part.igs");
     std::fs::write(&input, iges_file(&entities, 2)).unwrap();
     let out = dir.join("part.obj");
@@ -3167,7 +3161,7 @@ fn iges_bad_files_are_refused_by_line_or_dropped_by_entity() {
 
 #[test]
 fn cli_meshes_iges_files_and_reports_dropped_faces() {
-    let dir = scratch_dir("cli-iges");
+    let dir = ScratchDir::new("cli-iges");
     let out = dir.join("cube.glb");
     let run = succeeds(&[
         "tessellate",
@@ -3275,7 +3269,7 @@ fn triangle_budgets_choose_the_finest_tolerance_that_fits() {
 /// tolerance too fine for it, nothing is written.
 #[test]
 fn cli_max_triangles_bounds_the_written_mesh() {
-    let dir = scratch_dir("max-triangles");
+    let dir = ScratchDir::new("max-triangles");
     let out = dir.join("lid.obj");
     let run = succeeds(&[
         "tessellate",
@@ -4157,7 +4151,7 @@ fn step_assemblies_place_each_instance() {
 fn cli_writes_standard_output_with_a_format() {
     // Run from a scratch folder, where a file named "-" would show.
     const TEAPOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/teapot.bpt");
-    let dir = scratch_dir("stdout");
+    let dir = ScratchDir::new("stdout");
     let run = Command::new(env!("CARGO_BIN_EXE_knotwork"))
         .current_dir(&dir)
         .args([
@@ -4210,7 +4204,7 @@ fn cli_writes_standard_output_with_a_format() {
 /// CLI says so for a file that has them, and only then.
 #[test]
 fn cli_says_where_the_grid_does_not_apply() {
-    let dir = scratch_dir("grid-warning");
+    let dir = ScratchDir::new("grid-warning");
     let out = dir.join("out.obj");
     let warning = |input: &str, grid: bool| {
         let mut args = vec!["tessellate", input, "-o", out.to_str().unwrap()];
@@ -4291,7 +4285,7 @@ fn step_assembly_glb_keeps_its_instances() {
         );
     }
 
-    let dir = scratch_dir("step-assembly");
+    let dir = ScratchDir::new("step-assembly");
     let out = dir.join("fixture.glb");
     let args = ["--tolerance-rel", "1e-3", "--backend", "cpu"];
     let run = succeeds(
@@ -4392,7 +4386,7 @@ fn step_assembly_glb_keeps_its_instances() {
 
 #[test]
 fn cli_meshes_a_step_part_into_a_glb_node_per_solid() {
-    let dir = scratch_dir("step-cli");
+    let dir = ScratchDir::new("step-cli");
     let out = dir.join("part.glb");
     let run = succeeds(&[
         "tessellate",
@@ -4652,7 +4646,7 @@ fn json_seams_name_items_and_their_errors_name_the_seam() {
     );
     // From the CLI, a seam whose sides are not one curve fails at planning, naming the file
     // and the seam, and writes nothing.
-    let dir = scratch_dir("seams");
+    let dir = ScratchDir::new("seams");
     let (input, out) = (dir.join("far.json"), dir.join("far.obj"));
     std::fs::write(&input, text.replace("[1, \"u0\"]]", "[1, \"u1\"]]")).unwrap();
     let run = knotwork(&[
@@ -4671,7 +4665,6 @@ fn json_seams_name_items_and_their_errors_name_the_seam() {
         stderr.contains("far.json: seam 0: its sides are") && !out.exists(),
         "{stderr}"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 // ---------------------------------------------------------------- streamed output
@@ -4687,7 +4680,7 @@ fn json_seams_name_items_and_their_errors_name_the_seam() {
 #[test]
 fn streamed_files_are_the_files_written_from_memory() {
     use knotwork::io::{stream_scene, write_mesh_as};
-    let dir = scratch_dir("stream");
+    let dir = ScratchDir::new("stream");
     let long_rows = dir.join("long_rows.json");
     std::fs::write(
         &long_rows,
@@ -4801,7 +4794,7 @@ fn streamed_files_are_the_files_written_from_memory() {
 /// OBJ, which is written from memory, is still refused by the budget.
 #[test]
 fn cli_streams_grid_meshes_within_a_small_memory_budget() {
-    let dir = scratch_dir("stream-cli");
+    let dir = ScratchDir::new("stream-cli");
     for extension in ["ply", "glb", "obj"] {
         let out = dir.join(format!("t.{extension}"));
         let run = knotwork(&[
@@ -4911,7 +4904,7 @@ impl Tessellator for BrokenRuns {
 /// `Error::BufferLength` from the streaming writers, and no file is left behind.
 #[test]
 fn streaming_refuses_runs_that_break_the_contract() {
-    let dir = scratch_dir("broken-runs");
+    let dir = ScratchDir::new("broken-runs");
     let scene = read_scene(Path::new("data/teapot.bpt")).unwrap();
     let defaults = knotwork::SceneOptions {
         grid: TessOptions::DEFAULT.with_grid(300, 70),
@@ -4937,7 +4930,7 @@ fn streaming_refuses_runs_that_break_the_contract() {
 #[test]
 fn outputs_that_are_pipes_are_written_in_place() {
     use std::os::unix::fs::FileTypeExt;
-    let dir = scratch_dir("fifo");
+    let dir = ScratchDir::new("fifo");
     for format in ["ply", "glb"] {
         let fifo = dir.join(format!("pipe.{format}"));
         assert!(
@@ -5300,7 +5293,7 @@ fn shell_faces_that_cannot_be_planned_are_skipped_and_named() {
         "{:?}",
         mesh.parts
     );
-    let dir = scratch_dir("crossing-holes");
+    let dir = ScratchDir::new("crossing-holes");
     let (input, out) = (dir.join("holes.step"), dir.join("holes.obj"));
     std::fs::write(&input, &text).unwrap();
     let run = knotwork(&[
@@ -5340,7 +5333,7 @@ fn step_pcurves_put_edges_on_the_sheet_the_file_means() {
     let without = normals_z(false);
     assert!(without.iter().all(|&z| z > 1.0 - 1e-12), "{without:?}");
     // The CLI calls the part what it is: a shell that bounds no solid.
-    let dir = scratch_dir("folded");
+    let dir = ScratchDir::new("folded");
     let (input, out) = (dir.join("folded.step"), dir.join("folded.obj"));
     std::fs::write(&input, step_folded_face(gap, true)).unwrap();
     let run = succeeds(&[

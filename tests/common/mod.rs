@@ -5,6 +5,48 @@ pub mod exact;
 
 use glam::DVec3;
 use knotwork::{BSplineSurface, KnotVector};
+use std::path::{Path, PathBuf};
+
+/// A folder in the system's temporary directory for one test's files, named after the test
+/// process and `name`: emptied when made, removed when the test passes, kept when it fails
+/// (for a look at what was written).
+pub struct ScratchDir(PathBuf);
+
+impl ScratchDir {
+    pub fn new(name: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("knotwork-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        ScratchDir(dir)
+    }
+}
+
+impl std::ops::Deref for ScratchDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for ScratchDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for ScratchDir {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for ScratchDir {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}
 
 /// f64 exactness bar for exact forms, relative to the model size.
 pub const EXACT_REL: f64 = 1e-12;
