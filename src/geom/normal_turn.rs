@@ -417,34 +417,52 @@ mod tests {
         }
     }
 
-    /// The rates are per parameter unit: a patch over ranges stretched by k (a power of two,
-    /// so the stretched patch is exact) has rates divided by k, to rounding — every choice
-    /// the branch and bound makes compares like with like (rates with rates, turns with
-    /// turns). Torus and sphere patches, the sphere's with their poles, k = 1/64 and 64.
+    /// The rates are per parameter unit and independent of the model's size: a patch over
+    /// ranges stretched by k has rates divided by k, and one scaled in space by k has the
+    /// same rates (k a power of two, so the moved patch is exact; to rounding) — every
+    /// choice the branch and bound makes compares like with like (rates with rates, turns
+    /// with turns, |m|² with |m|²). Torus and sphere patches (the sphere's with their
+    /// poles) and a patch with a left-out corner, k = 1/64 and 64 along the parameters,
+    /// 2⁻²⁰ and 2²⁰ in space.
     #[test]
-    fn normal_rates_scale_with_the_parameter_ranges() {
-        for surface in [
+    fn normal_rates_scale_with_the_parameter_ranges_only() {
+        let patches = [
             shapes::torus(DVec3::ZERO, 2.0, 0.5),
             shapes::sphere(DVec3::ZERO, 1.0),
-        ] {
-            for patch in surface.bezier_patches() {
-                let (rate_u, rate_v) = patch.normal_rates();
-                for k in [1.0 / 64.0, 64.0] {
-                    let stretch = |range: crate::geom::Interval| {
-                        crate::geom::Interval::new(k * range.start, k * range.end)
-                    };
-                    let stretched = BezierPatch {
-                        range_u: stretch(patch.range_u),
-                        range_v: stretch(patch.range_v),
-                        ..patch.clone()
-                    };
-                    let (u, v) = stretched.normal_rates();
-                    assert!(
-                        (u * k - rate_u).abs() <= 1e-12 * rate_u
-                            && (v * k - rate_v).abs() <= 1e-12 * rate_v,
-                        "k = {k}: ({u}, {v}) · k vs ({rate_u}, {rate_v})"
-                    );
-                }
+        ]
+        .into_iter()
+        .flat_map(|surface| surface.bezier_patches())
+        .chain([patch_with_a_parallel_corner(0.003)]);
+        for patch in patches {
+            let (rate_u, rate_v) = patch.normal_rates();
+            assert!(rate_u > 0.0 && rate_v > 0.0);
+            let same = |(u, v): (f64, f64), k: f64, what: &str| {
+                assert!(
+                    (u * k - rate_u).abs() <= 1e-12 * rate_u
+                        && (v * k - rate_v).abs() <= 1e-12 * rate_v,
+                    "{what} by {k}: ({u}, {v}) vs ({rate_u}, {rate_v})"
+                );
+            };
+            for k in [1.0 / 64.0, 64.0] {
+                let stretch = |range: crate::geom::Interval| {
+                    crate::geom::Interval::new(k * range.start, k * range.end)
+                };
+                let stretched = BezierPatch {
+                    range_u: stretch(patch.range_u),
+                    range_v: stretch(patch.range_v),
+                    ..patch.clone()
+                };
+                same(stretched.normal_rates(), k, "ranges stretched");
+            }
+            for k in [2f64.powi(-20), 2f64.powi(20)] {
+                let points = (patch.points.iter())
+                    .map(|h| (h.truncate() * k).extend(h.w))
+                    .collect();
+                let scaled = BezierPatch {
+                    points,
+                    ..patch.clone()
+                };
+                same(scaled.normal_rates(), 1.0, "scaled in space");
             }
         }
     }
