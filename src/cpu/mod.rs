@@ -58,9 +58,9 @@ pub fn execute_curves(plan: &CurvePlan, curves: &[BSplineCurve]) -> Result<Vec<P
         .collect())
 }
 
-/// The executors run on a thread of rayon's pool ([`run_awake`]), so
-/// that their parallel steps start there rather than each being handed over from the
-/// caller's thread.
+/// The executors run on a thread of rayon's pool, its other workers kept awake for the
+/// call (`pool::run_awake`), so that their parallel steps start there rather than each
+/// being handed over from the caller's thread.
 impl Tessellator for CpuTessellator {
     /// Plan and execution on one thread of the pool: one hand-over for both.
     fn tessellate_each_into(
