@@ -656,9 +656,10 @@ fn cli_conformance_prints_a_table_and_a_verdict() {
         "{text}"
     );
     assert!(text.contains("verdict: this adapter conforms"), "{text}");
-    // --export writes the inputs for other WebGPU implementations: a manifest naming every
-    // case and each case's files.
-    let dir = ScratchDir::new("export");
+    // --export writes the inputs for other WebGPU implementations into a folder it makes: a
+    // manifest naming every case and each case's files.
+    let scratch = ScratchDir::new("export");
+    let dir = scratch.join("cases");
     let run = std::process::Command::new(env!("CARGO_BIN_EXE_knotwork"))
         .args(["conformance", "--export"])
         .arg(&dir)
