@@ -467,6 +467,42 @@ mod tests {
         }
     }
 
+    /// The estimate is the largest |N_u| and |N_v| at the centres of the patch's 4 × 4
+    /// pieces: central differences of the f64 normal there agree to 1e-6 (relative), and
+    /// the bound is at least the estimate. Torus and sphere patches.
+    #[test]
+    fn the_rate_estimate_is_the_largest_rate_at_the_pieces_centres() {
+        for surface in [
+            shapes::torus(DVec3::ZERO, 2.0, 0.5),
+            shapes::sphere(DVec3::ZERO, 1.0),
+        ] {
+            let normal = |u: f64, v: f64| surface.evaluate(u, v).normal;
+            for patch in surface.bezier_patches() {
+                let (estimate_u, estimate_v) = patch.normal_rate_estimate();
+                let (mut most_u, mut most_v) = (0.0f64, 0.0f64);
+                let step = 1e-5;
+                for a in 0..4 {
+                    for b in 0..4 {
+                        let u = patch.range_u.lerp((a as f64 + 0.5) / 4.0);
+                        let v = patch.range_v.lerp((b as f64 + 0.5) / 4.0);
+                        let turn = |(u0, v0), (u1, v1)| {
+                            normal(u0, v0).angle_between(normal(u1, v1)) / (2.0 * step)
+                        };
+                        most_u = most_u.max(turn((u - step, v), (u + step, v)));
+                        most_v = most_v.max(turn((u, v - step), (u, v + step)));
+                    }
+                }
+                assert!(
+                    (estimate_u - most_u).abs() <= 1e-6 * most_u
+                        && (estimate_v - most_v).abs() <= 1e-6 * most_v,
+                    "estimate ({estimate_u}, {estimate_v}) vs ({most_u}, {most_v})"
+                );
+                let (rate_u, rate_v) = patch.normal_rates();
+                assert!(estimate_u <= rate_u && estimate_v <= rate_v);
+            }
+        }
+    }
+
     /// A bicubic patch whose corner (0, 0) has S_u ∥ S_v (P₁₀ and P₀₁ on one ray from
     /// P₀₀), over a plane bent by `bend`: the pieces at that corner are left out.
     fn patch_with_a_parallel_corner(bend: f64) -> BezierPatch {
