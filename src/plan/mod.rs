@@ -188,12 +188,17 @@ impl SurfacePlan {
             || SeamSides::find(surfaces, options, seams),
         );
         let (sampling, sides) = (sampling?, sides?);
+        // The tables need only the sampling: made while the seams' samples are merged.
+        let (seam_samples, (keys, tables)) = rayon::join(
+            || SeamSamples::new(surfaces, &sampling, sides),
+            || plan_tables(surfaces, &sampling),
+        );
         let SeamSamples {
             vertices,
             external,
             same,
             triangles,
-        } = SeamSamples::new(surfaces, &sampling, sides)?;
+        } = seam_samples?;
         let layout = layout_of(&sampling, &triangles)?;
         let poles = (vertices.iter())
             .map(|v| v.as_ref().map_or([false; 4], |v| v.poles()))
@@ -205,6 +210,8 @@ impl SurfacePlan {
             poles,
             external,
             same,
+            keys,
+            tables,
         })
     }
 
@@ -227,6 +234,8 @@ impl SurfacePlan {
             poles,
             external,
             same,
+            keys,
+            tables,
         } = sampled;
         // Vertices are laid out now; triangles once they are made (poles drop some).
         let vertices: Vec<Option<adaptive::CellVertices>> = (sampling.iter().zip(&layout.parts))
@@ -237,35 +246,6 @@ impl SurfacePlan {
             })
             .collect();
         let joined = sampling.iter().any(|s| matches!(s, Sampling::Cells(_)));
-        // Every table of the plan, each distinct one made once: a grid's two, a cell grid's
-        // one per column (row) and rate — keyed by (column or row, segments) per surface.
-        let mut knot_ids = KnotIds::default();
-        let knots: Vec<[u32; 2]> = (surfaces.iter())
-            .map(|s| [knot_ids.id(s.knots_u()), knot_ids.id(s.knots_v())])
-            .collect();
-        let keys: Vec<[AxisKeys; 2]> = (surfaces.par_iter().zip(&sampling).zip(&knots))
-            .map(|((surface, sampling), &[knots_u, knots_v])| {
-                let (range_u, range_v) = (surface.range_u(), surface.range_v());
-                match sampling {
-                    Sampling::Grid(nu, nv) => [
-                        vec![(
-                            (0, nu - 1),
-                            TableKey::new(knots_u, range_u, range_u, nu - 1),
-                        )],
-                        vec![(
-                            (0, nv - 1),
-                            TableKey::new(knots_v, range_v, range_v, nv - 1),
-                        )],
-                    ],
-                    Sampling::Cells(cells) => [
-                        axis_keys(cells, false, knots_u, range_u),
-                        axis_keys(cells, true, knots_v, range_v),
-                    ],
-                }
-            })
-            .collect();
-        let wanted = keys.iter().flatten().flatten().map(|&(_, key)| key);
-        let tables = AxisTables::new(&knot_ids, wanted.collect());
         let grids: Vec<Option<SurfaceSamples>> = (sampling.iter().zip(&layout.parts))
             .zip(&keys)
             .enumerate()
@@ -496,6 +476,43 @@ fn cell_samples(
 
 /// The tables one direction of a surface samples: (column or row, segments) — for a grid,
 /// (0, segments) — in increasing order, with the key of its table.
+/// Every table of a plan, each distinct one made once — a grid's two, a cell grid's one per
+/// column (row) and rate — and each surface's keys to them along u and v, keyed by (column
+/// or row, segments).
+fn plan_tables(
+    surfaces: &[BSplineSurface],
+    sampling: &[Sampling],
+) -> (Vec<[AxisKeys; 2]>, AxisTables) {
+    let mut knot_ids = KnotIds::default();
+    let knots: Vec<[u32; 2]> = (surfaces.iter())
+        .map(|s| [knot_ids.id(s.knots_u()), knot_ids.id(s.knots_v())])
+        .collect();
+    let keys: Vec<[AxisKeys; 2]> = (surfaces.par_iter().zip(sampling).zip(&knots))
+        .map(|((surface, sampling), &[knots_u, knots_v])| {
+            let (range_u, range_v) = (surface.range_u(), surface.range_v());
+            match sampling {
+                Sampling::Grid(nu, nv) => [
+                    vec![(
+                        (0, nu - 1),
+                        TableKey::new(knots_u, range_u, range_u, nu - 1),
+                    )],
+                    vec![(
+                        (0, nv - 1),
+                        TableKey::new(knots_v, range_v, range_v, nv - 1),
+                    )],
+                ],
+                Sampling::Cells(cells) => [
+                    axis_keys(cells, false, knots_u, range_u),
+                    axis_keys(cells, true, knots_v, range_v),
+                ],
+            }
+        })
+        .collect();
+    let wanted = keys.iter().flatten().flatten().map(|&(_, key)| key);
+    let tables = AxisTables::new(&knot_ids, wanted.collect());
+    (keys, tables)
+}
+
 type AxisKeys = Vec<((usize, u32), TableKey)>;
 
 /// The tables of `cells` along u (or v where `along_v`) of knot vector `knots` over `range`:
@@ -645,6 +662,9 @@ pub struct SurfaceSampling {
     poles: Vec<[bool; 4]>,
     external: Vec<[Vec<(f64, u32)>; 4]>,
     same: Vec<(u32, u32)>,
+    /// Each surface's keys to its tables along u and v, and the tables ([`plan_tables`]).
+    keys: Vec<[AxisKeys; 2]>,
+    tables: AxisTables,
 }
 
 /// How one surface is sampled.
