@@ -273,10 +273,17 @@ impl BezierPatch {
                 &mut on_heap
             }
         };
-        for (r, h) in relative.iter_mut().zip(&self.points) {
-            *r = (h.truncate() / h.w).extend(h.w);
-        }
-        let (centre, radius) = box_centre_and_radius(relative.iter().map(|r| r.truncate()));
+        // With equal weights every weight difference is 0, so C and R do not matter (the
+        // terms R multiplies vanish, and differences do not depend on C): C = 0, R = 0.
+        let equal_weights = self.points.iter().all(|h| h.w == self.points[0].w);
+        let (centre, radius) = if equal_weights {
+            (DVec3::ZERO, 0.0)
+        } else {
+            for (r, h) in relative.iter_mut().zip(&self.points) {
+                *r = (h.truncate() / h.w).extend(h.w);
+            }
+            box_centre_and_radius(relative.iter().map(|r| r.truncate()))
+        };
         for (r, h) in relative.iter_mut().zip(&self.points) {
             *r = (h.truncate() - h.w * centre).extend(h.w);
         }
