@@ -107,7 +107,8 @@ impl KnotVector {
     /// degree times), else `None`.
     pub fn bezier_breakpoints(&self) -> Option<Vec<f64>> {
         let p = self.degree;
-        let mut breaks = Vec::new();
+        // A piecewise Bezier vector has (knots − 2) / p breakpoints.
+        let mut breaks = Vec::with_capacity(self.knots.len().saturating_sub(2) / p.max(1));
         let mut groups = self.knots.chunk_by(|a, b| a == b).peekable();
         while let Some(group) = groups.next() {
             let ends = breaks.is_empty() || groups.peek().is_none();

@@ -530,7 +530,7 @@ impl CellGrid {
             .max();
         let mut ring = Vec::with_capacity(perimeter.unwrap_or(0));
         let mut lacking: [SideExtras; 4] = Default::default();
-        let mut chains: [Vec<u32>; 2] = Default::default();
+        let mut chains = [(); 2].map(|_| Vec::with_capacity(perimeter.unwrap_or(0)));
         for (k, cell) in self.cells[band.clone()].iter().enumerate() {
             let k = band.start + k;
             let (a, b) = (k % self.columns, k / self.columns);
@@ -693,6 +693,9 @@ impl SideExtras {
     /// decreasing — on a side of `segments` segments.
     fn fill(&mut self, segments: u32, lacked: impl Iterator<Item = (u32, u32)>) {
         self.clear();
+        // Room for every segment's start and the fewest samples lacked, at once.
+        self.starts.reserve(segments as usize + 1);
+        self.vertices.reserve(lacked.size_hint().0);
         self.starts.push(0);
         for (segment, vertex) in lacked {
             while self.starts.len() <= segment as usize {

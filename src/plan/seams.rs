@@ -404,7 +404,11 @@ pub(crate) fn merge_samples(
     let flip = |f: f64| if reversed { 1.0 - f } else { f };
     let mut second_in_first: Vec<(f64, u32)> = second.iter().map(|&(f, v)| (flip(f), v)).collect();
     second_in_first.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let (mut same, mut first_lacks, mut second_lacks) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut same, mut first_lacks, mut second_lacks) = (
+        Vec::with_capacity(first.len().min(second.len())),
+        Vec::with_capacity(second.len()),
+        Vec::with_capacity(first.len()),
+    );
     let (mut i, mut j) = (0, 0);
     while i < first.len() || j < second_in_first.len() {
         match (first.get(i), second_in_first.get(j)) {
