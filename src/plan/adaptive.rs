@@ -169,16 +169,14 @@ pub fn surface_cells(
                     bounded: kept.into_iter().collect(),
                 };
             }
-            let (across_u, across_v) = (
-                pieces(patch.range_u, clipped_u, p_u),
-                pieces(patch.range_v, clipped_v, p_v),
-            );
-            let (mut rows_u, mut columns_v) = (vec![0u32; p_v], vec![0u32; p_u]);
+            let across_v = pieces(patch.range_v, clipped_v, p_v);
+            // Sums of the pieces' segments along each row and each column of pieces.
+            let (mut rows_u, mut columns_v) = ([0u32; PROBE_PIECES], [0u32; PROBE_PIECES]);
             let mut bounded = vec![(DerivativeBound::default(), (0, 0)); p_u * p_v];
-            for (a, &(u0, u1, u)) in across_u.iter().enumerate() {
+            for (a, (u0, u1, u)) in pieces(patch.range_u, clipped_u, p_u).enumerate() {
                 let strip = patch.restricted_u(u0, u1);
                 let mut piece = strip.clone();
-                for (b, &(v0, v1, v)) in across_v.iter().enumerate() {
+                for (b, (v0, v1, v)) in across_v.clone().enumerate() {
                     strip.restrict_v_into(v0, v1, &mut piece);
                     let (bound, (m_u, m_v)) = bound_piece(&piece, u, v);
                     bounded[b * p_u + a] = (bound, (m_u, m_v));
@@ -186,9 +184,12 @@ pub fn surface_cells(
                     columns_v[a] += m_v;
                 }
             }
-            let most = |sums: Vec<u32>| sums.into_iter().max().expect("at least one piece");
+            let most = |sums: &[u32]| sums.iter().copied().max().expect("at least one piece");
             SpanRates {
-                rates: (most(rows_u).min(n_u), most(columns_v).min(n_v)),
+                rates: (
+                    most(&rows_u[..p_v]).min(n_u),
+                    most(&columns_v[..p_u]).min(n_v),
+                ),
                 probes: (p_u, p_v),
                 bounded,
             }
@@ -209,7 +210,7 @@ pub fn surface_cells(
         (spans.iter().zip(counts))
             .map(|(&span, &count)| {
                 let clipped = overlap(span, range).expect("only overlapping spans are kept");
-                pieces(span, clipped, count)
+                pieces(span, clipped, count).collect::<Vec<_>>()
             })
             .collect::<Vec<_>>()
     };
@@ -312,17 +313,19 @@ struct SpanRates {
 
 /// `clipped` (a part of `span`) cut into `count` equal pieces: each piece's start and end
 /// as fractions of `span`, and its interval.
-fn pieces(span: Interval, clipped: Interval, count: usize) -> Vec<(f64, f64, Interval)> {
-    let fraction = |t: f64| (t - span.start) / span.width();
-    (0..count)
-        .map(|k| {
-            let piece = Interval::new(
-                clipped.lerp(k as f64 / count as f64),
-                clipped.lerp((k + 1) as f64 / count as f64),
-            );
-            (fraction(piece.start), fraction(piece.end), piece)
-        })
-        .collect()
+fn pieces(
+    span: Interval,
+    clipped: Interval,
+    count: usize,
+) -> impl Iterator<Item = (f64, f64, Interval)> + Clone {
+    let fraction = move |t: f64| (t - span.start) / span.width();
+    (0..count).map(move |k| {
+        let piece = Interval::new(
+            clipped.lerp(k as f64 / count as f64),
+            clipped.lerp((k + 1) as f64 / count as f64),
+        );
+        (fraction(piece.start), fraction(piece.end), piece)
+    })
 }
 
 impl CellGrid {
