@@ -357,18 +357,20 @@ pub(crate) fn pack(
         let part = &item.part;
         let (nu, nv) = (part.grid_u, part.grid_v);
         let columns = packed.tables.len() as u32;
-        let (segments, runs, segment_table, run_table) = match item.columns.bezier_segments() {
-            Some(segments) => {
-                let caps = run_caps(surface, &item.columns, BEZIER_RUN);
-                push_bezier_columns(&item.columns, segments, &caps, &mut packed.tables)
-            }
-            None => {
-                push_table(&item.columns, &mut packed.tables);
-                let caps = run_caps(surface, &item.columns, GENERAL_RUN);
-                let (runs, run_table) = push_runs(&item.columns, None, &caps, &mut packed.tables);
-                (0, runs, 0, run_table)
-            }
-        };
+        let (segments, runs, segment_table, run_table) =
+            match item.columns.bezier_segments(surface.knots_u()) {
+                Some(segments) => {
+                    let caps = run_caps(surface, &item.columns, BEZIER_RUN);
+                    push_bezier_columns(&item.columns, &segments, &caps, &mut packed.tables)
+                }
+                None => {
+                    push_table(&item.columns, &mut packed.tables);
+                    let caps = run_caps(surface, &item.columns, GENERAL_RUN);
+                    let (runs, run_table) =
+                        push_runs(&item.columns, None, &caps, &mut packed.tables);
+                    (0, runs, 0, run_table)
+                }
+            };
         let row_bytes = [
             u64::from(nu) * VERTEX_BYTES,
             u64::from(nu - 1) * 24,
@@ -617,11 +619,11 @@ mod tests {
             let knots = KnotVector::try_new(degree, knots).unwrap();
             for range in [Interval::new(0.05, 0.97), Interval::new(0.5 + 5e-7, 0.97)] {
                 let samples = AxisSamples::uniform(&knots, range, 601);
-                let plan_segments = samples.bezier_segments().unwrap();
+                let plan_segments = samples.bezier_segments(&knots).unwrap();
                 let mut out = Vec::new();
                 let caps = vec![BEZIER_RUN; plan_segments.len()];
                 let (segments, runs, segment_table, run_table) =
-                    push_bezier_columns(&samples, plan_segments, &caps, &mut out);
+                    push_bezier_columns(&samples, &plan_segments, &caps, &mut out);
                 assert_eq!(segments as usize, plan_segments.len());
                 let bits = |x: f32| x.to_bits() as usize;
                 let mut next = 0;

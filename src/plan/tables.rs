@@ -45,8 +45,6 @@ pub struct AxisSamples {
     values: Vec<f64>,
     spans: Vec<usize>,
     runs: Vec<SpanRun>,
-    /// The cubic Bezier form of each run's span, for degree ≤ [`BEZIER_DEGREE`].
-    bezier: Option<Vec<BezierSegment>>,
 }
 
 impl AxisSamples {
@@ -76,7 +74,6 @@ impl AxisSamples {
             values: vec![0.0; 2 * samples + 3 * table_len],
             spans: Vec::with_capacity(samples),
             runs: Vec::new(),
-            bezier: None,
         };
         let (params, rest) = table.values.split_at_mut(samples);
         let (fractions, basis) = rest.split_at_mut(samples);
@@ -103,13 +100,6 @@ impl AxisSamples {
                 }),
             }
         }
-        table.bezier = (p <= BEZIER_DEGREE).then(|| {
-            table
-                .runs
-                .iter()
-                .map(|run| BezierSegment::of_span(knots, run.span))
-                .collect()
-        });
         table
     }
 
@@ -169,8 +159,15 @@ impl AxisSamples {
 
     /// The cubic Bezier form of each run's knot span (one segment per entry of
     /// [`AxisSamples::runs`]), for a basis of degree ≤ [`BEZIER_DEGREE`]; `None` above.
-    pub fn bezier_segments(&self) -> Option<&[BezierSegment]> {
-        self.bezier.as_deref()
+    /// `knots` is the vector the table samples (formed here, on demand: only the GPU
+    /// kernels use it).
+    pub fn bezier_segments(&self, knots: &KnotVector) -> Option<Vec<BezierSegment>> {
+        debug_assert_eq!(knots.degree(), self.degree, "the table's own knot vector");
+        (self.degree <= BEZIER_DEGREE).then(|| {
+            (self.runs.iter())
+                .map(|run| BezierSegment::of_span(knots, run.span))
+                .collect()
+        })
     }
 }
 
@@ -395,7 +392,7 @@ mod tests {
             // The second range starts inside the 1e-6 span, so that span has a segment.
             for range in [Interval::new(0.05, 0.97), Interval::new(0.5 + 5e-7, 0.97)] {
                 let table = AxisSamples::uniform(&knots, range, 301);
-                let segments = table.bezier_segments().unwrap();
+                let segments = table.bezier_segments(&knots).unwrap();
                 assert_eq!(segments.len(), table.runs().len());
                 for (segment, run) in segments.iter().zip(table.runs()) {
                     let (a, b) = (knots.knots()[run.span], knots.knots()[run.span + 1]);
@@ -448,6 +445,6 @@ mod tests {
         assert_eq!(tiny_spans, BEZIER_DEGREE);
         let quartic = KnotVector::clamped_uniform(4, 7).unwrap();
         let table = AxisSamples::uniform(&quartic, Interval::new(0.0, 1.0), 9);
-        assert!(table.bezier_segments().is_none());
+        assert!(table.bezier_segments(&quartic).is_none());
     }
 }
