@@ -432,6 +432,7 @@ impl CellGrid {
             let (a, b, cell) = cell_at(c);
             let (n_u, n_v) = cell.segments;
             let (piece, n) = along(cell);
+            let ends = piece_fractions(range, piece);
             let last = if c + 1 == count { n } else { n - 1 };
             for s in 0..=last {
                 let (i, j) = match side {
@@ -441,7 +442,7 @@ impl CellGrid {
                     Side::Right => (n_u, s),
                 };
                 samples.push((
-                    sample_fraction(range, piece, s, n),
+                    ends.lerp(f64::from(s) / f64::from(n)),
                     vertices.index(a, b, i, j),
                 ));
             }
@@ -813,11 +814,16 @@ impl CellVertices<'_> {
 /// The uv fraction of `range` of sample `s` of `segments` over `piece` ⊆ `range`: what
 /// [`super::AxisSamples::uniform_over`] gives the sample, bit for bit.
 pub(crate) fn sample_fraction(range: Interval, piece: Interval, s: u32, segments: u32) -> f64 {
-    let ends = Interval::new(
+    piece_fractions(range, piece).lerp(f64::from(s) / f64::from(segments))
+}
+
+/// The fractions of `range` at the ends of `piece` (of [`sample_fraction`], formed once
+/// for all samples of a piece).
+pub(crate) fn piece_fractions(range: Interval, piece: Interval) -> Interval {
+    Interval::new(
         (piece.start - range.start) / range.width(),
         (piece.end - range.start) / range.width(),
-    );
-    ends.lerp(f64::from(s) / f64::from(segments))
+    )
 }
 
 /// Triangulates a grid cell's polygon whose corners `corners` (c00, c10, c11, c01) meet in

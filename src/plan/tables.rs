@@ -2,7 +2,7 @@
 //! the cubic Bezier form of the knot spans a low-degree direction touches. Executors round
 //! them (the GPU, to f32) but never recompute them.
 
-use super::adaptive::sample_fraction;
+use super::adaptive::piece_fractions;
 use crate::geom::{BasisDers, Interval, KnotVector, MAX_ORDER, basis_ders};
 use foldhash::HashMap;
 use rayon::prelude::*;
@@ -78,6 +78,7 @@ impl AxisSamples {
         let (params, rest) = table.values.split_at_mut(samples);
         let (fractions, basis) = rest.split_at_mut(samples);
         let mut ders: BasisDers = [[0.0; MAX_ORDER]; 3];
+        let ends = piece_fractions(range, piece);
         for i in 0..samples {
             let at = i as f64 / f64::from(segments);
             let t = piece.lerp(at);
@@ -89,7 +90,8 @@ impl AxisSamples {
                 }
             }
             params[i] = t;
-            fractions[i] = sample_fraction(range, piece, i as u32, segments);
+            // As sample_fraction(range, piece, i, segments), bit for bit.
+            fractions[i] = ends.lerp(at);
             table.spans.push(span);
             match table.runs.last_mut() {
                 Some(run) if run.span == span => run.end = i + 1,
