@@ -469,12 +469,21 @@ mod tests {
 
     /// The estimate is the largest |N_u| and |N_v| at the centres of the patch's 4 × 4
     /// pieces: central differences of the f64 normal there agree to 1e-6 (relative), and
-    /// the bound is at least the estimate. Torus and sphere patches.
+    /// the bound is at least the estimate. Torus and sphere patches (whose rates do not
+    /// change along u), and a bicubic saddle whose rates change along both directions (so
+    /// pieces at other places along u would give other rates).
     #[test]
     fn the_rate_estimate_is_the_largest_rate_at_the_pieces_centres() {
+        let saddle: Vec<DVec3> = (0..16)
+            .map(|k| {
+                let (x, y) = ((k % 4) as f64, (k / 4) as f64);
+                DVec3::new(x, y, 0.3 * (x * x - 0.5 * y * y + x * y) + 0.1 * x * x * x)
+            })
+            .collect();
         for surface in [
             shapes::torus(DVec3::ZERO, 2.0, 0.5),
             shapes::sphere(DVec3::ZERO, 1.0),
+            crate::geom::bezier_surface(3, 3, &saddle, None).unwrap(),
         ] {
             let normal = |u: f64, v: f64| surface.evaluate(u, v).normal;
             for patch in surface.bezier_patches() {
