@@ -490,19 +490,26 @@ impl BezierPatch {
     /// The patch restricted to the parameters between fractions `from` and `to` (0 ≤ from <
     /// to ≤ 1) of its u range: de Casteljau subdivision of each row, exact up to rounding.
     pub fn restricted_u(&self, from: f64, to: f64) -> BezierPatch {
+        let mut strip = BezierPatch {
+            points: Vec::with_capacity(self.points.len()),
+            ..*self
+        };
+        self.restrict_u_into(from, to, &mut strip);
+        strip
+    }
+
+    /// [`restricted_u`](Self::restricted_u) into `strip`, reusing its storage.
+    pub fn restrict_u_into(&self, from: f64, to: f64, strip: &mut BezierPatch) {
         let row = self.degree_u + 1;
-        let mut points = self.points.clone();
-        for first in (0..points.len()).step_by(row) {
-            restrict_in_place(&mut points, first, 1, row, from, to);
+        strip.points.clear();
+        strip.points.extend_from_slice(&self.points);
+        for first in (0..strip.points.len()).step_by(row) {
+            restrict_in_place(&mut strip.points, first, 1, row, from, to);
         }
         let r = self.range_u;
-        BezierPatch {
-            degree_u: self.degree_u,
-            degree_v: self.degree_v,
-            points,
-            range_u: super::Interval::new(r.lerp(from), r.lerp(to)),
-            range_v: self.range_v,
-        }
+        (strip.degree_u, strip.degree_v) = (self.degree_u, self.degree_v);
+        strip.range_u = super::Interval::new(r.lerp(from), r.lerp(to));
+        strip.range_v = self.range_v;
     }
 
     /// [`restricted_u`](Self::restricted_u) along v.

@@ -173,9 +173,14 @@ pub fn surface_cells(
             // Sums of the pieces' segments along each row and each column of pieces.
             let (mut rows_u, mut columns_v) = ([0u32; PROBE_PIECES], [0u32; PROBE_PIECES]);
             let mut bounded = vec![(DerivativeBound::default(), (0, 0)); p_u * p_v];
+            // One strip and one piece, restricted into again and again.
+            let empty = || BezierPatch {
+                points: Vec::with_capacity(patch.points.len()),
+                ..*patch
+            };
+            let (mut strip, mut piece) = (empty(), empty());
             for (a, (u0, u1, u)) in pieces(patch.range_u, clipped_u, p_u).enumerate() {
-                let strip = patch.restricted_u(u0, u1);
-                let mut piece = strip.clone();
+                patch.restrict_u_into(u0, u1, &mut strip);
                 for (b, (v0, v1, v)) in across_v.clone().enumerate() {
                     strip.restrict_v_into(v0, v1, &mut piece);
                     let (bound, (m_u, m_v)) = bound_piece(&piece, u, v);
