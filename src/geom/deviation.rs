@@ -263,30 +263,31 @@ impl BezierPatch {
         let (p, q) = (self.degree_u, self.degree_v);
         let row = p + 1;
         // (w·(P − C), w) of every control point, formed once (on the stack for a bicubic
-        // patch), and the differences below from them.
+        // patch), and the differences below from them. With equal weights every weight
+        // difference is 0, so C and R do not matter (the terms R multiplies vanish, and
+        // differences do not depend on C): the homogeneous points themselves, C = 0, R = 0.
+        let equal_weights = self.points.iter().all(|h| h.w == self.points[0].w);
         let mut on_stack = [DVec4::ZERO; 16];
         let mut on_heap = Vec::new();
-        let relative: &mut [DVec4] = match self.points.len() {
-            n if n <= on_stack.len() => &mut on_stack[..n],
-            n => {
-                on_heap.resize(n, DVec4::ZERO);
-                &mut on_heap
-            }
-        };
-        // With equal weights every weight difference is 0, so C and R do not matter (the
-        // terms R multiplies vanish, and differences do not depend on C): C = 0, R = 0.
-        let equal_weights = self.points.iter().all(|h| h.w == self.points[0].w);
-        let (centre, radius) = if equal_weights {
-            (DVec3::ZERO, 0.0)
+        let (relative, radius): (&[DVec4], f64) = if equal_weights {
+            (&self.points, 0.0)
         } else {
+            let relative: &mut [DVec4] = match self.points.len() {
+                n if n <= on_stack.len() => &mut on_stack[..n],
+                n => {
+                    on_heap.resize(n, DVec4::ZERO);
+                    &mut on_heap
+                }
+            };
             for (r, h) in relative.iter_mut().zip(&self.points) {
                 *r = (h.truncate() / h.w).extend(h.w);
             }
-            box_centre_and_radius(relative.iter().map(|r| r.truncate()))
+            let (centre, radius) = box_centre_and_radius(relative.iter().map(|r| r.truncate()));
+            for (r, h) in relative.iter_mut().zip(&self.points) {
+                *r = (h.truncate() - h.w * centre).extend(h.w);
+            }
+            (relative, radius)
         };
-        for (r, h) in relative.iter_mut().zip(&self.points) {
-            *r = (h.truncate() - h.w * centre).extend(h.w);
-        }
         // First differences along u (p per row of the net) and along v (rows of p + 1),
         // the second differences from them: uu along each row of those along u, uv and vv
         // between consecutive rows of those along u and along v. Each kind's largest
