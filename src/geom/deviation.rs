@@ -324,7 +324,7 @@ impl BezierPatch {
                 second_uv.take(next - this);
             }
         }
-        for ((d, next), this) in steps_v.iter_mut().zip(&relative[row..]).zip(&*relative) {
+        for ((d, next), this) in steps_v.iter_mut().zip(&relative[row..]).zip(relative) {
             *d = next - this;
             first_v.take(*d);
         }
