@@ -474,8 +474,6 @@ fn cell_samples(
         .collect()
 }
 
-/// The tables one direction of a surface samples: (column or row, segments) — for a grid,
-/// (0, segments) — in increasing order, with the key of its table.
 /// Every table of a plan, each distinct one made once — a grid's two, a cell grid's one per
 /// column (row) and rate — and each surface's keys to them along u and v, keyed by (column
 /// or row, segments).
@@ -513,6 +511,8 @@ fn plan_tables(
     (keys, tables)
 }
 
+/// The tables one direction of a surface samples: (column or row, segments) — for a grid,
+/// (0, segments) — in increasing order, with the key of its table.
 type AxisKeys = Vec<((usize, u32), TableKey)>;
 
 /// The tables of `cells` along u (or v where `along_v`) of knot vector `knots` over `range`:

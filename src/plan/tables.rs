@@ -1,6 +1,6 @@
-//! The f64 tables a plan hands to the executors: basis values of each sampled direction and
-//! the cubic Bezier form of the knot spans a low-degree direction touches. Executors round
-//! them (the GPU, to f32) but never recompute them.
+//! The f64 tables a plan hands to the executors: basis values of each sampled direction,
+//! which executors round (the GPU, to f32) but never recompute, and on request the cubic
+//! Bezier form of the knot spans a low-degree direction touches (the GPU kernels' input).
 
 use super::adaptive::piece_fractions;
 use crate::geom::{BasisDers, Interval, KnotVector, MAX_ORDER, basis_ders};
