@@ -1,6 +1,6 @@
 //! Bezier curves and patches as B-splines, and Bezier extraction of B-spline surfaces.
 
-use super::piecewise::{de_casteljau, refine_to_bezier};
+use super::piecewise::{BezierExtraction, de_casteljau};
 use super::{BSplineCurve, BSplineSurface, Interval, KnotVector};
 use crate::error::Result;
 use glam::{DVec3, DVec4};
@@ -127,26 +127,24 @@ impl BSplineSurface {
             // Already piecewise Bezier (every patch of a .bpt model): the net is cut as it is.
             return cut_patches((p, q), &breaks_u, &breaks_v, |i, j| pts[j * nu + i]);
         }
-        // Along u, one row (fixed j) at a time; rows (then columns) in parallel where a
-        // surface has enough of them to be worth a task.
-        let rows: Vec<(Vec<f64>, Vec<DVec4>)> = (0..nv)
-            .into_par_iter()
+        // Along u, one row (fixed j) at a time, into rows of the u-extracted net; then along
+        // v, one column (fixed i) of that at a time, into columns of the whole Bezier net.
+        // Rows (then columns) in parallel where a surface has enough of them to be worth a
+        // task.
+        let along_u = BezierExtraction::new(p, self.knots_u().knots());
+        let along_v = BezierExtraction::new(q, self.knots_v().knots());
+        let (nu2, nv2) = (along_u.extracted_len(), along_v.extracted_len());
+        let mut rows = vec![DVec4::ZERO; nu2 * nv];
+        (rows.par_chunks_mut(nu2).enumerate())
             .with_min_len(PARALLEL_POLYGONS)
-            .map(|j| refine_to_bezier(p, self.knots_u().knots(), &pts[j * nu..(j + 1) * nu]))
-            .collect();
-        let breaks_u = rows[0].0.clone();
-        let nu2 = rows[0].1.len();
-        // Along v, one column (fixed i) of the refined rows at a time.
-        let columns: Vec<(Vec<f64>, Vec<DVec4>)> = (0..nu2)
-            .into_par_iter()
+            .for_each(|(j, row)| along_u.extract(|i| pts[j * nu + i], row));
+        let mut columns = vec![DVec4::ZERO; nv2 * nu2];
+        (columns.par_chunks_mut(nv2).enumerate())
             .with_min_len(PARALLEL_POLYGONS)
-            .map(|i| {
-                let column: Vec<DVec4> = rows.iter().map(|(_, r)| r[i]).collect();
-                refine_to_bezier(q, self.knots_v().knots(), &column)
-            })
-            .collect();
-        let breaks_v = &columns[0].0;
-        cut_patches((p, q), &breaks_u, breaks_v, |i, j| columns[i].1[j])
+            .for_each(|(i, column)| along_v.extract(|j| rows[j * nu2 + i], column));
+        cut_patches((p, q), along_u.breaks(), along_v.breaks(), |i, j| {
+            columns[i * nv2 + j]
+        })
     }
 }
 
