@@ -3,7 +3,7 @@
 //! Bezier-extraction of B-splines. Every operation is exact up to f64 rounding.
 
 use glam::{DVec3, DVec4};
-use std::ops::{Add, Mul, Sub};
+use std::ops::{Add, Mul, Range, Sub};
 
 /// What a control point can be: a scalar, a Cartesian or a homogeneous point.
 pub(crate) trait Value:
@@ -266,21 +266,19 @@ pub(crate) fn elevate_bezier<T: Value>(points: &[T], degree: usize) -> Vec<T> {
 /// Segment s over the non-empty span [a, b] = [knots[k], knots[k+1]] has the points
 /// P(a^(p−j), b^j), j = 0..=p, of the polygon's blossom; each comes from de Boor's recurrence
 /// over the p + 1 control points k − p..=k with the arguments a (p − j times) then b. Every
-/// weight (t − knots[i]) / (knots[i+p+1−r] − knots[i]) lies in [0, 1] (a ≤ t ≤ b and the
-/// denominator spans the span), so each point is a convex combination: no cancellation, and
-/// O(p³) operations a span without reallocating the polygon as repeated knot insertion
-/// does. Unclamped vectors and interior multiplicities need nothing special.
+/// weight (t − knots[i]) / (knots[i+p+1−r] − knots[i]) of that recurrence lies in [0, 1]
+/// (a ≤ t ≤ b, and the denominator covers the span), so each point is a convex combination
+/// of control points. The recurrence is run once per knot vector on the coefficients of
+/// those combinations; extracting a polygon is then one weighted sum per point (its exact
+/// zeros at either end left out) — no reallocation of the polygon as with repeated knot
+/// insertion, and unclamped vectors and interior multiplicities need nothing special.
 pub(crate) struct BezierExtraction {
-    degree: usize,
-    /// Control points the polygons have.
-    count: usize,
     /// The distinct breakpoints of the domain [knots[p], knots[n]].
     breaks: Vec<f64>,
-    /// Per segment, the index k of the last control point its span depends on.
-    last_points: Vec<usize>,
-    /// The recurrence's weights in the order [`extract`](Self::extract) consumes them:
-    /// segments, their points (j = 0 only in the first segment, the others share it with
-    /// the segment before), levels r = 1..=p, control points i = k down to k − p + r.
+    /// One per extracted point, in order (segments, then j; j = 0 only in the first segment,
+    /// the others share it with the segment before): the first control point it combines
+    /// and where its weights are in `weights`.
+    sums: Vec<(usize, Range<usize>)>,
     weights: Vec<f64>,
 }
 
@@ -290,28 +288,47 @@ impl BezierExtraction {
     pub fn new(degree: usize, knots: &[f64]) -> Self {
         let p = degree;
         let count = knots.len() - p - 1;
-        let last_points: Vec<usize> = (p..count).filter(|&k| knots[k] < knots[k + 1]).collect();
-        let mut breaks = Vec::with_capacity(last_points.len() + 1);
-        breaks.extend(last_points.iter().map(|&k| knots[k]));
+        let spans: Vec<usize> = (p..count).filter(|&k| knots[k] < knots[k + 1]).collect();
+        let mut breaks = Vec::with_capacity(spans.len() + 1);
+        breaks.extend(spans.iter().map(|&k| knots[k]));
         breaks.push(knots[count]);
-        let per_point = p * (p + 1) / 2;
-        let mut weights = Vec::with_capacity((last_points.len() * p + 1) * per_point);
-        for (s, &k) in last_points.iter().enumerate() {
+        let points = spans.len() * p + 1;
+        let mut sums = Vec::with_capacity(points);
+        let mut weights = Vec::with_capacity(points * (p + 1));
+        // local[l]: the coefficients over control points k − p..=k of the recurrence's l-th
+        // entry (initially control point k − p + l itself).
+        let mut local = [[0.0; super::MAX_DEGREE + 1]; super::MAX_DEGREE + 1];
+        for (s, &k) in spans.iter().enumerate() {
             let (a, b) = (knots[k], knots[k + 1]);
             for j in usize::from(s > 0)..=p {
+                for (l, entry) in local[..=p].iter_mut().enumerate() {
+                    *entry = [0.0; super::MAX_DEGREE + 1];
+                    entry[l] = 1.0;
+                }
                 for r in 1..=p {
                     let t = if r <= p - j { a } else { b };
-                    for i in (k + r - p..=k).rev() {
-                        weights.push((t - knots[i]) / (knots[i + p + 1 - r] - knots[i]));
+                    for l in (r..=p).rev() {
+                        let i = k - p + l;
+                        let alpha = (t - knots[i]) / (knots[i + p + 1 - r] - knots[i]);
+                        let before = local[l - 1];
+                        for (c, c_before) in local[l][..=p].iter_mut().zip(&before[..=p]) {
+                            *c = lerp(*c_before, *c, alpha);
+                        }
                     }
                 }
+                let sum = &local[p][..=p];
+                let first = sum.iter().position(|&c| c != 0.0).unwrap_or(0);
+                let end = sum
+                    .iter()
+                    .rposition(|&c| c != 0.0)
+                    .map_or(first, |last| last + 1);
+                sums.push((k - p + first, weights.len()..weights.len() + end - first));
+                weights.extend_from_slice(&sum[first..end]);
             }
         }
         Self {
-            degree,
-            count,
             breaks,
-            last_points,
+            sums,
             weights,
         }
     }
@@ -323,33 +340,17 @@ impl BezierExtraction {
 
     /// Points of the extracted polygon: k·p + 1 for k segments (neighbours share an end).
     pub fn extracted_len(&self) -> usize {
-        self.last_points.len() * self.degree + 1
+        self.sums.len()
     }
 
     /// Writes the Bezier points of the polygon whose control point i is `point(i)` (i below
     /// the vector's control point count) into `out` (exactly
     /// [`extracted_len`](Self::extracted_len) long), segment after segment.
     pub fn extract<T: Value>(&self, point: impl Fn(usize) -> T, out: &mut [T]) {
-        let p = self.degree;
         debug_assert_eq!(out.len(), self.extracted_len());
-        let mut scratch = [T::default(); super::MAX_DEGREE + 1];
-        let local = &mut scratch[..=p];
-        let mut weights = self.weights.iter();
-        let mut outputs = out.iter_mut();
-        for (s, &k) in self.last_points.iter().enumerate() {
-            debug_assert!(k < self.count);
-            for _ in usize::from(s > 0)..=p {
-                for (d, i) in local.iter_mut().zip(k - p..) {
-                    *d = point(i);
-                }
-                for r in 1..=p {
-                    for i in (r..=p).rev() {
-                        let alpha = *weights.next().expect("a weight per step");
-                        local[i] = lerp(local[i - 1], local[i], alpha);
-                    }
-                }
-                *outputs.next().expect("extracted_len points") = local[p];
-            }
+        for (out, (first, weights)) in out.iter_mut().zip(&self.sums) {
+            *out = (self.weights[weights.clone()].iter().zip(*first..))
+                .fold(T::default(), |sum, (&w, i)| sum + point(i) * w);
         }
     }
 
