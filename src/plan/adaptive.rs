@@ -138,9 +138,21 @@ pub fn surface_cells(
     };
     // Each span's rates, and its probe pieces' bounds where it was cut into more than one
     // (p_u × p_v of them, u fastest).
+    // One strip and one piece per task, restricted into again and again.
+    // (Their degrees and ranges are set by each restriction.)
+    let scratch = || {
+        let empty = || BezierPatch {
+            degree_u: 0,
+            degree_v: 0,
+            points: Vec::new(),
+            range_u: Interval::new(0.0, 1.0),
+            range_v: Interval::new(0.0, 1.0),
+        };
+        (empty(), empty())
+    };
     let span_rates: Vec<SpanRates> = patches
         .par_iter()
-        .map(|patch| {
+        .map_init(scratch, |(strip, piece), patch| {
             let clipped_u = overlap(patch.range_u, range_u).unwrap();
             let clipped_v = overlap(patch.range_v, range_v).unwrap();
             // How finely to cut the span follows the rates the normal reaches in it; each
@@ -173,17 +185,11 @@ pub fn surface_cells(
             // Sums of the pieces' segments along each row and each column of pieces.
             let (mut rows_u, mut columns_v) = ([0u32; PROBE_PIECES], [0u32; PROBE_PIECES]);
             let mut bounded = vec![(DerivativeBound::default(), (0, 0)); p_u * p_v];
-            // One strip and one piece, restricted into again and again.
-            let empty = || BezierPatch {
-                points: Vec::with_capacity(patch.points.len()),
-                ..*patch
-            };
-            let (mut strip, mut piece) = (empty(), empty());
             for (a, (u0, u1, u)) in pieces(patch.range_u, clipped_u, p_u).enumerate() {
-                patch.restrict_u_into(u0, u1, &mut strip);
+                patch.restrict_u_into(u0, u1, strip);
                 for (b, (v0, v1, v)) in across_v.clone().enumerate() {
-                    strip.restrict_v_into(v0, v1, &mut piece);
-                    let (bound, (m_u, m_v)) = bound_piece(&piece, u, v);
+                    strip.restrict_v_into(v0, v1, piece);
+                    let (bound, (m_u, m_v)) = bound_piece(piece, u, v);
                     bounded[b * p_u + a] = (bound, (m_u, m_v));
                     rows_u[b] += m_u;
                     columns_v[a] += m_v;
