@@ -455,6 +455,27 @@ mod tests {
         }
     }
 
+    /// Reparametrizing maps every breakpoint linearly and keeps the function, the end landing
+    /// exactly on the new end (for −2.7 and 0.1, −2.7 + (0.1 − (−2.7)) is not 0.1 in f64).
+    #[test]
+    fn reparametrized_maps_breakpoints_linearly() {
+        // 1 + t on [2, 3], then 4 − 2(t − 3) on [3, 5]: continuous at 3.
+        let f = Piecewise {
+            degree: 1,
+            breaks: vec![2.0, 3.0, 5.0],
+            coeffs: vec![3.0, 4.0, 0.0],
+        };
+        let g = f.clone().reparametrized(-2.7, 0.1);
+        assert_eq!(g.breaks.len(), 3);
+        assert!((g.breaks[1] - (-2.7 + 2.8 / 3.0)).abs() < 1e-15, "{:?}", g.breaks);
+        assert_eq!((g.breaks[0], g.breaks[2]), (-2.7, 0.1));
+        for k in 0..=30 {
+            let t = 2.0 + 3.0 * k as f64 / 30.0;
+            let s = -2.7 + 2.8 * (t - 2.0) / 3.0;
+            assert!((g.value(s) - f.value(t)).abs() < 1e-13, "t {t}");
+        }
+    }
+
     /// A product, refinement and elevation agree with plain polynomial arithmetic.
     #[test]
     fn algebra_matches_power_form() {
