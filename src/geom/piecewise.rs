@@ -467,7 +467,11 @@ mod tests {
         };
         let g = f.clone().reparametrized(-2.7, 0.1);
         assert_eq!(g.breaks.len(), 3);
-        assert!((g.breaks[1] - (-2.7 + 2.8 / 3.0)).abs() < 1e-15, "{:?}", g.breaks);
+        assert!(
+            (g.breaks[1] - (-2.7 + 2.8 / 3.0)).abs() < 1e-15,
+            "{:?}",
+            g.breaks
+        );
         assert_eq!((g.breaks[0], g.breaks[2]), (-2.7, 0.1));
         for k in 0..=30 {
             let t = 2.0 + 3.0 * k as f64 / 30.0;
