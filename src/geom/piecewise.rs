@@ -362,15 +362,13 @@ impl BezierExtraction {
     }
 }
 
-/// Boehm's single knot insertion of `t` into a degree-`p` polygon with knots `knots`.
+/// Boehm's single knot insertion of `t`, strictly inside the domain, into a degree-`p`
+/// polygon with knots `knots`.
 pub(crate) fn insert_knot<T: Value>(p: usize, knots: &mut Vec<f64>, points: &mut Vec<T>, t: f64) {
     let n = points.len();
-    // Span k with knots[k] <= t < knots[k+1], taken among k in [p, n-1]; the domain end maps
-    // to the last non-empty span so inserting at the end still works.
-    let mut k = p + knots[p + 1..n].partition_point(|&x| x <= t);
-    while k > p && knots[k] == knots[k + 1] {
-        k -= 1;
-    }
+    debug_assert!(t > knots[p] && t < knots[n], "{t} inside the domain");
+    // The span k with knots[k] ≤ t < knots[k+1].
+    let k = p + knots[p + 1..n].partition_point(|&x| x <= t);
     let mut inserted = Vec::with_capacity(n + 1);
     inserted.extend_from_slice(&points[..=k - p]);
     for i in k - p + 1..=k {
