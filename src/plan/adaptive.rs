@@ -136,10 +136,8 @@ pub fn surface_cells(
             }
         }
     };
-    // Each span's rates, and its probe pieces' bounds where it was cut into more than one
-    // (p_u × p_v of them, u fastest).
-    // One strip and one piece per task, restricted into again and again.
-    // (Their degrees and ranges are set by each restriction.)
+    // One strip and one piece per task, restricted into again and again (their degrees
+    // and ranges are set by each restriction).
     let scratch = || {
         let empty = || BezierPatch {
             degree_u: 0,
@@ -150,6 +148,8 @@ pub fn surface_cells(
         };
         (empty(), empty())
     };
+    // Each span's rates, and its probe pieces' bounds where it was cut into more than one
+    // (p_u × p_v of them, u fastest).
     let span_rates: Vec<SpanRates> = patches
         .par_iter()
         .map_init(scratch, |(strip, piece), patch| {
