@@ -491,51 +491,55 @@ impl BezierPatch {
     /// The patch restricted to the parameters between fractions `from` and `to` (0 ≤ from <
     /// to ≤ 1) of its u range: de Casteljau subdivision of each row, exact up to rounding.
     pub fn restricted_u(&self, from: f64, to: f64) -> BezierPatch {
-        let mut strip = BezierPatch {
-            points: Vec::with_capacity(self.points.len()),
-            ..*self
-        };
-        self.restrict_u_into(from, to, &mut strip);
-        strip
+        self.restricted(false, from, to)
     }
 
     /// [`restricted_u`](Self::restricted_u) into `strip`, reusing its storage.
     pub fn restrict_u_into(&self, from: f64, to: f64, strip: &mut BezierPatch) {
-        let row = self.degree_u + 1;
-        strip.points.clear();
-        strip.points.extend_from_slice(&self.points);
-        for first in (0..strip.points.len()).step_by(row) {
-            restrict_in_place(&mut strip.points, first, 1, row, from, to);
-        }
-        let r = self.range_u;
-        (strip.degree_u, strip.degree_v) = (self.degree_u, self.degree_v);
-        strip.range_u = super::Interval::new(r.lerp(from), r.lerp(to));
-        strip.range_v = self.range_v;
+        self.restrict_into(false, from, to, strip);
     }
 
     /// [`restricted_u`](Self::restricted_u) along v.
     pub fn restricted_v(&self, from: f64, to: f64) -> BezierPatch {
-        let mut piece = BezierPatch {
-            points: Vec::with_capacity(self.points.len()),
-            ..*self
-        };
-        self.restrict_v_into(from, to, &mut piece);
-        piece
+        self.restricted(true, from, to)
     }
 
     /// [`restricted_v`](Self::restricted_v) into `piece`, reusing its storage (cells
     /// along one strip are bounded one after another without an allocation each).
     pub fn restrict_v_into(&self, from: f64, to: f64, piece: &mut BezierPatch) {
+        self.restrict_into(true, from, to, piece);
+    }
+
+    /// The restriction along u, or v where `along_v`, into a new patch.
+    fn restricted(&self, along_v: bool, from: f64, to: f64) -> BezierPatch {
+        let mut restricted = BezierPatch {
+            points: Vec::with_capacity(self.points.len()),
+            ..*self
+        };
+        self.restrict_into(along_v, from, to, &mut restricted);
+        restricted
+    }
+
+    /// The restriction along u, or v where `along_v`, into `into` (its points' storage
+    /// reused): every polygon along that direction restricted in place.
+    fn restrict_into(&self, along_v: bool, from: f64, to: f64, into: &mut BezierPatch) {
         let row = self.degree_u + 1;
-        piece.points.clear();
-        piece.points.extend_from_slice(&self.points);
-        for first in 0..row {
-            restrict_in_place(&mut piece.points, first, row, self.degree_v + 1, from, to);
-        }
-        let r = self.range_v;
-        (piece.degree_u, piece.degree_v) = (self.degree_u, self.degree_v);
-        piece.range_u = self.range_u;
-        piece.range_v = super::Interval::new(r.lerp(from), r.lerp(to));
+        into.points.clear();
+        into.points.extend_from_slice(&self.points);
+        (into.degree_u, into.degree_v) = (self.degree_u, self.degree_v);
+        (into.range_u, into.range_v) = (self.range_u, self.range_v);
+        let range = if along_v {
+            for first in 0..row {
+                restrict_in_place(&mut into.points, first, row, self.degree_v + 1, from, to);
+            }
+            &mut into.range_v
+        } else {
+            for first in (0..into.points.len()).step_by(row) {
+                restrict_in_place(&mut into.points, first, 1, row, from, to);
+            }
+            &mut into.range_u
+        };
+        *range = super::Interval::new(range.lerp(from), range.lerp(to));
     }
 }
 

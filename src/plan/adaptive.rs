@@ -88,6 +88,19 @@ pub enum BoundEffort {
     Tightest,
 }
 
+/// A strip of a span and a piece of the strip, for a rayon task to restrict into again and
+/// again (each restriction sets their degrees and ranges).
+fn scratch_patches() -> (BezierPatch, BezierPatch) {
+    let empty = || BezierPatch {
+        degree_u: 0,
+        degree_v: 0,
+        points: Vec::new(),
+        range_u: Interval::new(0.0, 1.0),
+        range_v: Interval::new(0.0, 1.0),
+    };
+    (empty(), empty())
+}
+
 /// The cells of `surface` for `limits`: every triangle made from them lies within the
 /// tolerance of the surface over its parameter triangle, and none has an edge longer than
 /// the longest edge. `effort`: how each cell is bounded.
@@ -136,23 +149,11 @@ pub fn surface_cells(
             }
         }
     };
-    // One strip and one piece per task, restricted into again and again (their degrees
-    // and ranges are set by each restriction).
-    let scratch = || {
-        let empty = || BezierPatch {
-            degree_u: 0,
-            degree_v: 0,
-            points: Vec::new(),
-            range_u: Interval::new(0.0, 1.0),
-            range_v: Interval::new(0.0, 1.0),
-        };
-        (empty(), empty())
-    };
     // Each span's rates, and its probe pieces' bounds where it was cut into more than one
     // (p_u × p_v of them, u fastest).
     let span_rates: Vec<SpanRates> = patches
         .par_iter()
-        .map_init(scratch, |(strip, piece), patch| {
+        .map_init(scratch_patches, |(strip, piece), patch| {
             let clipped_u = overlap(patch.range_u, range_u).unwrap();
             let clipped_v = overlap(patch.range_v, range_v).unwrap();
             // How finely to cut the span follows the rates the normal reaches in it; each
@@ -244,61 +245,66 @@ pub fn surface_cells(
         .par_iter()
         .zip(&placed)
         .zip(&span_rates)
-        .map(|((patch, &(c, r)), span)| {
-            let (count_u, count_v) = (along_u[c].len(), along_v[r].len());
-            let mut own = Vec::with_capacity(count_u * count_v);
-            // Cells cut as the span's probes were are those pieces: their bounds are known
-            // (the same restriction of the same patch). Cells that are unions of k_u × k_v
-            // probe pieces are bounded by the larger of their pieces' bounds (without an
-            // angle limit: normal rates are bounded per rectangle).
-            let (p_u, p_v) = span.probes;
-            let merged = (p_u > 0 && p_u % count_u == 0 && p_v % count_v == 0)
-                .then(|| (p_u / count_u, p_v / count_v))
-                .filter(|&k| k == (1, 1) || !limits.max_angle.is_finite());
-            for (a, &(u0, u1, u)) in along_u[c].iter().enumerate() {
-                // The column's strip (and a piece reused along it), cut where needed.
-                let mut cut: Option<(BezierPatch, BezierPatch)> = None;
-                for (b, &(v0, v1, v)) in along_v[r].iter().enumerate() {
-                    let (bound, segments) = match merged {
-                        Some((1, 1)) => span.bounded[b * p_u + a],
-                        Some((k_u, k_v)) => {
-                            let pieces = (b * k_v..(b + 1) * k_v).flat_map(|j| {
-                                (a * k_u..(a + 1) * k_u).map(move |i| span.bounded[j * p_u + i].0)
+        .map_init(
+            scratch_patches,
+            |(strip, piece), ((patch, &(c, r)), span)| {
+                let (count_u, count_v) = (along_u[c].len(), along_v[r].len());
+                let mut own = Vec::with_capacity(count_u * count_v);
+                // Cells cut as the span's probes were are those pieces: their bounds are known
+                // (the same restriction of the same patch). Cells that are unions of k_u × k_v
+                // probe pieces are bounded by the larger of their pieces' bounds (without an
+                // angle limit: normal rates are bounded per rectangle).
+                let (p_u, p_v) = span.probes;
+                let merged = (p_u > 0 && p_u % count_u == 0 && p_v % count_v == 0)
+                    .then(|| (p_u / count_u, p_v / count_v))
+                    .filter(|&k| k == (1, 1) || !limits.max_angle.is_finite());
+                for (a, &(u0, u1, u)) in along_u[c].iter().enumerate() {
+                    // The column's strip (and a piece reused along it), cut where needed.
+                    let mut strip_cut = false;
+                    for (b, &(v0, v1, v)) in along_v[r].iter().enumerate() {
+                        let (bound, segments) = match merged {
+                            Some((1, 1)) => span.bounded[b * p_u + a],
+                            Some((k_u, k_v)) => {
+                                let pieces = (b * k_v..(b + 1) * k_v).flat_map(|j| {
+                                    (a * k_u..(a + 1) * k_u)
+                                        .map(move |i| span.bounded[j * p_u + i].0)
+                                });
+                                let bound =
+                                    pieces.reduce(DerivativeBound::max).expect("k_u, k_v ≥ 1");
+                                (bound, segments_of(bound, u, v))
+                            }
+                            None => {
+                                if !strip_cut {
+                                    patch.restrict_u_into(u0, u1, strip);
+                                    strip_cut = true;
+                                }
+                                strip.restrict_v_into(v0, v1, piece);
+                                bound_piece(piece, u, v)
+                            }
+                        };
+                        if segments.0.max(segments.1) >= MAX_CELL_SEGMENTS {
+                            return Err(Error::ToleranceTooFine {
+                                tolerance: limits.tolerance,
+                                max_edge: limits.max_edge,
+                                max_angle_degrees: limits.max_angle.to_degrees(),
+                                segments: MAX_CELL_SEGMENTS,
                             });
-                            let bound = pieces.reduce(DerivativeBound::max).expect("k_u, k_v ≥ 1");
-                            (bound, segments_of(bound, u, v))
                         }
-                        None => {
-                            let (strip, piece) = cut.get_or_insert_with(|| {
-                                let strip = patch.restricted_u(u0, u1);
-                                (strip.clone(), strip)
-                            });
-                            strip.restrict_v_into(v0, v1, piece);
-                            bound_piece(piece, u, v)
-                        }
-                    };
-                    if segments.0.max(segments.1) >= MAX_CELL_SEGMENTS {
-                        return Err(Error::ToleranceTooFine {
-                            tolerance: limits.tolerance,
-                            max_edge: limits.max_edge,
-                            max_angle_degrees: limits.max_angle.to_degrees(),
-                            segments: MAX_CELL_SEGMENTS,
-                        });
+                        let index = (first_row[r] + b) * columns + first_column[c] + a;
+                        own.push((
+                            index,
+                            Cell {
+                                range_u: u,
+                                range_v: v,
+                                segments,
+                                bound,
+                            },
+                        ));
                     }
-                    let index = (first_row[r] + b) * columns + first_column[c] + a;
-                    own.push((
-                        index,
-                        Cell {
-                            range_u: u,
-                            range_v: v,
-                            segments,
-                            bound,
-                        },
-                    ));
                 }
-            }
-            Ok(own)
-        })
+                Ok(own)
+            },
+        )
         .collect::<Result<_>>()?;
     for (index, cell) in bounded.into_iter().flatten() {
         cells[index] = cell;
