@@ -591,7 +591,15 @@ fn evaluate_row(
     positions: &mut [DVec3],
     normals: &mut [DVec3],
 ) {
-    contract_columns(surface, columns, rows, j, scratch);
+    if fma {
+        // SAFETY: `has_fma` checked at run time that this CPU has AVX2 and FMA.
+        #[cfg(target_arch = "x86_64")]
+        unsafe {
+            contract_columns_avx2_fma(surface, columns, rows, j, scratch)
+        };
+    } else {
+        contract_columns::<Portable>(surface, columns, rows, j, scratch);
+    }
     let row = Row {
         surface,
         columns,
@@ -600,7 +608,7 @@ fn evaluate_row(
         scratch,
     };
     if fma {
-        // SAFETY: `has_fma` checked at run time that this CPU has AVX2 and FMA.
+        // SAFETY: as above.
         #[cfg(target_arch = "x86_64")]
         unsafe {
             row.evaluate_avx2_fma(positions, normals)
@@ -622,9 +630,23 @@ fn has_fma() -> bool {
     }
 }
 
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn contract_columns_avx2_fma(
+    surface: &BSplineSurface,
+    columns: &AxisSamples,
+    rows: &AxisSamples,
+    j: usize,
+    scratch: &mut RowScratch,
+) {
+    contract_columns::<Avx2>(surface, columns, rows, j, scratch);
+}
+
 /// Contracts the control net along v at grid row `j`: for every control column the spans of
-/// this grid touch, the homogeneous value and v-derivative of that column at v_j.
-fn contract_columns(
+/// this grid touch, the homogeneous value and v-derivative of that column at v_j (one
+/// homogeneous point per [`F64x4`]).
+#[inline(always)]
+fn contract_columns<V: F64x4>(
     surface: &BSplineSurface,
     columns: &AxisSamples,
     rows: &AxisSamples,
@@ -637,15 +659,24 @@ fn contract_columns(
     let span_v = rows.spans()[j];
     let first_column = columns.runs().first().map_or(0, |r| r.span - p);
     let last_column = columns.runs().last().map_or(0, |r| r.span);
-    for c in first_column..=last_column {
-        let (mut value, mut dv) = (DVec4::ZERO, DVec4::ZERO);
-        for b in 0..=q {
-            let pt = points[(span_v - q + b) * count_u + c];
-            value += rows.row(0, b)[j] * pt;
-            dv += rows.row(1, b)[j] * pt;
+    let (values, dvs) = (
+        &mut scratch.column_value[first_column..=last_column],
+        &mut scratch.column_dv[first_column..=last_column],
+    );
+    // Row by row of the net, each row's columns contiguous: value += N_b(v_j)·P, dv likewise.
+    for b in 0..=q {
+        let (n, dn) = (V::splat(rows.row(0, b)[j]), V::splat(rows.row(1, b)[j]));
+        let net_row = (span_v - q + b) * count_u;
+        let net_row = &points[net_row + first_column..=net_row + last_column];
+        for ((value, dv), point) in values.iter_mut().zip(dvs.iter_mut()).zip(net_row) {
+            let point = V::load(point.as_ref());
+            let (sum, d_sum) = match b {
+                0 => (V::splat(0.0), V::splat(0.0)),
+                _ => (V::load(value.as_ref()), V::load(dv.as_ref())),
+            };
+            *value = DVec4::from_array(point.mul_add(n, sum).to_array());
+            *dv = DVec4::from_array(point.mul_add(dn, d_sum).to_array());
         }
-        scratch.column_value[c] = value;
-        scratch.column_dv[c] = dv;
     }
 }
 
@@ -777,8 +808,9 @@ mod tests {
     use super::*;
     use crate::geom::KnotVector;
 
-    /// The portable kernel and the AVX2+FMA kernel agree to rounding (FMA rounds once where
-    /// the portable code rounds twice), including on run remainders shorter than four lanes.
+    /// The portable kernels and the AVX2+FMA ones (contraction and row) agree to rounding
+    /// (FMA rounds once where the portable code rounds twice), including on run remainders
+    /// shorter than four lanes.
     #[test]
     fn portable_and_simd_kernels_agree() {
         if !has_fma() {
@@ -812,19 +844,18 @@ mod tests {
         .unwrap();
         let columns = AxisSamples::uniform(surface.knots_u(), surface.range_u(), 23);
         let rows = AxisSamples::uniform(surface.knots_v(), surface.range_v(), 6);
-        let mut scratch = RowScratch {
-            column_value: vec![DVec4::ZERO; nu],
-            column_dv: vec![DVec4::ZERO; nu],
-        };
+        let (mut portable, mut simd) = (RowScratch::new(nu), RowScratch::new(nu));
         let size = surface.control_box_diagonal();
         for j in 0..6 {
-            contract_columns(&surface, &columns, &rows, j, &mut scratch);
-            let row = Row {
+            contract_columns::<Portable>(&surface, &columns, &rows, j, &mut portable);
+            // SAFETY: has_fma() was checked above.
+            unsafe { contract_columns_avx2_fma(&surface, &columns, &rows, j, &mut simd) };
+            let row = |scratch| Row {
                 surface: &surface,
                 columns: &columns,
                 wanted: 0..23,
                 v: rows.params()[j],
-                scratch: &scratch,
+                scratch,
             };
             let (mut p1, mut n1, mut p2, mut n2) = (
                 vec![DVec3::ZERO; 23],
@@ -834,10 +865,14 @@ mod tests {
             );
             // A regular surface at moderate weights: every normal is the kernels' own, none
             // handed to point evaluation (which would hide a wrong S_u or S_v).
-            assert_eq!(row.evaluate::<Portable>(&mut p1, &mut n1), 0, "row {j}");
+            assert_eq!(
+                row(&portable).evaluate::<Portable>(&mut p1, &mut n1),
+                0,
+                "row {j}"
+            );
             // SAFETY: has_fma() was checked above.
             assert_eq!(
-                unsafe { row.evaluate_avx2_fma(&mut p2, &mut n2) },
+                unsafe { row(&simd).evaluate_avx2_fma(&mut p2, &mut n2) },
                 0,
                 "row {j}"
             );
