@@ -5028,7 +5028,7 @@ fn streamed_files_the_disk_cannot_hold_are_refused() {
 /// lines lie at 0.3·gap, nearer the lower sheet — a file whose edges miss their face by
 /// 0.7·gap (within the mesher's allowance of 1e-3 of the face's size). With `pcurves`, each
 /// edge is a SURFACE_CURVE whose pcurve draws it on the upper sheet.
-fn step_folded_face(gap: f64, pcurves: bool) -> String {
+fn step_folded_face(gap: f64, pcurves: Option<f64>) -> String {
     let mut w = StepWriter::default();
     let rows: Vec<String> = [(0.0, 0.0), (1.0, 0.0), (1.0, gap), (0.0, gap)]
         .iter()
@@ -5062,9 +5062,10 @@ fn step_folded_face(gap: f64, pcurves: bool) -> String {
             (end - start).length()
         ));
         let mut curve = w.add(format!("LINE('',{origin},{vector})"));
-        if pcurves {
-            // The same line in (u, v), with the same parameter: 0 at the start, 1 at the end.
-            let (uv0, uv1) = ((u_of(x0), y0), (u_of(x1), y1));
+        if let Some(shift) = pcurves {
+            // The same line in (u, v), with the same parameter: 0 at the start, 1 at the end
+            // (moved by `shift` along v).
+            let (uv0, uv1) = ((u_of(x0), y0 + shift), (u_of(x1), y1 + shift));
             let origin = w.add(format!("CARTESIAN_POINT('',({:?},{:?}))", uv0.0, uv0.1));
             let (du, dv) = (uv1.0 - uv0.0, uv1.1 - uv0.1);
             let length = du.hypot(dv);
@@ -5316,26 +5317,31 @@ fn step_pcurves_put_edges_on_the_sheet_the_file_means() {
     // The upper sheet's normal points down; the lower sheet's up. Every vertex normal of the
     // mesh says which sheet the face was meshed on (its positions are the edges' points,
     // between the two).
-    let normals_z = |pcurves: bool| -> Vec<f64> {
+    let normals_z = |pcurves: Option<f64>| -> Vec<f64> {
         let scene = step_scene(&step_folded_face(gap, pcurves));
         assert!(scene.dropped.is_empty(), "{:?}", scene.dropped);
         let knotwork::Geometry::Shell(shell) = &scene.items[0].geometry else {
             panic!("a STEP face is a shell")
         };
-        assert_eq!(shell.faces()[0].traces.len(), if pcurves { 4 } else { 0 });
+        let traces = if pcurves.is_some() { 4 } else { 0 };
+        assert_eq!(shell.faces()[0].traces.len(), traces);
         let mesh = step_mesh(&scene, 1e-3);
         assert!(!mesh.indices.is_empty());
         mesh.normals.iter().map(|n| n.z).collect()
     };
-    let with = normals_z(true);
+    let with = normals_z(Some(0.0));
     assert!(with.iter().all(|&z| z < -1.0 + 1e-12), "{with:?}");
     // Without them the edges' points go to the nearer sheet: the face is meshed there.
-    let without = normals_z(false);
+    let without = normals_z(None);
     assert!(without.iter().all(|&z| z > 1.0 - 1e-12), "{without:?}");
+    // Pcurves that miss their edges' vertices (0.1 off along v, the part being 1 wide) are
+    // not the edges' parameters: they are left unused, as if there were none.
+    let missing = normals_z(Some(0.1));
+    assert!(missing.iter().all(|&z| z > 1.0 - 1e-12), "{missing:?}");
     // The CLI calls the part what it is: a shell that bounds no solid.
     let dir = ScratchDir::new("folded");
     let (input, out) = (dir.join("folded.step"), dir.join("folded.obj"));
-    std::fs::write(&input, step_folded_face(gap, true)).unwrap();
+    std::fs::write(&input, step_folded_face(gap, Some(0.0))).unwrap();
     let run = succeeds(&[
         "tessellate",
         input.to_str().unwrap(),
