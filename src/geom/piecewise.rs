@@ -295,28 +295,31 @@ impl BezierExtraction {
         let points = spans.len() * p + 1;
         let mut sums = Vec::with_capacity(points);
         let mut weights = Vec::with_capacity(points * (p + 1));
-        // local[l]: the coefficients over control points k − p..=k of the recurrence's l-th
-        // entry (initially control point k − p + l itself).
-        let mut local = [[0.0; super::MAX_DEGREE + 1]; super::MAX_DEGREE + 1];
+        // local[l·(p + 1)..][..=p]: the coefficients over control points k − p..=k of the
+        // recurrence's l-th entry (initially control point k − p + l itself).
+        let width = p + 1;
+        let mut local = [0.0; (super::MAX_DEGREE + 1) * (super::MAX_DEGREE + 1)];
+        let local = &mut local[..width * width];
         for (s, &k) in spans.iter().enumerate() {
             let (a, b) = (knots[k], knots[k + 1]);
             for j in usize::from(s > 0)..=p {
-                for (l, entry) in local[..=p].iter_mut().enumerate() {
-                    *entry = [0.0; super::MAX_DEGREE + 1];
-                    entry[l] = 1.0;
+                local.fill(0.0);
+                for l in 0..=p {
+                    local[l * width + l] = 1.0;
                 }
                 for r in 1..=p {
                     let t = if r <= p - j { a } else { b };
                     for l in (r..=p).rev() {
                         let i = k - p + l;
                         let alpha = (t - knots[i]) / (knots[i + p + 1 - r] - knots[i]);
-                        let before = local[l - 1];
-                        for (c, c_before) in local[l][..=p].iter_mut().zip(&before[..=p]) {
-                            *c = lerp(*c_before, *c, alpha);
+                        let (before, entry) = local.split_at_mut(l * width);
+                        let before = &before[(l - 1) * width..];
+                        for (c, &c_before) in entry[..width].iter_mut().zip(before) {
+                            *c = lerp(c_before, *c, alpha);
                         }
                     }
                 }
-                let sum = &local[p][..=p];
+                let sum = &local[p * width..];
                 let first = sum.iter().position(|&c| c != 0.0).unwrap_or(0);
                 let end = sum
                     .iter()
