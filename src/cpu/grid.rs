@@ -630,6 +630,7 @@ fn has_fma() -> bool {
     }
 }
 
+/// [`contract_columns`] on AVX2+FMA lanes: only for a CPU that [`has_fma`].
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn contract_columns_avx2_fma(
