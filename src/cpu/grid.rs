@@ -664,6 +664,8 @@ fn contract_columns<V: F64x4>(
         &mut scratch.column_value[first_column..=last_column],
         &mut scratch.column_dv[first_column..=last_column],
     );
+    values.fill(DVec4::ZERO);
+    dvs.fill(DVec4::ZERO);
     // Row by row of the net, each row's columns contiguous: value += N_b(v_j)·P, dv likewise.
     for b in 0..=q {
         let (n, dn) = (V::splat(rows.row(0, b)[j]), V::splat(rows.row(1, b)[j]));
@@ -671,12 +673,8 @@ fn contract_columns<V: F64x4>(
         let net_row = &points[net_row + first_column..=net_row + last_column];
         for ((value, dv), point) in values.iter_mut().zip(dvs.iter_mut()).zip(net_row) {
             let point = V::load(point.as_ref());
-            let (sum, d_sum) = match b {
-                0 => (V::splat(0.0), V::splat(0.0)),
-                _ => (V::load(value.as_ref()), V::load(dv.as_ref())),
-            };
-            *value = DVec4::from_array(point.mul_add(n, sum).to_array());
-            *dv = DVec4::from_array(point.mul_add(dn, d_sum).to_array());
+            *value = DVec4::from_array(point.mul_add(n, V::load(value.as_ref())).to_array());
+            *dv = DVec4::from_array(point.mul_add(dn, V::load(dv.as_ref())).to_array());
         }
     }
 }
